@@ -1,0 +1,51 @@
+"""The ``jaxtrack`` command: one sub-command per module in :mod:`jaxtrack.commands`.
+
+Each command module defines ``register(subparsers)`` which adds its parser and sets
+``func(args) -> int`` as the parser default. Bad input (any :class:`jaxtrack.InputError`)
+is printed as ``jaxtrack <command>: error: <message>`` without a traceback, exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from jaxtrack.errors import InputError
+
+#: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
+COMMANDS = ("simulate", "inspect", "eval")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="jaxtrack",
+        description=(
+            "Context-aware multi-object tracking in JAX: particle PHD filter with learned "
+            "scene context, MOTChallenge data tools and TrackEval-exact metrics."
+        ),
+    )
+    from jaxtrack import __version__
+
+    parser.add_argument("--version", action="version", version=f"jaxtrack {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        importlib.import_module(f"jaxtrack.commands.{name}").register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except InputError as err:
+        print(f"jaxtrack {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"jaxtrack {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

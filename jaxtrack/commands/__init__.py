@@ -1,0 +1,1 @@
+"""Sub-commands of the jaxtrack CLI; each module defines ``register(subparsers)``."""

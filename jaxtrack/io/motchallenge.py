@@ -1,0 +1,544 @@
+"""Reading and writing MOTChallenge sequence folders and text files.
+
+A MOTChallenge file has one object per line, comma-separated:
+``frame, id, x, y, w, h, conf, c8, c9, c10``. Columns 8-10 are world coordinates in MOT15
+(usually -1) and ``class, visibility`` in MOT16/17 ground truth (9 columns). In ground truth,
+``conf == 0`` marks a row to be ignored by evaluation; this module keeps such rows and flags
+them, the evaluation decides.
+
+Host-side tables (:class:`MotTable`, NumPy, float64 exactly as read) feed evaluation and file
+writing; :func:`pad_detections` / :func:`pad_ground_truth` turn them into the fixed-capacity
+PyTrees of :mod:`jaxtrack.types` that a ``lax.scan`` consumes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence as SequenceABC
+from pathlib import Path
+
+import numpy as np
+
+from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.types import PAD_BOX, Detections, GroundTruth
+
+MIN_COLUMNS = 7
+MAX_COLUMNS = 10
+
+
+@dataclasses.dataclass(frozen=True)
+class SequenceInfo:
+    """The ``[Sequence]`` section of ``seqinfo.ini``.
+
+    Attributes:
+        name: sequence name.
+        seq_length: number of frames; frames are numbered ``1..seq_length``.
+        im_width: image width in pixels.
+        im_height: image height in pixels.
+        frame_rate: frames per second, or None when not given.
+    """
+
+    name: str
+    seq_length: int
+    im_width: int
+    im_height: int
+    frame_rate: float | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class MotTable:
+    """Rows of one MOTChallenge file, host-side, as read (float64, exact).
+
+    Attributes:
+        frames: 1-based frame number of each row, ``[num_rows]``.
+        ids: object id of each row (-1 for detections), ``[num_rows]``.
+        boxes: ``(x, y, w, h)``, ``[num_rows, 4]``.
+        confs: column 7 (detector score; in gt 0 means "ignore"), ``[num_rows]``.
+        extra: columns 8.. as read, ``[num_rows, num_columns - 7]``.
+        lines: 1-based line number each row came from (0 for rows not read from a file).
+        path: the file the rows came from, if any.
+    """
+
+    frames: np.ndarray
+    ids: np.ndarray
+    boxes: np.ndarray
+    confs: np.ndarray
+    extra: np.ndarray
+    lines: np.ndarray
+    path: str | None = None
+
+    def __len__(self) -> int:
+        return int(self.frames.shape[0])
+
+    @classmethod
+    def from_arrays(
+        cls,
+        frames,
+        ids,
+        boxes,
+        confs=None,
+        extra=None,
+        path: str | None = None,
+    ) -> MotTable:
+        """Builds a table from arrays (e.g. a tracker's output); ``confs`` default to 1."""
+        frames = np.asarray(frames, dtype=np.int64).reshape(-1)
+        n = frames.shape[0]
+        confs = np.ones(n) if confs is None else np.asarray(confs, dtype=np.float64).reshape(n)
+        extra = np.full((n, 3), -1.0) if extra is None else np.asarray(extra, dtype=np.float64)
+        return cls(
+            frames=frames,
+            ids=np.asarray(ids, dtype=np.int64).reshape(n),
+            boxes=np.asarray(boxes, dtype=np.float64).reshape(n, 4),
+            confs=confs,
+            extra=extra.reshape(n, -1),
+            lines=np.zeros(n, dtype=np.int64),
+            path=path,
+        )
+
+    def select(self, keep: np.ndarray) -> MotTable:
+        """Returns the rows where the boolean (or index) array ``keep`` selects."""
+        return dataclasses.replace(
+            self,
+            frames=self.frames[keep],
+            ids=self.ids[keep],
+            boxes=self.boxes[keep],
+            confs=self.confs[keep],
+            extra=self.extra[keep],
+            lines=self.lines[keep],
+        )
+
+    def frame_span(self, start: int, end: int) -> MotTable:
+        """Rows with ``start <= frame <= end`` (1-based, inclusive)."""
+        return self.select((self.frames >= start) & (self.frames <= end))
+
+    @property
+    def ignored(self) -> np.ndarray:
+        """Ground-truth convention: rows with ``conf == 0`` are to be ignored."""
+        return self.confs == 0
+
+
+@dataclasses.dataclass(frozen=True)
+class MotSequence:
+    """A loaded MOTChallenge sequence (or a frame span of it).
+
+    Attributes:
+        path: the sequence folder.
+        info: parsed ``seqinfo.ini``.
+        first_frame: 1-based number of the first frame in the span.
+        last_frame: 1-based number of the last frame in the span (inclusive).
+        det_table: detections of the span, host-side.
+        gt_table: ground truth of the span, or None when the folder has no ``gt/gt.txt``.
+        detections: padded detections, ``[num_frames, max_detections]``; index ``t`` is frame
+            ``first_frame + t``.
+        ground_truth: padded ground truth, or None.
+    """
+
+    path: Path
+    info: SequenceInfo
+    first_frame: int
+    last_frame: int
+    det_table: MotTable
+    gt_table: MotTable | None
+    detections: Detections
+    ground_truth: GroundTruth | None
+
+    @property
+    def num_frames(self) -> int:
+        return self.last_frame - self.first_frame + 1
+
+
+def read_seqinfo(path: str | Path) -> SequenceInfo:
+    """Parses a ``seqinfo.ini`` file.
+
+    Args:
+        path: path of the file.
+
+    Returns:
+        The sequence information.
+
+    Raises:
+        FileFormatError: the file is missing, has no ``[Sequence]`` section, a malformed line,
+            or a missing / non-numeric / non-positive ``seqLength``, ``imWidth``, ``imHeight``.
+    """
+    path = Path(path)
+    text = _read_text(path)
+    section = None
+    values: dict[str, tuple[str, int]] = {}
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith((";", "#")):
+            continue
+        if line.startswith("["):
+            if not line.endswith("]"):
+                raise FileFormatError(path, number, f"malformed section header {line!r}")
+            section = line[1:-1].strip()
+            continue
+        if "=" not in line:
+            raise FileFormatError(path, number, f"expected 'key=value', got {line!r}")
+        if section != "Sequence":
+            continue
+        key, value = (part.strip() for part in line.split("=", 1))
+        values[key] = (value, number)
+    if section is None and not values:
+        raise FileFormatError(path, None, "no [Sequence] section")
+
+    def integer(key: str) -> int:
+        if key not in values:
+            raise FileFormatError(path, None, f"missing key {key!r} in [Sequence]")
+        value, number = values[key]
+        try:
+            parsed = int(value)
+        except ValueError:
+            raise FileFormatError(
+                path, number, f"{key} must be a positive integer, got {value!r}"
+            ) from None
+        if parsed <= 0:
+            raise FileFormatError(path, number, f"{key} must be a positive integer, got {value}")
+        return parsed
+
+    frame_rate = None
+    if "frameRate" in values:
+        value, number = values["frameRate"]
+        try:
+            frame_rate = float(value)
+        except ValueError:
+            raise FileFormatError(path, number, f"frameRate must be a number, got {value!r}") from None
+        if not np.isfinite(frame_rate) or frame_rate <= 0:
+            raise FileFormatError(path, number, f"frameRate must be positive, got {value}")
+    name = values["name"][0] if "name" in values else path.parent.name
+    return SequenceInfo(
+        name=name,
+        seq_length=integer("seqLength"),
+        im_width=integer("imWidth"),
+        im_height=integer("imHeight"),
+        frame_rate=frame_rate,
+    )
+
+
+def write_seqinfo(path: str | Path, info: SequenceInfo) -> None:
+    """Writes ``seqinfo.ini`` in the MOTChallenge layout."""
+    lines = ["[Sequence]", f"name={info.name}", "imDir=img1"]
+    if info.frame_rate is not None:
+        lines.append(f"frameRate={_format_number(info.frame_rate)}")
+    lines += [
+        f"seqLength={info.seq_length}",
+        f"imWidth={info.im_width}",
+        f"imHeight={info.im_height}",
+        "imExt=.jpg",
+    ]
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def read_mot_file(
+    path: str | Path,
+    kind: str = "det",
+    seq_length: int | None = None,
+) -> MotTable:
+    """Reads a MOTChallenge text file, validating every row.
+
+    Args:
+        path: ``det.txt``, ``gt.txt`` or a tracker result file.
+        kind: ``"det"``, ``"gt"`` or ``"res"``. Ground truth and results must not repeat an id
+            within a frame.
+        seq_length: when given, every frame number must lie in ``1..seq_length``.
+
+    Returns:
+        The rows as a :class:`MotTable`, in file order.
+
+    Raises:
+        FileFormatError: naming the file and line, for a missing file, a row with fewer than 7
+            or more than 10 columns (or a different count than the first row), a non-numeric
+            field, NaN or inf, a non-integer frame or id, a non-positive width or height, a frame
+            outside ``1..seq_length``, or (gt/res) a repeated ``(frame, id)``.
+    """
+    if kind not in ("det", "gt", "res"):
+        raise ValueError(f"kind must be 'det', 'gt' or 'res', got {kind!r}")
+    path = Path(path)
+    text = _read_text(path)
+    rows: list[list[float]] = []
+    line_numbers: list[int] = []
+    num_columns = None
+    first_line = 0
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        fields = [f.strip() for f in line.split(",")] if "," in line else line.split()
+        if not MIN_COLUMNS <= len(fields) <= MAX_COLUMNS:
+            raise FileFormatError(
+                path,
+                number,
+                f"expected {MIN_COLUMNS} to {MAX_COLUMNS} comma-separated columns "
+                f"(frame,id,x,y,w,h,conf[,...]), got {len(fields)}",
+            )
+        if num_columns is None:
+            num_columns, first_line = len(fields), number
+        elif len(fields) != num_columns:
+            raise FileFormatError(
+                path,
+                number,
+                f"got {len(fields)} columns but line {first_line} has {num_columns}",
+            )
+        try:
+            values = [float(f) for f in fields]
+        except ValueError:
+            bad = next(f for f in fields if not _is_float(f))
+            column = fields.index(bad) + 1
+            raise FileFormatError(
+                path, number, f"column {column} is not a number: {bad!r}"
+            ) from None
+        rows.append(values)
+        line_numbers.append(number)
+
+    data = np.array(rows, dtype=np.float64).reshape(len(rows), num_columns or MAX_COLUMNS)
+    lines = np.array(line_numbers, dtype=np.int64)
+    _validate_rows(path, data, lines, kind, seq_length)
+    return MotTable(
+        frames=data[:, 0].astype(np.int64),
+        ids=data[:, 1].astype(np.int64),
+        boxes=data[:, 2:6].copy(),
+        confs=data[:, 6].copy(),
+        extra=data[:, 7:].copy(),
+        lines=lines,
+        path=str(path),
+    )
+
+
+def _validate_rows(path, data, lines, kind, seq_length) -> None:
+    def fail(bad: np.ndarray, reason) -> None:
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise FileFormatError(path, int(lines[i]), reason(i))
+
+    fail(~np.isfinite(data).all(axis=1), lambda i: f"NaN or inf value in {_row_text(data[i])}")
+    fail(
+        data[:, 0] != np.round(data[:, 0]),
+        lambda i: f"frame must be an integer, got {data[i, 0]:g}",
+    )
+    fail(data[:, 1] != np.round(data[:, 1]), lambda i: f"id must be an integer, got {data[i, 1]:g}")
+    fail(data[:, 4] <= 0, lambda i: f"width must be positive, got {data[i, 4]:g}")
+    fail(data[:, 5] <= 0, lambda i: f"height must be positive, got {data[i, 5]:g}")
+    upper = np.inf if seq_length is None else seq_length
+    fail(
+        (data[:, 0] < 1) | (data[:, 0] > upper),
+        lambda i: f"frame {data[i, 0]:g} outside 1..{seq_length if seq_length else 'inf'}",
+    )
+    if kind in ("gt", "res") and data.shape[0]:
+        keys = data[:, 0].astype(np.int64) * (2**32) + (data[:, 1].astype(np.int64) % (2**32))
+        order = np.argsort(keys, kind="stable")
+        repeated = np.zeros(data.shape[0], dtype=bool)
+        repeated[order[1:]] = keys[order[1:]] == keys[order[:-1]]
+        if np.any(repeated):
+            i = int(np.argmin(np.where(repeated, lines, np.iinfo(np.int64).max)))
+            first = lines[order[np.searchsorted(keys[order], keys[i])]]
+            raise FileFormatError(
+                path,
+                int(lines[i]),
+                f"id {int(data[i, 1])} appears twice in frame {int(data[i, 0])} "
+                f"(also on line {int(first)})",
+            )
+
+
+def write_mot_file(path: str | Path, table: MotTable) -> None:
+    """Writes a table as a MOTChallenge file, one row per line, exactly round-trippable.
+
+    Numbers are written in the shortest form that reads back to the same float64, so
+    ``read_mot_file(write_mot_file(t))`` reproduces ``t``'s values exactly. Tables without
+    extra columns are written with ``-1,-1,-1`` (the 10-column tracker result format that
+    TrackEval reads).
+    """
+    extra = table.extra if table.extra.shape[1] else np.full((len(table), 3), -1.0)
+    out = []
+    for i in range(len(table)):
+        numbers = [*table.boxes[i], table.confs[i], *extra[i]]
+        out.append(
+            f"{table.frames[i]},{table.ids[i]}," + ",".join(_format_number(v) for v in numbers)
+        )
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text("".join(line + "\n" for line in out))
+
+
+def write_results(path: str | Path, frames, ids, boxes, scores=None) -> None:
+    """Writes tracker output as ``frame,id,x,y,w,h,conf,-1,-1,-1`` (sorted by frame, id)."""
+    table = MotTable.from_arrays(frames, ids, boxes, scores)
+    order = np.lexsort((table.ids, table.frames))
+    write_mot_file(path, table.select(order))
+
+
+def pad_detections(
+    table: MotTable,
+    first_frame: int,
+    num_frames: int,
+    capacity: int | None = None,
+) -> Detections:
+    """Pads a detection table into a fixed-capacity :class:`Detections` PyTree.
+
+    Args:
+        table: detections; rows outside the frame span are an error.
+        first_frame: frame number of index 0.
+        num_frames: number of frames.
+        capacity: detections per frame; default: the largest count in the span (at least 1).
+
+    Raises:
+        InputError: a frame holds more detections than ``capacity`` (never a silent drop).
+    """
+    slot, capacity = _slots(table, first_frame, num_frames, capacity, "max_detections")
+    t = table.frames - first_frame
+    boxes = np.tile(np.asarray(PAD_BOX, np.float32), (num_frames, capacity, 1))
+    scores = np.zeros((num_frames, capacity), np.float32)
+    mask = np.zeros((num_frames, capacity), bool)
+    boxes[t, slot] = table.boxes
+    scores[t, slot] = table.confs
+    mask[t, slot] = True
+    return Detections(boxes=boxes, scores=scores, mask=mask)
+
+
+def pad_ground_truth(
+    table: MotTable,
+    first_frame: int,
+    num_frames: int,
+    capacity: int | None = None,
+) -> GroundTruth:
+    """Pads a ground-truth table into a :class:`GroundTruth` PyTree (see pad_detections)."""
+    slot, capacity = _slots(table, first_frame, num_frames, capacity, "max_objects")
+    t = table.frames - first_frame
+    boxes = np.tile(np.asarray(PAD_BOX, np.float32), (num_frames, capacity, 1))
+    ids = np.full((num_frames, capacity), -1, np.int32)
+    mask = np.zeros((num_frames, capacity), bool)
+    ignored = np.zeros((num_frames, capacity), bool)
+    boxes[t, slot] = table.boxes
+    ids[t, slot] = table.ids
+    mask[t, slot] = True
+    ignored[t, slot] = table.ignored
+    return GroundTruth(boxes=boxes, ids=ids, mask=mask, ignored=ignored)
+
+
+def _slots(table, first_frame, num_frames, capacity, name):
+    """Slot index of each row within its frame, and the capacity to use."""
+    t = table.frames - first_frame
+    outside = (t < 0) | (t >= num_frames)
+    if np.any(outside):
+        i = int(np.argmax(outside))
+        raise InputError(
+            f"row for frame {table.frames[i]} lies outside frames "
+            f"{first_frame}..{first_frame + num_frames - 1}"
+        )
+    counts = np.bincount(t, minlength=num_frames)
+    largest = int(counts.max()) if counts.size else 0
+    if capacity is None:
+        capacity = max(largest, 1)
+    elif largest > capacity:
+        frame = first_frame + int(np.argmax(counts))
+        source = f" in {table.path}" if table.path else ""
+        raise InputError(
+            f"frame {frame}{source} has {largest} rows but {name}={capacity}; "
+            f"raise {name} to at least {largest}"
+        )
+    order = np.argsort(t, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    slot = np.empty_like(t)
+    slot[order] = np.arange(t.shape[0]) - starts[t[order]]
+    return slot, capacity
+
+
+def load_sequence(
+    path: str | Path,
+    frames: tuple[int, int] | None = None,
+    max_detections: int | None = None,
+    max_objects: int | None = None,
+) -> MotSequence:
+    """Loads a MOTChallenge sequence folder.
+
+    Reads ``seqinfo.ini``, ``det/det.txt`` and, when present, ``gt/gt.txt``, validating every
+    row (see :func:`read_mot_file`).
+
+    Args:
+        path: the sequence folder.
+        frames: ``(start, end)``, 1-based inclusive span to keep; default: the whole sequence.
+        max_detections: detection capacity per frame; default: the largest count in the span.
+        max_objects: ground-truth capacity per frame; default: the largest count in the span.
+
+    Returns:
+        The sequence with host-side tables and padded PyTrees for the span.
+
+    Raises:
+        FileFormatError: a missing or malformed file (names the file and line).
+        InputError: a bad frame span or a capacity smaller than the data needs.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise FileFormatError(path, None, "sequence folder not found")
+    info = read_seqinfo(path / "seqinfo.ini")
+    first, last = parse_frame_span(frames, info.seq_length)
+    det_table = read_mot_file(path / "det" / "det.txt", "det", info.seq_length)
+    det_table = det_table.frame_span(first, last)
+    gt_path = path / "gt" / "gt.txt"
+    gt_table = None
+    ground_truth = None
+    num_frames = last - first + 1
+    if gt_path.exists():
+        gt_table = read_mot_file(gt_path, "gt", info.seq_length).frame_span(first, last)
+        ground_truth = pad_ground_truth(gt_table, first, num_frames, max_objects)
+    return MotSequence(
+        path=path,
+        info=info,
+        first_frame=first,
+        last_frame=last,
+        det_table=det_table,
+        gt_table=gt_table,
+        detections=pad_detections(det_table, first, num_frames, max_detections),
+        ground_truth=ground_truth,
+    )
+
+
+def parse_frame_span(frames, seq_length: int) -> tuple[int, int]:
+    """Validates a 1-based inclusive frame span; accepts None, ``(a, b)`` or ``"a:b"``.
+
+    In the string form either end may be omitted (``"401:"`` means 401 to the end).
+    """
+    if frames is None:
+        return 1, seq_length
+    if isinstance(frames, str):
+        parts = frames.split(":")
+        if len(parts) != 2:
+            raise InputError(f"frame span must look like A:B, got {frames!r}")
+        try:
+            start = int(parts[0]) if parts[0].strip() else 1
+            end = int(parts[1]) if parts[1].strip() else seq_length
+        except ValueError:
+            raise InputError(f"frame span must be two integers A:B, got {frames!r}") from None
+    elif isinstance(frames, SequenceABC) and len(frames) == 2:
+        start, end = int(frames[0]), int(frames[1])
+    else:
+        raise InputError(f"frame span must be (start, end), got {frames!r}")
+    if not 1 <= start <= end <= seq_length:
+        raise InputError(
+            f"frame span {start}:{end} must satisfy 1 <= start <= end <= {seq_length} (seqLength)"
+        )
+    return start, end
+
+
+def _read_text(path: Path) -> str:
+    if not path.is_file():
+        raise FileFormatError(path, None, "file not found")
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = path.read_bytes()[: err.start].count(b"\n") + 1
+        raise FileFormatError(path, line, "not UTF-8 text") from None
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _format_number(value: float) -> str:
+    return np.format_float_positional(float(value), trim="-")
+
+
+def _row_text(row: np.ndarray) -> str:
+    return ",".join(_format_number(v) for v in row)

@@ -1,0 +1,1 @@
+"""jaxtrack.plot."""
