@@ -202,7 +202,9 @@ def read_seqinfo(path: str | Path) -> SequenceInfo:
         try:
             frame_rate = float(value)
         except ValueError:
-            raise FileFormatError(path, number, f"frameRate must be a number, got {value!r}") from None
+            raise FileFormatError(
+                path, number, f"frameRate must be a number, got {value!r}"
+            ) from None
         if not np.isfinite(frame_rate) or frame_rate <= 0:
             raise FileFormatError(path, number, f"frameRate must be positive, got {value}")
     name = values["name"][0] if "name" in values else path.parent.name
