@@ -31,7 +31,7 @@ class Intensity(NamedTuple):
 
     Attributes:
         magnitude: expected number of events per frame (``lambda_s`` or ``lambda_r``).
-        uniform_weight: ``pi_u`` in ``(0, 1]``.
+        uniform_weight: ``pi_u`` in ``[0, 1]`` (0: a pure mixture, e.g. a known truth).
         lower: lower corner of the uniform's volume, ``[dim]``.
         upper: upper corner of the uniform's volume, ``[dim]``.
         weights: Gaussian mixture weights, ``[num_components]``; 0 marks a dead component;

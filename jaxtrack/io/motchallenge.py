@@ -85,12 +85,14 @@ class MotTable:
         n = frames.shape[0]
         confs = np.ones(n) if confs is None else np.asarray(confs, dtype=np.float64).reshape(n)
         extra = np.full((n, 3), -1.0) if extra is None else np.asarray(extra, dtype=np.float64)
+        if extra.ndim != 2 or extra.shape[0] != n:
+            raise ValueError(f"extra must have shape (num_rows, k), got {extra.shape}")
         return cls(
             frames=frames,
             ids=np.asarray(ids, dtype=np.int64).reshape(n),
             boxes=np.asarray(boxes, dtype=np.float64).reshape(n, 4),
             confs=confs,
-            extra=extra.reshape(n, -1),
+            extra=extra,
             lines=np.zeros(n, dtype=np.int64),
             path=path,
         )

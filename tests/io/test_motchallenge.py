@@ -256,3 +256,12 @@ def test_pad_detections_from_table():
     np.testing.assert_array_equal(det.mask, [[1, 1], [0, 0], [1, 0], [0, 0]])
     with pytest.raises(InputError, match=r"outside frames 4\.\.7"):
         pad_detections(table, first_frame=4, num_frames=4)
+
+
+def test_empty_table_round_trip(tmp_path):
+    table = MotTable.from_arrays([], [], np.zeros((0, 4)))
+    assert len(table) == 0 and table.extra.shape == (0, 3)
+    write_mot_file(tmp_path / "empty.txt", table)
+    assert len(read_mot_file(tmp_path / "empty.txt", "res")) == 0
+    det = pad_detections(table, first_frame=1, num_frames=3)
+    assert det.boxes.shape == (3, 1, 4) and not det.mask.any()

@@ -1,0 +1,361 @@
+"""Typed configuration of the synthetic surveillance scenes (:mod:`jaxtrack.datasets.synthetic`).
+
+Three frozen dataclasses: :class:`EntryZone` (where and how targets are born),
+:class:`ClutterSource` (a localised, spatially persistent source of false detections) and
+:class:`SceneConfig` (everything else). The defaults describe a 768x576 plaza seen by a
+surveillance camera at 10 frames/s: four zones on the image border, a doorway inside the
+image, three clutter sources (waving vegetation, a bush, a window reflection) and weak uniform
+clutter, with about ten targets in view.
+
+Units: positions and sizes in pixels, velocities in pixels/frame, rates in expected events
+per frame. A configuration round-trips through JSON with :func:`config_to_dict` and
+:func:`config_from_dict` (the latter also applies partial overrides to a base config).
+Invalid values raise :class:`jaxtrack.errors.InputError`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any
+
+from jaxtrack.errors import InputError
+
+Pair = tuple[float, float]
+
+
+def _check_finite(name: str, values) -> None:
+    if not all(math.isfinite(v) for v in values):
+        raise InputError(f"{name} must be finite, got {values}")
+
+
+def _check_positive(name: str, values) -> None:
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        raise InputError(f"{name} must be positive, got {values}")
+
+
+@dataclasses.dataclass(frozen=True)
+class EntryZone:
+    """An entry (and optionally exit) zone: a Gaussian birth component in position and velocity.
+
+    A birth in this zone has its centre drawn from ``N(centre, diag(position_std^2))`` and its
+    centre velocity from ``N(velocity, diag(velocity_std^2))``; its size follows the
+    perspective law of :class:`SceneConfig` (see ``synthetic.zone_birth_gaussian``).
+
+    Attributes:
+        name: label used in plots and metadata.
+        centre: mean box centre ``(y1, y2)`` (column, row) of a birth, pixels.
+        position_std: standard deviation of the birth centre along ``(y1, y2)``, pixels.
+        velocity: mean centre velocity ``(vy1, vy2)`` at birth, pixels/frame.
+        velocity_std: standard deviation of the birth velocity, pixels/frame.
+        weight: relative share of the births that enter here (normalised over zones).
+        exit: when True the zone is also an exit: a target whose centre lies within
+            ``SceneConfig.exit_radius`` standard deviations of ``centre`` leaves the scene
+            (once older than ``SceneConfig.min_exit_age``). Zones on the image border do not
+            need it: leaving the image ends a target anyway.
+    """
+
+    name: str
+    centre: Pair
+    position_std: Pair
+    velocity: Pair
+    velocity_std: Pair
+    weight: float = 1.0
+    exit: bool = False
+
+    def __post_init__(self) -> None:
+        _check_positive(f"zone {self.name!r} position_std", self.position_std)
+        _check_positive(f"zone {self.name!r} velocity_std", self.velocity_std)
+        _check_finite(f"zone {self.name!r} centre", self.centre)
+        _check_finite(f"zone {self.name!r} velocity", self.velocity)
+        if not (math.isfinite(self.weight) and self.weight > 0):
+            raise InputError(f"zone {self.name!r} weight must be positive, got {self.weight}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ClutterSource:
+    """A localised source of spatially persistent clutter (e.g. waving vegetation).
+
+    Each frame the source emits ``Poisson(rate)`` false detections, independently of the past,
+    with box ``(cx, cy, w, h)`` drawn from ``N((centre, size), diag(position_std^2,
+    size_std^2))``.
+
+    Attributes:
+        name: label used in plots and metadata.
+        centre: mean box centre ``(cx, cy)``, pixels.
+        position_std: standard deviation of the box centre, pixels.
+        size: mean box ``(w, h)``, pixels.
+        size_std: standard deviation of the box width and height, pixels.
+        rate: expected false detections per frame.
+    """
+
+    name: str
+    centre: Pair
+    position_std: Pair
+    size: Pair
+    size_std: Pair
+    rate: float
+
+    def __post_init__(self) -> None:
+        _check_finite(f"clutter source {self.name!r} centre", self.centre)
+        _check_positive(f"clutter source {self.name!r} position_std", self.position_std)
+        _check_positive(f"clutter source {self.name!r} size", self.size)
+        _check_positive(f"clutter source {self.name!r} size_std", self.size_std)
+        if not (math.isfinite(self.rate) and self.rate >= 0):
+            raise InputError(f"clutter source {self.name!r} rate must be >= 0, got {self.rate}")
+
+
+DEFAULT_ZONES: tuple[EntryZone, ...] = (
+    EntryZone("west", (40.0, 330.0), (6.0, 30.0), (4.5, 0.2), (0.6, 0.5), weight=0.3),
+    EntryZone("east", (730.0, 260.0), (6.0, 30.0), (-4.5, 0.4), (0.6, 0.5), weight=0.25),
+    EntryZone("south", (420.0, 490.0), (40.0, 6.0), (-0.5, -3.0), (0.8, 0.4), weight=0.2),
+    EntryZone("north", (250.0, 60.0), (20.0, 5.0), (0.8, 2.5), (0.5, 0.4), weight=0.15),
+    EntryZone("door", (560.0, 150.0), (8.0, 4.0), (-1.0, 2.0), (0.8, 0.4), weight=0.1, exit=True),
+)
+
+DEFAULT_CLUTTER_SOURCES: tuple[ClutterSource, ...] = (
+    ClutterSource("tree", (130.0, 130.0), (12.0, 10.0), (34.0, 60.0), (6.0, 10.0), rate=0.6),
+    ClutterSource("bush", (660.0, 480.0), (15.0, 8.0), (50.0, 70.0), (8.0, 10.0), rate=0.5),
+    ClutterSource("window", (420.0, 210.0), (6.0, 6.0), (22.0, 48.0), (3.0, 6.0), rate=0.4),
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneConfig:
+    """Everything that defines a synthetic scene; see :mod:`jaxtrack.datasets.synthetic`.
+
+    Attributes:
+        name: sequence name written to ``seqinfo.ini``; None means ``"synthetic-<seed>"``.
+        num_frames: number of frames ``T`` (numbered ``1..T``).
+        image_width: image width ``W``, pixels.
+        image_height: image height ``H``, pixels.
+        frame_rate: frames per second (metadata only: dynamics are per frame).
+        burn_in_frames: frames simulated before frame 1 so that frame 1 already holds a
+            steady-state population (their births are not counted as births of the sequence).
+        birth_rate: ``lambda_s``, expected births per frame over all zones (Poisson).
+        zones: the entry/exit zones; every birth enters through one of them.
+        horizon_row: row ``r0`` where the perspective law gives size 0, pixels (above the
+            image when negative).
+        height_per_row: ``a`` in the nominal height ``h_nom(y2) = a (y2 - r0)``, pixels of
+            height per pixel of row.
+        aspect_ratio: ``rho`` in the nominal width ``w_nom(y2) = rho h_nom(y2)``.
+        size_spread: relative standard deviation (> 0) of a target's own size about the
+            nominal one at birth (people differ in size).
+        size_correlation: correlation of the relative width and height deviations at birth.
+        motion_noise: ``(sigma_n1, sigma_n2)``, SPEC SDV acceleration noise per unit box width
+            / height: the velocity ``vy1`` changes by ``w_{k-1} n1``, ``n1 ~ N(0, sigma_n1^2)``.
+        size_noise: ``(sigma_nw, sigma_nh)``, per-frame standard deviation of the log
+            width / height about the perspective law (the SDV size noise in log form).
+        size_reversion: ``phi`` in ``[0, 1]``, per-frame persistence of the log-size
+            deviation (1: random walk as in SPEC; smaller: faster return to the target's own
+            size).
+        exit_radius: size of an exit zone, in standard deviations of its position spread.
+        min_exit_age: frames a target must have lived before an exit zone can absorb it.
+        detection_prob: probability of detection ``pD`` of a target that is not occluded.
+        occluded_detection_prob: ``pD`` of an occluded target.
+        occlusion_threshold: a target is occluded when a target nearer the camera (larger
+            box bottom row) covers more than this fraction of its box area.
+        measurement_noise: ``(s_w, s_h)``: a detection of box ``(cx, cy, w, h)`` has noise
+            standard deviations ``(s_w w, s_h h, s_w w, s_h h)`` (SPEC section 1 likelihood).
+        clutter_sources: localised persistent clutter sources.
+        uniform_clutter_rate: expected uniform false detections per frame; centre uniform
+            over the image, size uniform over ``[min_box_size, max_box_size]``.
+        min_box_size: ``(w, h)`` lower corner of the size range of the uniform volumes (birth
+            and clutter intensities; uniform clutter sizes), pixels.
+        max_box_size: ``(w, h)`` upper corner of that size range, pixels.
+        velocity_bound: the birth intensity's volume spans velocities
+            ``[-velocity_bound, velocity_bound]`` per axis, pixels/frame.
+        target_score: ``(a, b)`` of the Beta distribution of true detections' scores.
+        clutter_score: ``(a, b)`` of the Beta distribution of false detections' scores.
+    """
+
+    name: str | None = None
+    num_frames: int = 800
+    image_width: int = 768
+    image_height: int = 576
+    frame_rate: float = 10.0
+    burn_in_frames: int = 300
+    birth_rate: float = 0.06
+    zones: tuple[EntryZone, ...] = DEFAULT_ZONES
+    horizon_row: float = -150.0
+    height_per_row: float = 0.16
+    aspect_ratio: float = 0.4
+    size_spread: float = 0.08
+    size_correlation: float = 0.7
+    motion_noise: Pair = (0.002, 0.001)
+    size_noise: Pair = (0.01, 0.01)
+    size_reversion: float = 0.9
+    exit_radius: float = 2.0
+    min_exit_age: int = 20
+    detection_prob: float = 0.92
+    occluded_detection_prob: float = 0.5
+    occlusion_threshold: float = 0.3
+    measurement_noise: Pair = (0.05, 0.04)
+    clutter_sources: tuple[ClutterSource, ...] = DEFAULT_CLUTTER_SOURCES
+    uniform_clutter_rate: float = 0.4
+    min_box_size: Pair = (8.0, 16.0)
+    max_box_size: Pair = (64.0, 150.0)
+    velocity_bound: float = 8.0
+    target_score: Pair = (6.0, 1.5)
+    clutter_score: Pair = (3.0, 3.0)
+
+    def __post_init__(self) -> None:
+        for field in ("num_frames", "image_width", "image_height"):
+            if getattr(self, field) < 1:
+                raise InputError(f"{field} must be >= 1, got {getattr(self, field)}")
+        for field in ("burn_in_frames", "min_exit_age"):
+            if getattr(self, field) < 0:
+                raise InputError(f"{field} must be >= 0, got {getattr(self, field)}")
+        for field in ("frame_rate", "height_per_row", "aspect_ratio", "exit_radius"):
+            _check_positive(field, (getattr(self, field),))
+        _check_positive("size_spread", (self.size_spread,))
+        for field in ("birth_rate", "uniform_clutter_rate"):
+            value = getattr(self, field)
+            if not (math.isfinite(value) and value >= 0):
+                raise InputError(f"{field} must be >= 0, got {value}")
+        for field in (
+            "detection_prob",
+            "occluded_detection_prob",
+            "occlusion_threshold",
+            "size_reversion",
+        ):
+            value = getattr(self, field)
+            if not 0 <= value <= 1:
+                raise InputError(f"{field} must lie in [0, 1], got {value}")
+        if not -1 < self.size_correlation < 1:
+            raise InputError(f"size_correlation must lie in (-1, 1), got {self.size_correlation}")
+        for field in ("motion_noise", "size_noise", "measurement_noise"):
+            value = getattr(self, field)
+            if not all(math.isfinite(v) and v >= 0 for v in value):
+                raise InputError(f"{field} must be >= 0, got {value}")
+        for field in ("min_box_size", "max_box_size", "target_score", "clutter_score"):
+            _check_positive(field, getattr(self, field))
+        _check_positive("velocity_bound", (self.velocity_bound,))
+        if not all(lo < hi for lo, hi in zip(self.min_box_size, self.max_box_size, strict=True)):
+            raise InputError(
+                f"min_box_size {self.min_box_size} must be below max_box_size {self.max_box_size}"
+            )
+        if not self.zones and self.birth_rate > 0:
+            raise InputError("birth_rate > 0 needs at least one entry zone")
+        for zone in self.zones:
+            y1, y2 = zone.centre
+            if not (0 <= y1 <= self.image_width and 0 <= y2 <= self.image_height):
+                raise InputError(f"zone {zone.name!r} centre {zone.centre} lies outside the image")
+            if self.height_per_row * (y2 - self.horizon_row) < self.min_box_size[1]:
+                raise InputError(
+                    f"zone {zone.name!r}: nominal height at row {y2} is below min_box_size; "
+                    "move the zone down or the horizon up"
+                )
+        names = [zone.name for zone in self.zones] + [s.name for s in self.clutter_sources]
+        if len(set(names)) != len(names):
+            raise InputError(f"zone and clutter source names must be distinct, got {names}")
+
+    @property
+    def total_clutter_rate(self) -> float:
+        """``lambda_r``: expected false detections per frame (sources + uniform)."""
+        return self.uniform_clutter_rate + sum(s.rate for s in self.clutter_sources)
+
+
+def config_to_dict(config: SceneConfig) -> dict[str, Any]:
+    """The configuration as plain JSON-serialisable values (tuples become lists).
+
+    Args:
+        config: the configuration.
+
+    Returns:
+        A dict accepted back by :func:`config_from_dict`.
+    """
+    return _to_plain(dataclasses.asdict(config))
+
+
+def config_from_dict(overrides: Mapping[str, Any], base: SceneConfig | None = None) -> SceneConfig:
+    """Builds a configuration from (possibly partial) plain values, e.g. parsed JSON.
+
+    Keys override the fields of ``base``; ``zones`` and ``clutter_sources`` are replaced as a
+    whole (a list of objects with the fields of :class:`EntryZone` / :class:`ClutterSource`).
+
+    Args:
+        overrides: field name -> value.
+        base: the configuration overridden; default: ``SceneConfig()``.
+
+    Returns:
+        The new, validated configuration.
+
+    Raises:
+        InputError: an unknown field, a value of the wrong type or shape, or an invalid value.
+    """
+    return _from_plain(SceneConfig, overrides, base or SceneConfig(), "config")
+
+
+def _to_plain(value):
+    if isinstance(value, dict):
+        return {key: _to_plain(item) for key, item in value.items()}
+    if isinstance(value, (tuple, list)):
+        return [_to_plain(item) for item in value]
+    return value
+
+
+def _from_plain(cls, data, base, where: str):
+    if not isinstance(data, Mapping):
+        raise InputError(f"{where} must be an object, got {type(data).__name__}")
+    hints = typing.get_type_hints(cls)
+    fields = {field.name for field in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - fields)
+    if unknown:
+        raise InputError(f"{where}: unknown field(s) {unknown}; valid fields: {sorted(fields)}")
+    values = {}
+    for name, raw in data.items():
+        values[name] = _convert(hints[name], raw, f"{where}.{name}")
+    try:
+        if base is None:
+            return cls(**values)
+        return dataclasses.replace(base, **values)
+    except TypeError as err:
+        raise InputError(f"{where}: {err}") from None
+
+
+def _convert(annotation, raw, where: str):
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin in (typing.Union, types.UnionType):
+        if raw is None and type(None) in args:
+            return None
+        (inner,) = (arg for arg in args if arg is not type(None))
+        return _convert(inner, raw, where)
+    if origin is tuple:
+        if not isinstance(raw, (list, tuple)):
+            raise InputError(f"{where} must be a list, got {raw!r}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(args[0], item, f"{where}[{i}]") for i, item in enumerate(raw))
+        if len(raw) != len(args):
+            raise InputError(f"{where} must have {len(args)} entries, got {len(raw)}")
+        return tuple(
+            _convert(arg, item, f"{where}[{i}]")
+            for i, (arg, item) in enumerate(zip(args, raw, strict=True))
+        )
+    if dataclasses.is_dataclass(annotation):
+        return _from_plain(annotation, raw, None, where)
+    if annotation is bool:
+        if not isinstance(raw, bool):
+            raise InputError(f"{where} must be true or false, got {raw!r}")
+        return raw
+    if annotation is int:
+        if (
+            isinstance(raw, bool)
+            or not isinstance(raw, (int, float))
+            or not float(raw).is_integer()
+        ):
+            raise InputError(f"{where} must be an integer, got {raw!r}")
+        return int(raw)
+    if annotation is float:
+        if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            raise InputError(f"{where} must be a number, got {raw!r}")
+        return float(raw)
+    if annotation is str:
+        if not isinstance(raw, str):
+            raise InputError(f"{where} must be a string, got {raw!r}")
+        return raw
+    raise TypeError(f"unsupported annotation {annotation!r} at {where}")
