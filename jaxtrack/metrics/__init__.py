@@ -1,1 +1,31 @@
-"""jaxtrack.metrics."""
+"""Tracking metrics, TrackEval-exact: CLEAR MOT, VACE (MODA/MODP), identity, HOTA, OSPA/GOSPA.
+
+Start with :func:`evaluate_sequence` (one sequence, every metric) and
+:func:`combine_sequences` (a benchmark's combined row); :func:`evaluate_tracks` scores padded
+``Tracks`` (a batch of them, e.g. from a vmapped sweep); ``jaxtrack eval`` is the CLI.
+"""
+
+from jaxtrack.metrics.evaluate import (
+    SUMMARY_KEYS,
+    EvalConfig,
+    Evaluation,
+    combine_sequences,
+    evaluate_sequence,
+)
+from jaxtrack.metrics.ospa import set_distance_frames, set_distances
+from jaxtrack.metrics.padded import evaluate_tracks, table_from_tracks
+from jaxtrack.metrics.preprocess import SequenceData, prepare_sequence
+
+__all__ = [
+    "SUMMARY_KEYS",
+    "EvalConfig",
+    "Evaluation",
+    "SequenceData",
+    "combine_sequences",
+    "evaluate_sequence",
+    "evaluate_tracks",
+    "prepare_sequence",
+    "set_distance_frames",
+    "set_distances",
+    "table_from_tracks",
+]

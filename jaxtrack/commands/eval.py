@@ -1,0 +1,239 @@
+"""``jaxtrack eval``: score tracker output against MOTChallenge ground truth.
+
+One sequence:
+
+  jaxtrack eval SEQ_DIR RES.txt              gt and seqinfo.ini from the sequence folder
+  jaxtrack eval --gt GT.txt --res RES.txt [--seqinfo seqinfo.ini]
+
+A benchmark (one result file <SEQ>.txt per sequence folder of MOT_ROOT), printed as a table
+with one row per sequence and the combined row:
+
+  jaxtrack eval --benchmark MOT_ROOT --results RES_DIR
+
+Metrics (numbers identical to TrackEval 1.3.0 where it has them): CLEAR MOT (MOTA, MOTP as
+mean IoU, FP, FN, IDSW, Frag, MT/PT/ML, Recall, Precision), identity (IDF1, IDP, IDR), HOTA
+(DetA, AssA, LocA; means over IoU thresholds 0.05..0.95), VACE / CLEAR-2007 (MODA, MODP
+pooled; VACE_MODA, VACE_MODP averaged over frames; VACE_MOTA with a log10 identity-switch
+penalty) and set distances (OSPA, GOSPA with alpha = 2; frame averages). Ground truth follows
+TrackEval's MOT15 conventions: gt rows with conf 0 are dropped, tracker boxes on them still
+count; --distractors applies the MOT16/17 rules instead. --json prints one JSON object with
+the scores as fractions (or counts). Bad files exit with status 2 and name the file and line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
+from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
+
+#: Columns of the benchmark table (ratios printed in %).
+TABLE_COLUMNS = (
+    "HOTA",
+    "DetA",
+    "AssA",
+    "LocA",
+    "MOTA",
+    "MOTP",
+    "IDF1",
+    "MODA",
+    "MODP",
+    "FP",
+    "FN",
+    "IDSW",
+    "Frag",
+    "MT",
+    "PT",
+    "ML",
+    "GT_IDs",
+    "OSPA",
+)
+#: Scores printed as plain numbers rather than percentages.
+NOT_PERCENT = ("FP", "FN", "IDSW", "Frag", "MT", "PT", "ML", "GT_IDs", "TP", "IDTP", "IDFN", "IDFP")
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "eval",
+        help="score tracker output against ground truth (CLEAR, VACE, IDF1, HOTA, OSPA)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "inputs",
+        nargs="*",
+        metavar="SEQ_DIR RES.txt",
+        help="a sequence folder (seqinfo.ini, gt/gt.txt) and a result file",
+    )
+    parser.add_argument("--gt", metavar="GT.txt", help="ground-truth file (with --res)")
+    parser.add_argument("--res", metavar="RES.txt", help="tracker result file (with --gt)")
+    parser.add_argument(
+        "--seqinfo",
+        metavar="INI",
+        help="seqinfo.ini for --gt/--res: frames must lie in 1..seqLength, and set distances "
+        "average over those frames (default: up to the last frame present)",
+    )
+    parser.add_argument(
+        "--benchmark", metavar="MOT_ROOT", help="folder of sequence folders (with --results)"
+    )
+    parser.add_argument(
+        "--results", metavar="RES_DIR", help="folder with one <SEQ>.txt per sequence"
+    )
+    parser.add_argument(
+        "--frames",
+        metavar="A:B",
+        help="score only frames A..B (1-based, inclusive; gt and results are cut to it)",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--iou-threshold",
+        type=float,
+        default=0.5,
+        metavar="T",
+        help="minimum IoU of a match for CLEAR, identity and MODA/MODP (default 0.5)",
+    )
+    parser.add_argument(
+        "--centre-threshold",
+        type=float,
+        metavar="PIXELS",
+        help="match by box-centre distance instead of IoU: boxes match when their centres are "
+        "at most PIXELS apart (similarity 1 - d / (2 PIXELS); for point-like data)",
+    )
+    parser.add_argument(
+        "--distractors",
+        action="store_true",
+        help="MOT16/17 rules: drop tracker boxes matched to distractor-class gt, then keep only "
+        "pedestrian gt (class column 8) that is not zero-marked",
+    )
+    parser.add_argument(
+        "--ospa-c",
+        type=float,
+        default=1.0,
+        metavar="C",
+        help="OSPA/GOSPA cut-off, in units of --ospa-distance (default 1)",
+    )
+    parser.add_argument(
+        "--ospa-p", type=float, default=1.0, metavar="P", help="OSPA/GOSPA order (default 1)"
+    )
+    parser.add_argument(
+        "--ospa-distance",
+        choices=("iou", "centre"),
+        default="iou",
+        help="OSPA/GOSPA base distance: 1 - IoU (default) or box-centre distance in pixels",
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    config = EvalConfig(
+        iou_threshold=args.iou_threshold,
+        centre_threshold=args.centre_threshold,
+        distractors=args.distractors,
+        ospa_cutoff=args.ospa_c,
+        ospa_order=args.ospa_p,
+        ospa_distance=args.ospa_distance,
+    )
+    if args.benchmark or args.results:
+        return _run_benchmark(args, config)
+    gt_path, res_path, seqinfo_path = _single_inputs(args)
+    seq_length = read_seqinfo(seqinfo_path).seq_length if seqinfo_path else None
+    gt = read_mot_file(gt_path, "gt", seq_length)
+    result = read_mot_file(res_path, "res", seq_length)
+    last = seq_length or max(
+        int(np.max(gt.frames, initial=1)), int(np.max(result.frames, initial=1))
+    )
+    first, last = parse_frame_span(args.frames, last)
+    if args.frames is not None:
+        gt, result = gt.frame_span(first, last), result.frame_span(first, last)
+    scores = evaluate_sequence(gt, result, (first, last), config).scores()
+    if args.json:
+        print(json.dumps({key: scores[key] for key in SUMMARY_KEYS}))
+    else:
+        print(f"ground truth  {gt_path}\nresults       {res_path}\nframes        {first}..{last}")
+        print(_score_listing(scores))
+    return 0
+
+
+def _single_inputs(args):
+    if args.gt or args.res:
+        if args.inputs:
+            raise InputError("give either SEQ_DIR RES.txt or --gt/--res, not both")
+        if not (args.gt and args.res):
+            raise InputError("--gt and --res go together")
+        return Path(args.gt), Path(args.res), Path(args.seqinfo) if args.seqinfo else None
+    if len(args.inputs) != 2:
+        raise InputError(
+            "expected SEQ_DIR RES.txt, --gt GT.txt --res RES.txt, or "
+            "--benchmark MOT_ROOT --results RES_DIR (see --help)"
+        )
+    if args.seqinfo:
+        raise InputError("--seqinfo goes with --gt/--res; SEQ_DIR has its own seqinfo.ini")
+    sequence = Path(args.inputs[0])
+    if not sequence.is_dir():
+        raise FileFormatError(sequence, None, "sequence folder not found")
+    return sequence / "gt" / "gt.txt", Path(args.inputs[1]), sequence / "seqinfo.ini"
+
+
+def _run_benchmark(args, config) -> int:
+    if not (args.benchmark and args.results):
+        raise InputError("--benchmark and --results go together")
+    if args.inputs or args.gt or args.res or args.seqinfo or args.frames:
+        raise InputError("--benchmark takes no SEQ_DIR, --gt, --res, --seqinfo or --frames")
+    root, results_dir = Path(args.benchmark), Path(args.results)
+    if not root.is_dir():
+        raise FileFormatError(root, None, "benchmark folder not found")
+    if not results_dir.is_dir():
+        raise FileFormatError(results_dir, None, "results folder not found")
+    sequences = sorted(p.name for p in root.iterdir() if (p / "seqinfo.ini").is_file())
+    if not sequences:
+        raise FileFormatError(root, None, "no sequence folders (with seqinfo.ini) inside")
+    evaluations = {}
+    for name in sequences:
+        seq_length = read_seqinfo(root / name / "seqinfo.ini").seq_length
+        result_path = results_dir / f"{name}.txt"
+        if not result_path.is_file():
+            raise FileFormatError(result_path, None, f"no result file for sequence {name}")
+        gt = read_mot_file(root / name / "gt" / "gt.txt", "gt", seq_length)
+        result = read_mot_file(result_path, "res", seq_length)
+        evaluations[name] = evaluate_sequence(gt, result, (1, seq_length), config)
+    rows = {name: evaluation.scores() for name, evaluation in evaluations.items()}
+    rows["COMBINED"] = combine_sequences(evaluations.values()).scores()
+    if args.json:
+        summary = {name: {key: row[key] for key in SUMMARY_KEYS} for name, row in rows.items()}
+        combined = summary.pop("COMBINED")
+        print(json.dumps({"sequences": summary, "combined": combined}))
+    else:
+        print(_table(rows))
+    return 0
+
+
+def _format(key: str, value) -> str:
+    if key in NOT_PERCENT:
+        return str(int(value))
+    if key.startswith(("OSPA", "GOSPA")):
+        return f"{value:.4f}"
+    return f"{100 * value:.3f}"
+
+
+def _table(rows: dict) -> str:
+    width = max(len("Sequence"), *(len(name) for name in rows)) + 2
+    header = "Sequence".ljust(width) + "".join(c.rjust(9) for c in TABLE_COLUMNS)
+    lines = [header]
+    for name, row in rows.items():
+        cells = "".join(_format(c, row[c]).rjust(9) for c in TABLE_COLUMNS)
+        lines.append(name.ljust(width) + cells)
+    lines.append("(ratios in %; OSPA as a fraction; --json for every score)")
+    return "\n".join(lines)
+
+
+def _score_listing(scores: dict) -> str:
+    lines = []
+    for key, value in scores.items():
+        unit = "" if key in NOT_PERCENT or key.startswith(("OSPA", "GOSPA")) else " %"
+        lines.append(f"{key:<20}{_format(key, value):>12}{unit}")
+    return "\n".join(lines)
