@@ -58,8 +58,9 @@ def summarise(sequence_dir, frames=None, iou_threshold: float = 0.5) -> dict:
     }
     if seq.gt_table is not None:
         gt = seq.gt_table
-        kept = gt.select(~gt.ignored)
-        precision, recall = detection_precision_recall(seq.det_table, kept, iou_threshold)
+        precision, recall = detection_precision_recall(
+            seq.det_table, gt, (seq.first_frame, seq.last_frame), iou_threshold
+        )
         summary.update(
             gt_boxes=len(gt),
             gt_ignored_boxes=int(gt.ignored.sum()),

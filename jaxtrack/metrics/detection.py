@@ -3,55 +3,37 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
-from jaxtrack.boxes import iou_matrix
-
-
-def count_detection_matches(det_table, gt_table, iou_threshold: float = 0.5) -> int:
-    """Number of one-to-one detection-gt matches with IoU >= threshold, summed over frames.
-
-    Per frame, the assignment maximises the number of matched pairs (ties broken by the summed
-    IoU), so the count is the largest achievable at this threshold.
-
-    Args:
-        det_table: detections (:class:`jaxtrack.io.MotTable`).
-        gt_table: ground truth rows to match against (drop ignored rows beforehand).
-        iou_threshold: minimum IoU of a match.
-
-    Returns:
-        The number of matched pairs.
-    """
-    matched = 0
-    det_order = np.argsort(det_table.frames, kind="stable")
-    gt_order = np.argsort(gt_table.frames, kind="stable")
-    det_frames = det_table.frames[det_order]
-    gt_frames = gt_table.frames[gt_order]
-    for frame in np.intersect1d(det_frames, gt_frames):
-        dets = det_table.boxes[
-            det_order[
-                np.searchsorted(det_frames, frame) : np.searchsorted(det_frames, frame, "right")
-            ]
-        ]
-        gts = gt_table.boxes[
-            gt_order[np.searchsorted(gt_frames, frame) : np.searchsorted(gt_frames, frame, "right")]
-        ]
-        iou = iou_matrix(dets, gts)
-        valid = iou >= iou_threshold - np.finfo(float).eps
-        weight = np.where(valid, 1.0 + iou / (1 + min(iou.shape)), 0.0)
-        rows, cols = linear_sum_assignment(weight, maximize=True)
-        matched += int(valid[rows, cols].sum())
-    return matched
+from jaxtrack.io import MotTable
+from jaxtrack.metrics.preprocess import prepare_sequence
+from jaxtrack.metrics.vace import detection_mapping
 
 
 def detection_precision_recall(
-    det_table, gt_table, iou_threshold: float = 0.5
+    det_table: MotTable,
+    gt_table: MotTable,
+    frames: tuple[int, int],
+    iou_threshold: float = 0.5,
 ) -> tuple[float, float]:
-    """Precision = matches / detections and recall = matches / gt boxes (see above).
+    """Precision = matches / detections, recall = matches / kept gt boxes.
 
-    Returns 0.0 for a ratio whose denominator is zero.
+    Matches are the per-frame one-to-one detection mapping of
+    :func:`jaxtrack.metrics.vace.detection_mapping` (most pairs with IoU >= threshold, then
+    the largest summed IoU); gt rows with ``conf == 0`` are dropped (MOT15 convention).
+
+    Args:
+        det_table: detections.
+        gt_table: ground truth, all rows as read.
+        frames: ``(first, last)`` 1-based inclusive span holding every row of both tables.
+        iou_threshold: minimum IoU of a match.
+
+    Returns:
+        ``(precision, recall)``; a ratio with a zero denominator is 0.0.
     """
-    matched = count_detection_matches(det_table, gt_table, iou_threshold)
+    numbered = MotTable.from_arrays(det_table.frames, np.arange(len(det_table)), det_table.boxes)
+    data = prepare_sequence(gt_table, numbered, frames)
+    matched = int(detection_mapping(data, iou_threshold).sum())
+    num_gt = int(data.gt_frame.shape[0])
     precision = matched / len(det_table) if len(det_table) else 0.0
-    recall = matched / len(gt_table) if len(gt_table) else 0.0
+    recall = matched / num_gt if num_gt else 0.0
     return precision, recall
