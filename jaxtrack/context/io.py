@@ -69,7 +69,7 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
     Raises:
         FileFormatError: the file is missing, not an ``.npz`` archive, lacks a field, holds
             invalid metadata, a newer format version, or an invalid intensity (inconsistent
-            shapes, non-finite values, magnitude < 0, ``pi_u`` outside ``(0, 1]``, an empty
+            shapes, non-finite values, magnitude < 0, ``pi_u`` outside ``[0, 1]``, an empty
             volume, negative weights or live weights not summing to one).
     """
     path = Path(path)
@@ -135,8 +135,8 @@ def _invalid_intensity(fields: dict[str, np.ndarray]) -> str | None:
             return f"{field} must be finite numbers"
     if fields["magnitude"] < 0:
         return "magnitude must be >= 0"
-    if not 0 < fields["uniform_weight"] <= 1:
-        return "uniform_weight must lie in (0, 1]"
+    if not 0 <= fields["uniform_weight"] <= 1:
+        return "uniform_weight must lie in [0, 1]"
     if not np.all(fields["upper"] > lower):
         return "upper must exceed lower on every axis"
     if np.any(weights < 0):

@@ -1,6 +1,6 @@
 """Datasets: seeded synthetic surveillance scenes with known birth and clutter context."""
 
-from jaxtrack.datasets.context_truth import load_context_truth, save_context_truth
+from jaxtrack.datasets.context_truth import load_context_truth
 from jaxtrack.datasets.scene_config import (
     ClutterSource,
     EntryZone,
@@ -27,6 +27,5 @@ __all__ = [
     "config_to_dict",
     "generate_scene",
     "load_context_truth",
-    "save_context_truth",
     "write_scene",
 ]

@@ -54,7 +54,6 @@ Detections are shuffled within each frame, so their order carries no information
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -62,7 +61,7 @@ import numpy as np
 
 from jaxtrack.boxes import cxcywh_to_xywh
 from jaxtrack.context.intensity import Intensity
-from jaxtrack.datasets.context_truth import save_context_truth
+from jaxtrack.context.io import save_context
 from jaxtrack.datasets.scene_config import EntryZone, SceneConfig, config_to_dict
 from jaxtrack.io.motchallenge import (
     MotTable,
@@ -328,7 +327,7 @@ def write_scene(
     write_seqinfo(out / "seqinfo.ini", scene.info)
     write_mot_file(out / "det" / "det.txt", scene.det_table)
     write_mot_file(out / "gt" / "gt.txt", scene.gt_table)
-    save_context_truth(
+    save_context(
         out / "context_truth.npz",
         scene.birth_intensity,
         scene.clutter_intensity,
@@ -635,19 +634,20 @@ def _intensity(magnitude, uniform_weight, lower, upper, weights, means, covs) ->
     )
 
 
-def _metadata(scene: SyntheticScene) -> dict[str, np.ndarray]:
+def _metadata(scene: SyntheticScene) -> dict:
     """Zones, sources and the configuration, stored beside the true intensities."""
     config = scene.config
     zones, sources = config.zones, config.clutter_sources
     return {
-        "seed": np.array(scene.seed),
-        "config_json": np.array(json.dumps(config_to_dict(config))),
-        "image_size": np.array([config.image_width, config.image_height]),
-        "zone_names": np.array([zone.name for zone in zones], dtype=str),
-        "zone_exit": np.array([zone.exit for zone in zones], dtype=bool),
-        "source_names": np.array([source.name for source in sources], dtype=str),
-        "source_rates": np.array([source.rate for source in sources], dtype=np.float64),
-        "uniform_clutter_rate": np.array(config.uniform_clutter_rate),
+        "source": "synthetic scene (true context)",
+        "seed": int(scene.seed),
+        "config": config_to_dict(config),
+        "image_size": [config.image_width, config.image_height],
+        "zone_names": [zone.name for zone in zones],
+        "zone_exit": [bool(zone.exit) for zone in zones],
+        "source_names": [source.name for source in sources],
+        "source_rates": [float(source.rate) for source in sources],
+        "uniform_clutter_rate": float(config.uniform_clutter_rate),
     }
 
 

@@ -112,7 +112,7 @@ def test_missing_and_corrupt_files(tmp_path):
         (lambda a: a.update(clutter_weights=np.zeros(0)), "non-empty"),
         (lambda a: a.update(clutter_magnitude=np.asarray(np.nan)), "finite"),
         (lambda a: a.update(clutter_magnitude=np.asarray(-1.0)), "magnitude"),
-        (lambda a: a.update(birth_uniform_weight=np.asarray(0.0)), "uniform_weight"),
+        (lambda a: a.update(birth_uniform_weight=np.asarray(1.5)), "uniform_weight"),
         (lambda a: a.update(birth_upper=a["birth_lower"]), "upper must exceed"),
         (lambda a: a.update(clutter_weights=-a["clutter_weights"]), "weights must be >= 0"),
         (lambda a: a.update(clutter_weights=2 * a["clutter_weights"]), "sum to 1"),
