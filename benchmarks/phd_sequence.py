@@ -1,0 +1,83 @@
+"""The full PHD tracker on a MOT15 sequence: compile time, frames per second, peak memory.
+
+Runs ``run(phd_filter(...), key, default_phd_params(...), detections)`` under ``jax.jit`` on
+PETS09-S2L1 (795 frames) by default: the first call's time (compile + run), then the median
+of repeated runs with fresh keys. Peak memory is the process's maximum resident set size.
+Prints JSON. Usage: ``python benchmarks/phd_sequence.py [--extraction gmm] [--particles N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from jaxtrack.filters import default_phd_params, phd_filter, run
+from jaxtrack.io import load_sequence
+
+DEFAULT_SEQUENCE = Path(__file__).resolve().parents[1].parent / "shared/data/mot15/PETS09-S2L1"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE)
+    parser.add_argument("--particles", type=int, default=2048)
+    parser.add_argument("--births-per-detection", type=int, default=32)
+    parser.add_argument("--extraction", choices=["gmm", "partition"], default="partition")
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+
+    sequence = load_sequence(args.sequence)
+    info = sequence.info
+    params = default_phd_params(info.im_width, info.im_height, info.frame_rate)
+    filt = phd_filter(
+        args.particles,
+        births_per_detection=args.births_per_detection,
+        extraction=args.extraction,
+    )
+    track = jax.jit(lambda key: run(filt, key, params, sequence.detections)[1].tracks)
+
+    start = time.perf_counter()
+    jax.block_until_ready(track(jax.random.key(0)))
+    first_call = time.perf_counter() - start
+    times = []
+    for repeat in range(args.repeats):
+        start = time.perf_counter()
+        tracks = jax.block_until_ready(track(jax.random.key(repeat + 1)))
+        times.append(time.perf_counter() - start)
+    run_time = float(np.median(times))
+    print(
+        json.dumps(
+            {
+                "benchmark": "phd_sequence",
+                "sequence": info.name,
+                "num_frames": sequence.num_frames,
+                "max_detections": int(sequence.detections.mask.shape[1]),
+                "num_particles": args.particles,
+                "births_per_detection": args.births_per_detection,
+                "extraction": args.extraction,
+                "compile_and_first_run_s": first_call,
+                "compile_s": first_call - run_time,
+                "run_s": run_time,
+                "frames_per_s": sequence.num_frames / run_time,
+                "output_boxes": int(np.asarray(tracks.mask).sum()),
+                "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                "device": str(jax.devices()[0]),
+                "cpu_count": os.cpu_count(),
+                "platform": platform.platform(),
+                "jax_version": jax.__version__,
+            },
+            indent=2,
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()

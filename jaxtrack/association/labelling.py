@@ -1,0 +1,154 @@
+"""Track labelling: persistent identities for the PHD estimates (PHD-context Sec. III).
+
+The PHD carries no identities. As in the paper, the extracted states of consecutive frames are
+linked by an assignment (graph matching): each live track predicts its box with its velocity
+(constant velocity over the frames since it was last linked), tracks and estimates are matched
+by the Hungarian algorithm on ``-IoU`` with a gate ``IoU >= min_iou``, a linked track takes the
+estimate's box and velocity, an unlinked estimate starts a track with a new identity, and a
+track unlinked for more than ``max_missed_frames`` consecutive frames ends (it coasts, without
+output, through shorter misses).
+
+All of it runs inside the filter's ``lax.scan`` with a fixed table of ``max_tracks`` slots.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from jaxtrack.association.assignment import gated_assignment
+from jaxtrack.association.estimates import Estimates
+from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix
+from jaxtrack.models.dynamics import MEASURED, VELOCITY
+
+
+class LabelParams(NamedTuple):
+    """Tunable labelling parameters.
+
+    Attributes:
+        min_iou: gate, in ``[0, 1)``: a track and an estimate can be linked only when the
+            track's predicted box and the estimate overlap at least this much.
+        max_missed_frames: a track ends after more consecutive unlinked frames than this
+            (>= 0; a float so that ``jax.grad`` applies to the whole parameter PyTree, its
+            gradient is zero).
+        confirm_score: a track is confirmed (gets an identity and is output from then on)
+            once it is linked to an estimate whose detection score reaches this, in
+            ``[0, 1]``; 0 confirms every track at once.
+    """
+
+    min_iou: Float[Array, ""]
+    max_missed_frames: Float[Array, ""]
+    confirm_score: Float[Array, ""]
+
+
+class LabelState(NamedTuple):
+    """Track table carried from frame to frame.
+
+    Attributes:
+        boxes: ``(y1, y2, w, h)`` of each track when it was last linked.
+        velocities: ``(vy1, vy2)`` of each track, pixels per frame.
+        ids: identity of each track (-1 for free slots).
+        missed: frames since each track was last linked.
+        active: True where a slot holds a live track.
+        confirmed: True for tracks that have been confirmed.
+        next_id: identity the next new track gets (identities start at 1).
+    """
+
+    boxes: Float[Array, "max_tracks 4"]
+    velocities: Float[Array, "max_tracks 2"]
+    ids: Int[Array, " max_tracks"]
+    missed: Int[Array, " max_tracks"]
+    active: Bool[Array, " max_tracks"]
+    confirmed: Bool[Array, " max_tracks"]
+    next_id: Int[Array, ""]
+
+
+class Labels(NamedTuple):
+    """Identities of one frame's estimates.
+
+    Attributes:
+        ids: track identity of each estimate slot (-1 for empty slots and for estimates that
+            found no free track slot).
+        confirmed: True where the estimate's track is confirmed (the online output).
+        overflow: True when new tracks did not fit in the track table.
+    """
+
+    ids: Int[Array, " max_estimates"]
+    confirmed: Bool[Array, " max_estimates"]
+    overflow: Bool[Array, ""]
+
+
+def init_labels(max_tracks: int) -> LabelState:
+    """An empty track table with ``max_tracks`` slots."""
+    return LabelState(
+        boxes=jnp.tile(jnp.array([0.5, 0.5, 1.0, 1.0]), (max_tracks, 1)),
+        velocities=jnp.zeros((max_tracks, 2)),
+        ids=jnp.full((max_tracks,), -1, jnp.int32),
+        missed=jnp.zeros((max_tracks,), jnp.int32),
+        active=jnp.zeros((max_tracks,), bool),
+        confirmed=jnp.zeros((max_tracks,), bool),
+        next_id=jnp.asarray(1, jnp.int32),
+    )
+
+
+def label_step(
+    state: LabelState, params: LabelParams, estimates: Estimates
+) -> tuple[LabelState, Labels]:
+    """Links one frame's estimates to the track table.
+
+    Args:
+        state: the track table after the previous frame.
+        params: gate, confirmation and track-ending rules.
+        estimates: this frame's PHD estimates (no gradient flows through labelling).
+
+    Returns:
+        The new table and the estimates' labels.
+    """
+    num_tracks, num_estimates = state.active.shape[0], estimates.mask.shape[0]
+    boxes = estimates.states[:, MEASURED]
+    steps = (state.missed + 1).astype(boxes.dtype)[:, None]
+    predicted = state.boxes.at[:, :2].add(state.velocities * steps)
+    overlap = iou_matrix(cxcywh_to_xywh(predicted, jnp), cxcywh_to_xywh(boxes, jnp), xp=jnp)
+    allowed = state.active[:, None] & estimates.mask[None] & (overlap >= params.min_iou)
+    match = gated_assignment(-overlap, allowed)
+    linked = match >= 0
+    missed = jnp.where(linked, 0, state.missed + 1)
+    active = state.active & (missed <= params.max_missed_frames)
+
+    linked_to = jnp.where(linked, match, num_estimates)
+    is_linked = jnp.zeros(num_estimates, bool).at[linked_to].set(True, mode="drop")
+    unlinked = estimates.mask & ~is_linked
+    rank = jnp.cumsum(unlinked, dtype=jnp.int32) - 1
+    free_slots = jnp.argsort(active, stable=True)
+    stored = unlinked & (rank < jnp.sum(~active))
+    slot = jnp.where(stored, free_slots[jnp.clip(rank, 0, num_tracks - 1)], num_tracks)
+    held = linked_to.at[slot].set(jnp.arange(num_estimates, dtype=jnp.int32), mode="drop")
+    holds = held < num_estimates
+    safe_held = jnp.minimum(held, num_estimates - 1)
+    new_track = holds & ~linked
+    ids = jnp.where(new_track, state.next_id + rank[safe_held], state.ids)
+    ids = jnp.where(active | holds, ids, -1)
+    confirmed = jnp.where(
+        holds,
+        (linked & state.confirmed) | (estimates.scores[safe_held] >= params.confirm_score),
+        active & state.confirmed,
+    )
+    new_state = LabelState(
+        boxes=jnp.where(holds[:, None], boxes[safe_held], state.boxes),
+        velocities=jnp.where(
+            holds[:, None], estimates.states[safe_held][:, VELOCITY], state.velocities
+        ),
+        ids=ids,
+        missed=jnp.where(holds, 0, missed),
+        active=active | holds,
+        confirmed=confirmed,
+        next_id=state.next_id + jnp.sum(unlinked, dtype=jnp.int32),
+    )
+    labels = Labels(
+        ids=jnp.full(num_estimates, -1, jnp.int32).at[held].set(ids, mode="drop"),
+        confirmed=jnp.zeros(num_estimates, bool).at[held].set(confirmed, mode="drop"),
+        overflow=jnp.any(unlinked & ~stored),
+    )
+    return new_state, labels

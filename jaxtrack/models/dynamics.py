@@ -1,0 +1,75 @@
+"""Constant-velocity dynamics of a box (PHD-context Sec. III, state transition with SDV).
+
+State ``x = (y1, vy1, y2, vy2, w, h)``: box centre, centre velocity (pixels per frame),
+width and height. ``x_k = G x_{k-1} + B(x_{k-1}) n_k`` with ``G = blockdiag(A, A, I2)``,
+``A = [[1, T], [0, 1]]``, ``n = (n1, n2, nw, nh)`` standard normal scaled by a
+:mod:`~jaxtrack.models.noise` model: position/velocity 1 get ``[T^2/2, T] std_1 n1``,
+position/velocity 2 get ``[T^2/2, T] std_2 n2``, the width ``T std_w nw`` and the height
+``T std_h nh``. With the SDV noise model the standard deviations scale with the previous box
+size.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from jaxtrack.models.noise import NoiseModel, state_dependent_std
+
+STATE_DIM = 6
+#: Indices of the measured components (y1, y2, w, h) in the state (``C`` of the likelihood).
+MEASURED = (0, 2, 4, 5)
+#: Indices of the box centre (y1, y2) in the state.
+POSITION = (0, 2)
+#: Indices of the centre velocity (vy1, vy2) in the state.
+VELOCITY = (1, 3)
+#: Indices of the box size (w, h) in the state.
+SIZE = (4, 5)
+#: Smallest box width or height, pixels (keeps sizes and SDV noise positive).
+MIN_SIZE = 1.0
+
+
+def transition_matrix(dt: float = 1.0) -> Float[Array, "6 6"]:
+    """``G = blockdiag(A, A, I2)`` with ``A = [[1, dt], [0, 1]]``."""
+    block = jnp.array([[1.0, dt], [0.0, 1.0]])
+    return jax.scipy.linalg.block_diag(block, block, jnp.eye(2))
+
+
+def noise_gain(dt: float = 1.0) -> Float[Array, "6 4"]:
+    """The constant part of ``B``: maps ``(n1, n2, nw, nh)`` (already scaled) to the state."""
+    return jnp.array(
+        [
+            [dt**2 / 2, 0.0, 0.0, 0.0],
+            [dt, 0.0, 0.0, 0.0],
+            [0.0, dt**2 / 2, 0.0, 0.0],
+            [0.0, dt, 0.0, 0.0],
+            [0.0, 0.0, dt, 0.0],
+            [0.0, 0.0, 0.0, dt],
+        ]
+    )
+
+
+def sample_constant_velocity(
+    key: Array,
+    states: Float[Array, "num_particles 6"],
+    noise_std: Float[Array, " 4"],
+    noise_model: NoiseModel = state_dependent_std,
+) -> Float[Array, "num_particles 6"]:
+    """Draws ``x_k ~ f(. | x_{k-1})`` for every particle (PHD-context eq. 9 proposal, T = 1).
+
+    Args:
+        key: PRNG key; the standard normal draws are ``jax.random.normal(key, (n, 4))``.
+        states: previous states.
+        noise_std: ``(std_1, std_2, std_w, std_h)`` of ``n`` (relative for SDV), positive.
+        noise_model: :func:`~jaxtrack.models.noise.state_dependent_std` (SDV, default) or
+            :func:`~jaxtrack.models.noise.constant_std`.
+
+    Returns:
+        The predicted states; widths and heights are clipped below at
+        :data:`MIN_SIZE` pixels.
+    """
+    normal = jax.random.normal(key, (states.shape[0], 4), states.dtype)
+    scaled = noise_model(states[:, SIZE], noise_std) * normal
+    predicted = states @ transition_matrix().T + scaled @ noise_gain().T
+    return predicted.at[:, SIZE].set(jnp.maximum(predicted[:, SIZE], MIN_SIZE))

@@ -1,0 +1,41 @@
+"""Gaussian single-target likelihood ``g(z | x) = N(z; C x, Sigma(x))`` (PHD-context Sec. III).
+
+``C`` picks ``(y1, y2, w, h)`` from the state; ``Sigma(x)`` is diagonal with standard
+deviations from a :mod:`~jaxtrack.models.noise` model (SDV: ``(s_w w, s_h h, s_w w, s_h h)``
+of the state's box, or constant pixels).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from jaxtrack.models.dynamics import MEASURED, SIZE
+from jaxtrack.models.noise import NoiseModel, state_dependent_std
+
+MEAS_DIM = 4
+
+
+def log_likelihood(
+    measurements: Float[Array, "max_detections 4"],
+    states: Float[Array, "num_particles 6"],
+    noise_std: Float[Array, " 4"],
+    noise_model: NoiseModel = state_dependent_std,
+) -> Float[Array, "max_detections num_particles"]:
+    """``log g(z | x)`` for every measurement and particle.
+
+    Args:
+        measurements: ``z = (y1, y2, w, h)`` (box centre and size).
+        states: particle states ``(y1, vy1, y2, vy2, w, h)``.
+        noise_std: measurement noise parameters (relative for SDV), positive.
+        noise_model: :func:`~jaxtrack.models.noise.state_dependent_std` (SDV, default) or
+            :func:`~jaxtrack.models.noise.constant_std`.
+
+    Returns:
+        The log-likelihoods, ``[max_detections, num_particles]``.
+    """
+    predicted = states[:, MEASURED]
+    std = noise_model(states[:, SIZE], noise_std)
+    residual = (measurements[:, None, :] - predicted[None]) / std[None]
+    log_norm = jnp.sum(jnp.log(std), axis=-1) + 0.5 * MEAS_DIM * jnp.log(2 * jnp.pi)
+    return -0.5 * jnp.sum(residual**2, axis=-1) - log_norm[None]

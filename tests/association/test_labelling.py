@@ -1,0 +1,124 @@
+"""Labelling: gated assignment against SciPy, identities through misses and crossings."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from jaxtrack.association.assignment import gated_assignment
+from jaxtrack.association.estimates import Estimates
+from jaxtrack.association.labelling import LabelParams, init_labels, label_step
+
+PARAMS = LabelParams(
+    min_iou=jnp.asarray(0.3), max_missed_frames=jnp.asarray(3.0), confirm_score=jnp.asarray(0.0)
+)
+
+
+def test_gated_assignment_matches_scipy_on_allowed_pairs():
+    rng = np.random.default_rng(0)
+    solve = jax.jit(gated_assignment)
+    for _ in range(30):
+        rows, cols = rng.integers(1, 7, 2)
+        cost = rng.random((rows, cols)).astype(np.float32) - 1
+        allowed = rng.random((rows, cols)) < 0.6
+        match = np.asarray(solve(jnp.asarray(cost), jnp.asarray(allowed)))
+        # Oracle: maximum-cardinality matching over allowed pairs, minimum cost among those.
+        big = np.where(allowed, cost, 1e3)
+        r, c = linear_sum_assignment(big)
+        keep = allowed[r, c]
+        expected = np.full(rows, -1)
+        expected[r[keep]] = c[keep]
+        assert (match >= 0).sum() == keep.sum()
+        taken = match[match >= 0]
+        assert len(set(taken.tolist())) == taken.size
+        assert np.all(allowed[np.nonzero(match >= 0)[0], taken])
+        np.testing.assert_allclose(
+            cost[np.nonzero(match >= 0)[0], taken].sum(), cost[r[keep], c[keep]].sum(), rtol=1e-5
+        )
+
+
+def _estimates(boxes, velocities=None, scores=None, capacity=4):
+    """Estimates from centre boxes (y1, y2, w, h) and velocities (vy1, vy2)."""
+    states = np.zeros((capacity, 6), np.float32)
+    states[:, 4:] = 1.0
+    mask = np.zeros(capacity, bool)
+    velocities = np.zeros((len(boxes), 2)) if velocities is None else np.asarray(velocities)
+    for j, (box, velocity) in enumerate(zip(boxes, velocities, strict=True)):
+        states[j] = (box[0], velocity[0], box[1], velocity[1], box[2], box[3])
+        mask[j] = True
+    all_scores = np.ones(capacity, np.float32) if scores is None else np.asarray(scores, np.float32)
+    return Estimates(
+        states=jnp.asarray(states),
+        masses=jnp.ones(capacity),
+        scores=jnp.asarray(all_scores),
+        mask=jnp.asarray(mask),
+    )
+
+
+def _run(frames, params=PARAMS, max_tracks=6):
+    step = jax.jit(label_step)
+    state = init_labels(max_tracks)
+    ids = []
+    for estimates in frames:
+        state, labels = step(state, params, estimates)
+        assert not labels.overflow
+        ids.append(np.where(labels.confirmed, np.asarray(labels.ids), -1))
+    return ids
+
+
+def test_identity_survives_a_short_miss_and_ends_after_a_long_one():
+    frames = []
+    for t in range(20):
+        boxes = [(100 + 5 * t, 200, 40, 100)] if t not in (5, 6, 12, 13, 14, 15) else []
+        frames.append(_estimates(boxes, [(5.0, 0.0)] * len(boxes)))
+    ids = _run(frames)
+    assert ids[0][0] == 1
+    assert all(ids[t][0] == 1 for t in range(12) if t not in (5, 6))  # two missed frames
+    assert all(ids[t][0] == 2 for t in range(16, 20))  # four missed frames > 3: new track
+    assert all(np.all(ids[t] == -1) for t in (5, 6, 12, 13, 14, 15))
+
+
+def test_identities_are_kept_when_targets_cross():
+    """Two targets cross; their boxes overlap heavily for a few frames and the order of the
+    estimates changes, but the velocities carry each identity through."""
+    frames = []
+    for t in range(24):
+        a = (100 + 8 * t, 200 + 1 * t, 40, 100)
+        b = (292 - 8 * t, 210 - 1 * t, 40, 100)
+        order = [a, b] if t % 2 else [b, a]
+        velocity = [(8.0, 1.0), (-8.0, -1.0)] if t % 2 else [(-8.0, -1.0), (8.0, 1.0)]
+        frames.append(_estimates(order, velocity))
+    ids = _run(frames)
+    for t in range(24):
+        a_slot = 0 if t % 2 else 1
+        assert ids[t][a_slot] == ids[0][1], t
+        assert ids[t][1 - a_slot] == ids[0][0], t
+    assert ids[0][0] != ids[0][1]
+
+
+def test_tracks_are_confirmed_by_a_high_score_and_stay_confirmed():
+    params = PARAMS._replace(confirm_score=jnp.asarray(0.9))
+    scores = [0.6, 0.7, 0.95, 0.6, 0.5]
+    frames = [
+        _estimates(
+            [(100 + 2 * t, 200, 40, 100), (400, 200, 40, 100)],
+            [(2.0, 0.0), (0.0, 0.0)],
+            [scores[t], 0.6, 0, 0],
+        )
+        for t in range(5)
+    ]
+    step = jax.jit(label_step)
+    state = init_labels(4)
+    for t, estimates in enumerate(frames):
+        state, labels = step(state, params, estimates)
+        np.testing.assert_array_equal(labels.ids[:2], [1, 2])  # identities from the start
+        np.testing.assert_array_equal(labels.confirmed[:2], [t >= 2, False])
+
+
+def test_overflow_is_flagged():
+    boxes = [(100 + 60 * j, 200, 40, 100) for j in range(4)]
+    _, labels = label_step(init_labels(3), PARAMS, _estimates(boxes))
+    assert bool(labels.overflow)
+    np.testing.assert_array_equal(labels.ids, [1, 2, 3, -1])
