@@ -14,7 +14,7 @@ import sys
 from jaxtrack.errors import InputError
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
-COMMANDS = ("simulate", "inspect", "eval")
+COMMANDS = ("simulate", "inspect", "track", "eval")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,64 @@
+"""``jaxtrack track``: results written in MOT format, config handling, bad input exit 2."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from jaxtrack.cli import main
+from jaxtrack.commands.track import DEFAULT_CONFIG, load_config
+from jaxtrack.errors import FileFormatError
+from jaxtrack.io import read_mot_file
+from jaxtrack.metrics.evaluate import evaluate_sequence
+
+
+def test_track_writes_results_and_config(mot15_root, tmp_path, capsys):
+    out = tmp_path / "campus.txt"
+    config = tmp_path / "small.json"
+    config.write_text(json.dumps({"num_particles": 512, "births_per_detection": 8}))
+    code = main(
+        ["track", str(mot15_root / "TUD-Campus"), "--out", str(out), "--config", str(config)]
+    )
+    assert code == 0 and "wrote" in capsys.readouterr().out
+    result = read_mot_file(out, "res", seq_length=71)
+    assert len(result) > 0 and result.ids.min() >= 1
+    used = json.loads((tmp_path / "campus.config.json").read_text())
+    assert used["num_particles"] == 512 and used["clutter_rate"] == DEFAULT_CONFIG["clutter_rate"]
+    gt = read_mot_file(mot15_root / "TUD-Campus" / "gt" / "gt.txt", "gt")
+    scores = evaluate_sequence(gt, result, frames=(1, 71)).summary()
+    assert scores["MOTA"] > 0.3  # a working tracker on an easy sequence, not a perfect one
+
+
+def test_track_frame_span(mot15_root, tmp_path):
+    out = tmp_path / "span.txt"
+    assert (
+        main(["track", str(mot15_root / "TUD-Campus"), "--out", str(out), "--frames", "20:40"]) == 0
+    )
+    frames = read_mot_file(out, "res").frames
+    assert frames.min() >= 20 and frames.max() <= 40
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("{", "not valid JSON"),
+        ("[1]", "JSON object"),
+        ('{"particles": 3}', "unknown key 'particles'"),
+        ('{"num_particles": "many"}', "num_particles must be a int"),
+        ('{"clutter_rate": -1}', "clutter_rate must be positive"),
+        ('{"extraction": "kmeans"}', "extraction must be"),
+    ],
+)
+def test_bad_config(tmp_path, text, message):
+    path = tmp_path / "c.json"
+    path.write_text(text)
+    with pytest.raises(FileFormatError, match=message):
+        load_config(str(path))
+
+
+def test_bad_arguments_exit_2(mot15_root, tmp_path, capsys):
+    assert main(["track", "--out", str(tmp_path / "x.txt")]) == 2
+    assert "either SEQ_DIR or --benchmark" in capsys.readouterr().err
+    assert main(["track", str(tmp_path / "nope"), "--out", str(tmp_path / "x.txt")]) == 2
+    assert "sequence folder not found" in capsys.readouterr().err
