@@ -569,8 +569,10 @@ class _Simulator:
         else:
             birth_frames, birth_ids = np.zeros(0, np.int64), np.zeros(0, np.int64)
             birth_zones, birth_states = np.zeros(0, np.int64), np.zeros((0, 6))
-        gt_table = _table(gt_frames, gt_ids, gt_boxes, np.ones(gt_frames.size))
-        det_table = _table(det_frames, np.full(det_frames.size, -1), det_boxes, det_scores)
+        gt_table = MotTable.from_arrays(gt_frames, gt_ids, gt_boxes, np.ones(gt_frames.size))
+        det_table = MotTable.from_arrays(
+            det_frames, np.full(det_frames.size, -1), det_boxes, det_scores
+        )
         info = SequenceInfo(
             name=config.name if config.name is not None else f"synthetic-{seed}",
             seq_length=config.num_frames,
@@ -602,19 +604,6 @@ class _Simulator:
             num_target_detections=self.num_target_detections,
             num_clutter=self.num_clutter,
         )
-
-
-def _table(frames, ids, boxes, confs) -> MotTable:
-    """A table with MOT15's ``-1,-1,-1`` extra columns (also when it has no rows)."""
-    n = frames.size
-    return MotTable(
-        frames=frames.astype(np.int64),
-        ids=ids.astype(np.int64),
-        boxes=boxes.reshape(n, 4).astype(np.float64),
-        confs=confs.astype(np.float64),
-        extra=np.full((n, 3), -1.0),
-        lines=np.zeros(n, np.int64),
-    )
 
 
 def _zone_probabilities(config: SceneConfig) -> np.ndarray:

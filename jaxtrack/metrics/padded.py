@@ -29,14 +29,11 @@ def table_from_tracks(tracks: Tracks, first_frame: int = 1) -> MotTable:
     if mask.ndim != 2:
         raise ValueError(f"expected unbatched Tracks [num_frames, max_objects], got {mask.shape}")
     frame_index, _ = np.nonzero(mask)
-    num_rows = frame_index.size
-    return MotTable(
-        frames=(frame_index + first_frame).astype(np.int64),
-        ids=np.asarray(tracks.ids)[mask].astype(np.int64),
-        boxes=np.asarray(tracks.boxes, dtype=np.float64)[mask].reshape(num_rows, 4),
-        confs=np.asarray(tracks.scores, dtype=np.float64)[mask],
-        extra=np.full((num_rows, 3), -1.0),
-        lines=np.zeros(num_rows, dtype=np.int64),
+    return MotTable.from_arrays(
+        frame_index + first_frame,
+        np.asarray(tracks.ids)[mask],
+        np.asarray(tracks.boxes, dtype=np.float64)[mask],
+        np.asarray(tracks.scores, dtype=np.float64)[mask],
     )
 
 

@@ -80,15 +80,7 @@ def corrupt(gt: MotTable, corruption: Corruption, seed: int) -> MotTable:
     relabel = rng.permutation(labels.size) + 1
     ids = relabel[np.searchsorted(labels, ids)]
     order = np.argsort(frames, kind="stable")
-    num_rows = order.size
-    return MotTable(
-        frames=frames[order].astype(np.int64),
-        ids=ids[order].astype(np.int64),
-        boxes=boxes[order].reshape(num_rows, 4),
-        confs=np.ones(num_rows),
-        extra=np.full((num_rows, 3), -1.0),
-        lines=np.zeros(num_rows, dtype=np.int64),
-    )
+    return MotTable.from_arrays(frames[order], ids[order], boxes[order])
 
 
 def _gaps(frames, ids, rate, rng) -> np.ndarray:

@@ -12,14 +12,7 @@ from jaxtrack.metrics import evaluate_sequence
 def table(rows) -> MotTable:
     """Rows ``(frame, id, x, y, w, h)``."""
     rows = np.asarray(rows, dtype=float).reshape(-1, 6)
-    return MotTable(
-        frames=rows[:, 0].astype(np.int64),
-        ids=rows[:, 1].astype(np.int64),
-        boxes=rows[:, 2:6],
-        confs=np.ones(len(rows)),
-        extra=np.full((len(rows), 3), -1.0),
-        lines=np.zeros(len(rows), np.int64),
-    )
+    return MotTable.from_arrays(rows[:, 0], rows[:, 1], rows[:, 2:6])
 
 
 def test_continuity_beats_higher_overlap():

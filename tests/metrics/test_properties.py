@@ -21,14 +21,7 @@ PERFECT = {
 
 
 def empty_table() -> MotTable:
-    return MotTable(
-        frames=np.zeros(0, np.int64),
-        ids=np.zeros(0, np.int64),
-        boxes=np.zeros((0, 4)),
-        confs=np.zeros(0),
-        extra=np.zeros((0, 3)),
-        lines=np.zeros(0, np.int64),
-    )
+    return MotTable.from_arrays([], [], np.zeros((0, 4)))
 
 
 def kept_gt(gt: MotTable) -> MotTable:
