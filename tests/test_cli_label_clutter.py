@@ -70,9 +70,9 @@ def test_default_backend_in_a_headless_process_exits_2(tmp_path, pets, vtest):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["MPLBACKEND"] = ""
     out = tmp_path / "labels.json"
+    command = [sys.executable, "-m", "jaxtrack", "label-clutter", pets, "--video", vtest]
     result = subprocess.run(
-        [sys.executable, "-m", "jaxtrack", "label-clutter", pets, "--video", vtest]
-        + ["--frames", "1:397", "--out", str(out)],
+        [*command, "--frames", "1:397", "--out", str(out)],
         env=env,
         capture_output=True,
         text=True,
