@@ -14,7 +14,7 @@ import sys
 from jaxtrack.errors import InputError
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
-COMMANDS = ("simulate", "inspect", "track", "eval", "label_clutter")
+COMMANDS = ("simulate", "inspect", "track", "eval", "label_clutter", "learn_context")
 
 
 def build_parser() -> argparse.ArgumentParser:

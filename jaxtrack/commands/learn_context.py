@@ -1,0 +1,205 @@
+"""``jaxtrack learn-context``: learn a sequence's birth and clutter intensities (PHD-context IV)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from jaxtrack.errors import InputError
+
+DESCRIPTION = """\
+Learn the scene context of a MOTChallenge sequence on a training frame span: the birth
+intensity gamma(x) = lambda_s p(x|b) over the state (centre, centre velocity, box size) and
+the clutter intensity kappa(z) = lambda_r p(z|c) over detection boxes (PHD-context Sec. IV).
+Each density is a uniform component plus a Gaussian mixture, learned by recursive MAP-EM from
+a 12x10 (birth) or 16x14 (clutter) grid; the Dirichlet prior prunes the components the data
+do not support. The magnitudes are events per frame. The uniform volumes are those of the
+tracker's uniform (UM) intensities, so the result plugs into `jaxtrack track --context`.
+
+Event sources:
+  --birth-from tracks   first states of the trajectories of a UM tracker run (default)
+  --birth-from gt       first states of the ground-truth trajectories
+  --clutter-from gt     detections not matched to ground truth at IoU 0.5 (default)
+  --clutter-from tracks detections overlapping no tracker output box by IoU 0.5
+  --clutter-from FILE   detections labelled as clutter with `jaxtrack label-clutter`
+                        (magnitude: clutter per labelled frame)
+Trajectories that start in the first --warmup frames of the span are the population already
+in view, not births.
+
+Writes OUT (.npz, read with jaxtrack.context.load_context) with the sample counts,
+magnitudes and settings in its metadata; with --plot DIR also intensities.png (heat maps;
+beside the true ones when SEQ_DIR holds context_truth.npz from `jaxtrack simulate`),
+birth_evolution.png and clutter_evolution.png (the mixtures after more and more samples)."""
+
+EPILOG = """\
+examples:
+  jaxtrack simulate --seed 3 --out /tmp/s3
+  jaxtrack learn-context /tmp/s3 --frames 1:400 --out /tmp/ctx.npz --plot /tmp/ctxplots
+  jaxtrack learn-context data/PETS09-S2L1 --frames 1:397 --clutter-from labels.json \\
+      --out pets.npz --plot plots --video vtest.avi"""
+
+
+def register(subparsers) -> None:
+    """Adds the ``learn-context`` parser to the CLI's sub-parsers.
+
+    Args:
+        subparsers: the object returned by ``ArgumentParser.add_subparsers``.
+    """
+    from jaxtrack.context.learn import BIRTH_EPOCHS, CLUTTER_EPOCHS
+    from jaxtrack.context.samples import WARMUP_FRAMES
+
+    parser = subparsers.add_parser(
+        "learn-context",
+        help="learn birth and clutter intensities of a sequence (context .npz)",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("sequence", metavar="SEQ_DIR", help="MOTChallenge sequence folder")
+    parser.add_argument(
+        "--frames", metavar="A:B", help="training span, 1-based inclusive (default: all frames)"
+    )
+    parser.add_argument("--out", required=True, metavar="CTX.npz", help="context file to write")
+    parser.add_argument(
+        "--birth-from",
+        default="tracks",
+        choices=("tracks", "gt"),
+        help="source of birth events (default: tracks)",
+    )
+    parser.add_argument(
+        "--clutter-from",
+        default="gt",
+        metavar="gt|tracks|LABELS.json",
+        help="source of clutter events (default: gt)",
+    )
+    parser.add_argument("--plot", metavar="DIR", help="write PNG figures to DIR")
+    parser.add_argument(
+        "--video",
+        metavar="FILE",
+        help="video file or image folder of the sequence: the first training frame is drawn "
+        "under the heat maps",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the tracker run and sample order (default 0)"
+    )
+    parser.add_argument(
+        "--birth-epochs",
+        type=int,
+        default=BIRTH_EPOCHS,
+        metavar="N",
+        help=f"passes over the birth events (default {BIRTH_EPOCHS})",
+    )
+    parser.add_argument(
+        "--clutter-epochs",
+        type=int,
+        default=CLUTTER_EPOCHS,
+        metavar="N",
+        help=f"passes over the clutter events (default {CLUTTER_EPOCHS})",
+    )
+    parser.add_argument(
+        "--warmup",
+        type=int,
+        default=WARMUP_FRAMES,
+        metavar="N",
+        help=f"frames at the start of the span without births (default {WARMUP_FRAMES})",
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Learns the context, writes it (and the figures), prints a summary.
+
+    Args:
+        args: the parsed arguments of ``jaxtrack learn-context``.
+
+    Returns:
+        0 on success.
+
+    Raises:
+        InputError: a bad argument, file or span, a missing source, or no events.
+    """
+    from tqdm import tqdm
+
+    for name in ("birth_epochs", "clutter_epochs"):
+        if getattr(args, name) < 1:
+            raise InputError(f"--{name.replace('_', '-')} must be >= 1")
+    if args.warmup < 0:
+        raise InputError("--warmup must be >= 0")
+    clutter_from = args.clutter_from
+    if clutter_from not in ("gt", "tracks") and not Path(clutter_from).is_file():
+        raise InputError(
+            f"--clutter-from must be gt, tracks or a labels file; {clutter_from!r} is neither"
+        )
+    if args.video is not None and not Path(args.video).exists():
+        raise InputError(f"--video {args.video}: not found")
+
+    from jaxtrack.context.io import save_context
+    from jaxtrack.context.learn import learn_context
+
+    start = time.perf_counter()
+    # steps: loading, (tracking,) collecting events, birth density, clutter density, (plots)
+    steps = 5 if "tracks" in (args.birth_from, clutter_from) else 4
+    with tqdm(total=steps + (1 if args.plot else 0), desc="learn-context", unit="step") as bar:
+        started: list[str] = []
+
+        def progress(message: str) -> None:
+            if started:
+                bar.update(1)
+            started.append(message)
+            bar.set_description_str(message)
+
+        learned = learn_context(
+            args.sequence,
+            args.frames,
+            birth_from=args.birth_from,
+            clutter_from=clutter_from,
+            seed=args.seed,
+            birth_epochs=args.birth_epochs,
+            clutter_epochs=args.clutter_epochs,
+            warmup_frames=args.warmup,
+            progress=progress,
+        )
+        bar.update(1)
+        save_context(args.out, learned.birth, learned.clutter, learned.metadata)
+        if args.plot:
+            bar.set_description_str("plotting")
+            paths = _plot(args, learned)
+            bar.update(1)
+    elapsed = time.perf_counter() - start
+    meta = learned.metadata
+    print(f"wrote {args.out} (frames {meta['frames'][0]}:{meta['frames'][1]}, {elapsed:.1f} s)")
+    for kind in ("birth", "clutter"):
+        info = meta[kind]
+        print(
+            f"  {kind}: {info['num_events']} events from {info['source']} over "
+            f"{info['num_frames']} frames -> magnitude {info['magnitude']:.4g}/frame, "
+            f"{info['components_alive']} Gaussians alive, pi_u {info['uniform_weight']:.3g}"
+        )
+    if args.plot:
+        print(f"  figures: {', '.join(str(path) for path in paths)}")
+    return 0
+
+
+def _plot(args: argparse.Namespace, learned) -> list[Path]:
+    """Writes the figures of ``learned`` to ``args.plot``."""
+    from jaxtrack.io import read_seqinfo
+    from jaxtrack.plot.context import save_context_plots
+
+    sequence = Path(args.sequence)
+    info = read_seqinfo(sequence / "seqinfo.ini")
+    truth = None
+    truth_path = sequence / "context_truth.npz"
+    if truth_path.is_file():
+        from jaxtrack.datasets.context_truth import load_context_truth
+
+        truth = load_context_truth(truth_path)
+    background = None
+    if args.video is not None:
+        from jaxtrack.io.video import VideoReader
+
+        with VideoReader(args.video) as reader:
+            background = reader.read(learned.metadata["frames"][0])
+    return save_context_plots(
+        args.plot, learned, info.im_width, info.im_height, truth=truth, background=background
+    )

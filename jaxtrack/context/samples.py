@@ -1,0 +1,327 @@
+"""Training samples for scene-context learning: birth and clutter events (PHD-context Sec. IV-B).
+
+The learned intensities ``gamma(x) = lambda_s p(x | b)`` and ``kappa(z) = lambda_r p(z | c)``
+(PHD-context eq. 12-13) are estimated from *events* seen on a training frame span:
+
+* **Birth events** are the first states ``x = (y1, vy1, y2, vy2, w, h)`` of trajectories:
+  the first box's centre and size, and the centre velocity (pixels/frame) fitted by least
+  squares to the centres of the trajectory's first ``velocity_frames`` boxes (frame gaps
+  included, so a missed frame does not double the speed). Trajectories come from the
+  tracker run with uniform intensities (the paper's source) or from the ground truth (rows
+  with ``conf == 0`` ignored). Two filters the paper leaves implicit: trajectories that
+  start in the first ``warmup_frames`` frames of the span are the population already in
+  view (or still being picked up by the tracker), not births, and are dropped; so are
+  trajectories shorter than ``min_length`` boxes (their velocity cannot be measured).
+* **Clutter events** are detections ``z = (y1, y2, w, h)`` that are not objects of
+  interest: detections left unmatched by the per-frame one-to-one mapping to the ground
+  truth at IoU 0.5 (:func:`jaxtrack.metrics.vace.detection_mapping`: most pairs, then the
+  largest summed IoU; every gt row takes part, so a detection of an ignored object is not
+  clutter), detections whose best IoU with the same frame's tracker output is below 0.5
+  (never associated with a confirmed track), or detections a user labelled as clutter
+  (:mod:`jaxtrack.context.clutter_labels`).
+
+Magnitudes are averages over the frames the events were counted on (PHD-context Sec. IV-B,
+:func:`~jaxtrack.context.map_em.estimate_magnitude`): births per frame after the warm-up,
+clutter per training frame, or labelled clutter per labelled frame.
+
+Everything here is host-side NumPy.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+
+from jaxtrack.boxes import iou_matrix, xywh_to_cxcywh
+from jaxtrack.context.map_em import estimate_magnitude
+from jaxtrack.io.motchallenge import MotTable
+
+if TYPE_CHECKING:
+    from jaxtrack.association.offline import TrackRows
+    from jaxtrack.context.clutter_labels import ClutterLabels
+
+#: Default number of first boxes whose centres give a birth event's velocity.
+VELOCITY_FRAMES = 5
+#: Default number of frames at the start of a span whose trajectory starts are not births.
+WARMUP_FRAMES = 5
+#: Default minimum number of boxes of a trajectory that yields a birth event.
+MIN_LENGTH = 2
+#: IoU at which a detection belongs to a ground-truth object or a track.
+IOU_THRESHOLD = 0.5
+
+
+class EventSamples(NamedTuple):
+    """Birth or clutter events of a training span.
+
+    Attributes:
+        values: ``[num_events, 6]`` birth states ``(y1, vy1, y2, vy2, w, h)`` or
+            ``[num_events, 4]`` clutter measurements ``(y1, y2, w, h)``, in frame order.
+        frames: ``[num_events]`` 1-based frame of each event.
+        num_frames: frames the events were counted on (the magnitude's denominator).
+        source: where the events come from (``"gt"``, ``"tracks"`` or a labels file).
+    """
+
+    values: np.ndarray
+    frames: np.ndarray
+    num_frames: int
+    source: str
+
+    @property
+    def count(self) -> int:
+        """Number of events."""
+        return int(self.values.shape[0])
+
+    @property
+    def magnitude(self) -> float:
+        """Events per frame, ``lambda = count / num_frames`` (0 when no frame was counted)."""
+        if self.num_frames <= 0:
+            return 0.0
+        return estimate_magnitude(self.count, self.num_frames)
+
+
+def first_states(
+    frames: np.ndarray,
+    ids: np.ndarray,
+    boxes: np.ndarray,
+    *,
+    velocity_frames: int = VELOCITY_FRAMES,
+    min_length: int = MIN_LENGTH,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First state of each trajectory: first box centre and size, initial centre velocity.
+
+    The velocity is the least-squares slope of the centre against the frame number over the
+    first ``min(velocity_frames, length)`` boxes (exact for constant-velocity motion, gaps
+    allowed); a trajectory with one box (``min_length = 1``) gets velocity 0.
+
+    Args:
+        frames: ``[num_rows]`` 1-based frame of each box.
+        ids: ``[num_rows]`` trajectory identity of each box (unique within a frame).
+        boxes: ``[num_rows, 4]`` top-left ``(x, y, w, h)``.
+        velocity_frames: boxes used for the velocity (>= 2).
+        min_length: trajectories with fewer boxes are skipped (>= 1).
+
+    Returns:
+        ``(states, first_frames, track_ids)``: ``[n, 6]`` states ``(y1, vy1, y2, vy2, w,
+        h)``, the first frame and identity of each kept trajectory, sorted by first frame
+        then identity.
+
+    Raises:
+        ValueError: ``velocity_frames < 2`` or ``min_length < 1``.
+    """
+    if velocity_frames < 2:
+        raise ValueError(f"velocity_frames must be >= 2, got {velocity_frames}")
+    if min_length < 1:
+        raise ValueError(f"min_length must be >= 1, got {min_length}")
+    frames = np.asarray(frames, np.int64).reshape(-1)
+    ids = np.asarray(ids, np.int64).reshape(-1)
+    centres = xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4))
+    states, first_frames, track_ids = [], [], []
+    order = np.lexsort((frames, ids))
+    unique_ids, starts, lengths = np.unique(ids[order], return_index=True, return_counts=True)
+    for identity, start, length in zip(unique_ids, starts, lengths, strict=True):
+        if length < min_length:
+            continue
+        rows = order[start : start + min(length, velocity_frames)]
+        velocity = _slope(frames[rows], centres[rows, :2]) if rows.size > 1 else np.zeros(2)
+        cx, cy, w, h = centres[rows[0]]
+        states.append([cx, velocity[0], cy, velocity[1], w, h])
+        first_frames.append(frames[rows[0]])
+        track_ids.append(identity)
+    states = np.asarray(states, np.float64).reshape(-1, 6)
+    first_frames = np.asarray(first_frames, np.int64)
+    track_ids = np.asarray(track_ids, np.int64)
+    chronological = np.lexsort((track_ids, first_frames))
+    return states[chronological], first_frames[chronological], track_ids[chronological]
+
+
+def birth_samples(
+    frames: np.ndarray,
+    ids: np.ndarray,
+    boxes: np.ndarray,
+    span: tuple[int, int],
+    source: str,
+    *,
+    warmup_frames: int = WARMUP_FRAMES,
+    velocity_frames: int = VELOCITY_FRAMES,
+    min_length: int = MIN_LENGTH,
+) -> EventSamples:
+    """Birth events: first states of the trajectories that start after the warm-up.
+
+    Args:
+        frames: ``[num_rows]`` 1-based frame of each box (all inside ``span``).
+        ids: ``[num_rows]`` trajectory identity of each box.
+        boxes: ``[num_rows, 4]`` top-left ``(x, y, w, h)``.
+        span: ``(first, last)`` training frames, 1-based inclusive.
+        source: recorded in the result.
+        warmup_frames: trajectories starting in frames ``first .. first + warmup_frames - 1``
+            are not births (the population already in view); ``0`` keeps all.
+        velocity_frames: see :func:`first_states`.
+        min_length: see :func:`first_states`.
+
+    Returns:
+        The events; ``num_frames = last - first + 1 - warmup_frames`` (at least 0).
+
+    Raises:
+        ValueError: a negative ``warmup_frames``.
+    """
+    if warmup_frames < 0:
+        raise ValueError(f"warmup_frames must be >= 0, got {warmup_frames}")
+    first, last = span
+    states, first_frames, _ = first_states(
+        frames, ids, boxes, velocity_frames=velocity_frames, min_length=min_length
+    )
+    keep = first_frames >= first + warmup_frames
+    return EventSamples(
+        values=states[keep],
+        frames=first_frames[keep],
+        num_frames=max(last - first + 1 - warmup_frames, 0),
+        source=source,
+    )
+
+
+def birth_samples_from_gt(gt_table: MotTable, span: tuple[int, int], **options) -> EventSamples:
+    """Birth events from ground-truth trajectories (rows with ``conf == 0`` ignored).
+
+    Args:
+        gt_table: ground truth of the span.
+        span: ``(first, last)`` training frames.
+        **options: ``warmup_frames``, ``velocity_frames``, ``min_length`` of
+            :func:`birth_samples`.
+
+    Returns:
+        The events, source ``"gt"``.
+    """
+    kept = gt_table.select(~gt_table.ignored)
+    return birth_samples(kept.frames, kept.ids, kept.boxes, span, "gt", **options)
+
+
+def birth_samples_from_tracks(rows: TrackRows, span: tuple[int, int], **options) -> EventSamples:
+    """Birth events from a tracker's output trajectories.
+
+    Args:
+        rows: tracker output (e.g. :func:`jaxtrack.association.offline.finalise_tracks`,
+            which keeps each confirmed track from its first estimate on).
+        span: ``(first, last)`` training frames.
+        **options: ``warmup_frames``, ``velocity_frames``, ``min_length`` of
+            :func:`birth_samples`.
+
+    Returns:
+        The events, source ``"tracks"``.
+    """
+    return birth_samples(rows.frames, rows.ids, rows.boxes, span, "tracks", **options)
+
+
+def clutter_samples_from_gt(
+    det_table: MotTable,
+    gt_table: MotTable,
+    span: tuple[int, int],
+    iou_threshold: float = IOU_THRESHOLD,
+) -> EventSamples:
+    """Clutter events: detections the one-to-one per-frame mapping leaves without a gt box.
+
+    The mapping is :func:`jaxtrack.metrics.vace.detection_mapping` (most pairs with IoU >=
+    ``iou_threshold``, then the largest summed IoU). Every gt row takes part, ``conf == 0``
+    rows included: a detection of an ignored object is not an object of interest, but not
+    a detector error either.
+
+    Args:
+        det_table: detections of the span.
+        gt_table: ground truth of the span.
+        span: ``(first, last)`` training frames (every row of both tables inside it).
+        iou_threshold: minimum IoU of a match.
+
+    Returns:
+        The unmatched detections as ``(y1, y2, w, h)``, source ``"gt"``.
+    """
+    from jaxtrack.metrics.preprocess import prepare_sequence
+    from jaxtrack.metrics.vace import detection_mapping
+
+    every_gt = MotTable.from_arrays(gt_table.frames, gt_table.ids, gt_table.boxes)
+    numbered = MotTable.from_arrays(det_table.frames, np.arange(len(det_table)), det_table.boxes)
+    data = prepare_sequence(every_gt, numbered, span)
+    mapped = detection_mapping(data, iou_threshold)
+    # tracker ids are the row numbers 0..n-1, relabelled in increasing order: id == row
+    matched = np.zeros(len(det_table), bool)
+    matched[data.tracker_id[data.pairs.tracker_row[mapped]]] = True
+    return _detection_events(det_table, ~matched, span[1] - span[0] + 1, "gt")
+
+
+def clutter_samples_from_tracks(
+    det_table: MotTable,
+    rows: TrackRows,
+    span: tuple[int, int],
+    iou_threshold: float = IOU_THRESHOLD,
+) -> EventSamples:
+    """Clutter events: detections whose best IoU with the same frame's tracker boxes is low.
+
+    A detection overlapping no output box by ``iou_threshold`` or more was never
+    associated with a confirmed track.
+
+    Args:
+        det_table: detections of the span.
+        rows: tracker output of the span (confirmed tracks).
+        span: ``(first, last)`` training frames.
+        iou_threshold: IoU from which a detection belongs to a track.
+
+    Returns:
+        The unassociated detections as ``(y1, y2, w, h)``, source ``"tracks"``.
+    """
+    det_frames = np.asarray(det_table.frames)
+    track_frames = np.asarray(rows.frames)
+    track_boxes = np.asarray(rows.boxes, np.float64)
+    clutter = np.ones(len(det_table), bool)
+    for frame in np.intersect1d(det_frames, track_frames):
+        det_rows = np.flatnonzero(det_frames == frame)
+        overlaps = iou_matrix(det_table.boxes[det_rows], track_boxes[track_frames == frame])
+        clutter[det_rows] = overlaps.max(axis=1) < iou_threshold
+    return _detection_events(det_table, clutter, span[1] - span[0] + 1, "tracks")
+
+
+def clutter_samples_from_labels(
+    labels: ClutterLabels, span: tuple[int, int], source: str
+) -> EventSamples:
+    """Clutter events labelled by a user (:mod:`jaxtrack.context.clutter_labels`).
+
+    Only labels and labelled frames inside ``span`` count; the magnitude is the clutter
+    count per labelled frame (frames the user looked at, whether or not they held clutter).
+
+    Args:
+        labels: the labels (``frames``, ``boxes`` top-left, ``labelled_frames``).
+        span: ``(first, last)`` training frames.
+        source: recorded in the result (e.g. the labels file).
+
+    Returns:
+        The labelled detections as ``(y1, y2, w, h)``, ``num_frames`` = labelled frames in
+        the span.
+    """
+    first, last = span
+    frames = np.asarray(labels.frames, np.int64).reshape(-1)
+    boxes = np.asarray(labels.boxes, np.float64).reshape(-1, 4)
+    inside = (frames >= first) & (frames <= last)
+    looked_at = np.unique(np.asarray(labels.labelled_frames, np.int64))
+    num_frames = int(np.sum((looked_at >= first) & (looked_at <= last)))
+    order = np.argsort(frames[inside], kind="stable")
+    return EventSamples(
+        values=xywh_to_cxcywh(boxes[inside][order]),
+        frames=frames[inside][order],
+        num_frames=num_frames,
+        source=source,
+    )
+
+
+def _detection_events(table: MotTable, keep: np.ndarray, num_frames: int, source: str):
+    """The kept detections of ``table`` as clutter events in frame order."""
+    order = np.argsort(table.frames[keep], kind="stable")
+    return EventSamples(
+        values=xywh_to_cxcywh(np.asarray(table.boxes, np.float64)[keep][order]),
+        frames=np.asarray(table.frames, np.int64)[keep][order],
+        num_frames=num_frames,
+        source=source,
+    )
+
+
+def _slope(frames: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """Least-squares slope of ``centres[:, i]`` against ``frames`` (distinct frames)."""
+    offsets = frames - frames.mean()
+    return offsets @ (centres - centres.mean(axis=0)) / np.sum(offsets**2)
