@@ -10,7 +10,17 @@
    initialisations (births 12x10 in 6-D, clutter 16x14 in 4-D) centred on the events'
    mean box size.
 3. **Intensities** ``gamma(x) = lambda_s p(x | b)``, ``kappa(z) = lambda_r p(z | c)``
-   (PHD-context eq. 12-13) with the magnitudes estimated as events per frame.
+   (PHD-context eq. 12-13) with the magnitudes estimated as events per frame, keeping only
+   the live mixture components (:func:`live_components`).
+
+**Magnitude and the volume.** Events happen inside the volume (the image), but the learned
+Gaussians are not truncated to it: a component near the border, or a broad one, puts some
+of its mass outside, and ``lambda p`` would then expect fewer than ``lambda`` events per
+frame where events can happen. The intensity's magnitude is therefore
+``lambda / P_p(V)``, with ``P_p(V) = pi_u + (1 - pi_u) P_GMM(V)`` estimated by Monte Carlo
+(:func:`volume_mass`), so that ``int_V gamma = lambda_s`` and ``int_V kappa = lambda_r``
+exactly as measured. The metadata holds both ``lambda`` (``magnitude``) and ``P_p(V)``
+(``volume_mass``; typically above 0.95).
 
 **Volumes.** The uniform components live on exactly the volumes of the tracker's UM
 intensities (:func:`jaxtrack.filters.phd_defaults.default_phd_params`): the image times
@@ -45,7 +55,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.context.intensity import Intensity
+from jaxtrack.context.intensity import Intensity, sample
 from jaxtrack.context.map_em import (
     MapEMLearner,
     MixtureState,
@@ -107,7 +117,8 @@ class LearnedContext(NamedTuple):
         birth: the learned birth intensity ``gamma(x)`` (6-D state space).
         clutter: the learned clutter intensity ``kappa(z)`` (4-D measurement space).
         metadata: JSON-serialisable summary (sequence, frames, sources, sample counts,
-            magnitudes, epochs, live components, seed), saved with the context.
+            measured magnitudes, volume masses, epochs, live components, seed), saved with
+            the context.
         birth_samples: the birth events learned from.
         clutter_samples: the clutter events learned from.
         birth_snapshots: evolution of the birth mixture (see :data:`SNAPSHOT_FRACTIONS`).
@@ -245,6 +256,51 @@ def marginal(intensity: Intensity, dims: tuple[int, ...]) -> Intensity:
         means=intensity.means[:, index],
         covs=intensity.covs[:, index][:, :, index],
     )
+
+
+def live_components(intensity: Intensity) -> Intensity:
+    """The intensity without its dead (weight 0) mixture components.
+
+    The learned mixtures keep a handful of the grid's 120 or 224 slots alive; dropping the
+    rest makes every evaluation (e.g. per particle in the PHD filter) proportionally
+    cheaper. At least one slot is kept, so the arrays are never empty.
+
+    Args:
+        intensity: e.g. from :func:`~jaxtrack.context.map_em.to_intensity`.
+
+    Returns:
+        The same intensity over the live components only.
+    """
+    keep = np.flatnonzero(np.asarray(intensity.weights) > 0)
+    keep = keep if keep.size else np.zeros(1, np.int64)
+    return intensity._replace(
+        weights=intensity.weights[keep], means=intensity.means[keep], covs=intensity.covs[keep]
+    )
+
+
+def volume_mass(intensity: Intensity, key: jax.Array, num_samples: int = 100_000) -> float:
+    """``P_p(V)``: the share of the density inside its uniform's volume (Monte Carlo).
+
+    ``P_p(V) = pi_u + (1 - pi_u) P_GMM(V)``; the mixture's share is the fraction of
+    ``num_samples`` draws from it that fall inside ``[lower, upper]`` (standard error below
+    ``0.5 / sqrt(num_samples)``).
+
+    Args:
+        intensity: the intensity (its magnitude is ignored).
+        key: PRNG key of the draws.
+        num_samples: number of draws.
+
+    Returns:
+        The mass in ``(0, 1]`` (1 for a purely uniform density).
+    """
+    uniform_weight = float(intensity.uniform_weight)
+    if uniform_weight >= 1 or not np.any(np.asarray(intensity.weights) > 0):
+        return 1.0
+    mixture = intensity._replace(uniform_weight=jnp.zeros_like(intensity.uniform_weight))
+    draws = sample(key, mixture, num_samples)
+    inside = jnp.all((draws >= intensity.lower) & (draws <= intensity.upper), axis=-1)
+    mixture_mass = max(float(jnp.mean(inside)), 1.0 / num_samples)
+    return uniform_weight + (1 - uniform_weight) * mixture_mass
 
 
 def uniform_tracker_rows(
@@ -387,15 +443,20 @@ def learn_context(
         clutter_epochs,
         key_clutter,
     )
-    birth = to_intensity(birth_state, births.magnitude)
-    clutter_intensity = to_intensity(clutter_state, clutter.magnitude)
+    key_birth_mass, key_clutter_mass = jax.random.split(jax.random.fold_in(key_birth, 1))
+    birth_mass = volume_mass(to_intensity(birth_state, 1.0), key_birth_mass)
+    clutter_mass = volume_mass(to_intensity(clutter_state, 1.0), key_clutter_mass)
+    birth = live_components(to_intensity(birth_state, births.magnitude / birth_mass))
+    clutter_intensity = live_components(
+        to_intensity(clutter_state, clutter.magnitude / clutter_mass)
+    )
     metadata = {
         "sequence": str(sequence.path),
         "sequence_name": sequence.info.name,
         "frames": list(span),
         "seed": seed,
-        "birth": _summary(births, birth_state, birth_epochs),
-        "clutter": _summary(clutter, clutter_state, clutter_epochs),
+        "birth": _summary(births, birth_state, birth_epochs, birth_mass),
+        "clutter": _summary(clutter, clutter_state, clutter_epochs, clutter_mass),
         "warmup_frames": warmup_frames,
     }
     return LearnedContext(
@@ -415,13 +476,14 @@ def _mean_size(sizes: np.ndarray) -> tuple[float, float]:
     return float(mean[0]), float(mean[1])
 
 
-def _summary(events: EventSamples, state: MixtureState, epochs: int) -> dict:
+def _summary(events: EventSamples, state: MixtureState, epochs: int, mass: float) -> dict:
     """Metadata of one learned density."""
     return {
         "source": events.source,
         "num_events": events.count,
         "num_frames": events.num_frames,
         "magnitude": events.magnitude,
+        "volume_mass": mass,
         "epochs": epochs,
         "components_alive": int(np.sum(np.asarray(state.alive))),
         "uniform_weight": float(state.uniform_weight),

@@ -1,0 +1,188 @@
+"""Training samples for context learning, against hand-made tables with exact answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jaxtrack.association.offline import TrackRows
+from jaxtrack.context.clutter_labels import ClutterLabels, load_clutter_labels, save_clutter_labels
+from jaxtrack.context.samples import (
+    EventSamples,
+    birth_samples,
+    birth_samples_from_gt,
+    birth_samples_from_tracks,
+    clutter_samples_from_gt,
+    clutter_samples_from_labels,
+    clutter_samples_from_tracks,
+    first_states,
+)
+from jaxtrack.io import MotTable
+
+
+def _track(first_frame, box, velocity, length, gap_after=None):
+    """Rows of a constant-velocity box ``(x, y, w, h)``; optionally one frame skipped."""
+    frames = np.arange(first_frame, first_frame + length + (gap_after is not None))
+    if gap_after is not None:
+        frames = np.delete(frames, gap_after + 1)
+    steps = (frames - first_frame)[:, None]
+    boxes = np.asarray(box, float) + steps * np.array([velocity[0], velocity[1], 0.0, 0.0])
+    return frames, boxes
+
+
+def test_first_states_exact_for_constant_velocity_with_gaps():
+    frames_a, boxes_a = _track(3, (10.0, 20.0, 4.0, 8.0), (2.0, -1.0), 6)
+    frames_b, boxes_b = _track(7, (100.0, 50.0, 10.0, 20.0), (-0.5, 3.0), 4, gap_after=1)
+    frames = np.concatenate([frames_b, frames_a])
+    ids = np.concatenate([np.full(frames_b.size, 9), np.full(frames_a.size, 4)])
+    boxes = np.concatenate([boxes_b, boxes_a])
+    states, first, track_ids = first_states(frames, ids, boxes)
+    np.testing.assert_array_equal(first, [3, 7])
+    np.testing.assert_array_equal(track_ids, [4, 9])
+    # centre = top-left + size / 2; the skipped frame does not change the fitted speed
+    np.testing.assert_allclose(states[0], [12.0, 2.0, 24.0, -1.0, 4.0, 8.0], atol=1e-12)
+    np.testing.assert_allclose(states[1], [105.0, -0.5, 60.0, 3.0, 10.0, 20.0], atol=1e-12)
+
+
+def test_first_states_uses_only_the_first_velocity_frames():
+    # moves +1 px/frame for 3 frames, then +10 px/frame
+    frames = np.arange(1, 8)
+    x = np.array([0.0, 1.0, 2.0, 12.0, 22.0, 32.0, 42.0])
+    boxes = np.stack([x, np.zeros(7), np.full(7, 2.0), np.full(7, 2.0)], axis=-1)
+    ids = np.zeros(7, int)
+    states, _, _ = first_states(frames, ids, boxes, velocity_frames=3)
+    assert states[0, 1] == pytest.approx(1.0)
+    states, _, _ = first_states(frames, ids, boxes, velocity_frames=2)
+    assert states[0, 1] == pytest.approx(1.0)
+    states, _, _ = first_states(frames, ids, boxes, velocity_frames=4)
+    # least-squares slope of (0, 1, 2, 12) over frames (1, 2, 3, 4)
+    assert states[0, 1] == pytest.approx(3.7)
+
+
+def test_first_states_min_length():
+    frames = np.array([5, 5, 6])
+    ids = np.array([1, 2, 2])
+    boxes = np.array([[0.0, 0.0, 2.0, 4.0], [10.0, 10.0, 2.0, 2.0], [11.0, 10.0, 2.0, 2.0]])
+    _, _, track_ids = first_states(frames, ids, boxes)
+    np.testing.assert_array_equal(track_ids, [2])
+    states, _, track_ids = first_states(frames, ids, boxes, min_length=1)
+    np.testing.assert_array_equal(track_ids, [1, 2])
+    np.testing.assert_allclose(states[0], [1.0, 0.0, 2.0, 0.0, 2.0, 4.0])
+    with pytest.raises(ValueError):
+        first_states(frames, ids, boxes, velocity_frames=1)
+
+
+def test_birth_samples_skip_the_warmup_and_count_frames_after_it():
+    frames_a, boxes_a = _track(1, (0.0, 0.0, 2.0, 2.0), (1.0, 0.0), 5)  # in view at the start
+    frames_b, boxes_b = _track(4, (50.0, 0.0, 2.0, 2.0), (0.0, 1.0), 5)  # inside the warm-up
+    frames_c, boxes_c = _track(6, (80.0, 0.0, 2.0, 2.0), (0.0, 2.0), 5)  # a birth
+    frames = np.concatenate([frames_a, frames_b, frames_c])
+    ids = np.repeat([1, 2, 3], 5)
+    boxes = np.concatenate([boxes_a, boxes_b, boxes_c])
+    events = birth_samples(frames, ids, boxes, (1, 20), "test", warmup_frames=5)
+    assert events.count == 1 and events.num_frames == 15 and events.source == "test"
+    np.testing.assert_allclose(events.values, [[81.0, 0.0, 1.0, 2.0, 2.0, 2.0]])
+    np.testing.assert_array_equal(events.frames, [6])
+    assert events.magnitude == pytest.approx(1 / 15)
+    events = birth_samples(frames, ids, boxes, (1, 20), "test", warmup_frames=0)
+    assert events.count == 3 and events.num_frames == 20
+
+
+def test_birth_samples_from_gt_ignore_zero_confidence_rows():
+    frames, boxes = _track(10, (0.0, 0.0, 4.0, 4.0), (3.0, 0.0), 4)
+    confs = np.array([0.0, 1.0, 1.0, 1.0])  # the first row is marked "ignore"
+    table = MotTable.from_arrays(frames, np.full(4, 7), boxes, confs)
+    events = birth_samples_from_gt(table, (1, 30))
+    assert events.source == "gt" and events.num_frames == 25
+    np.testing.assert_array_equal(events.frames, [11])
+    np.testing.assert_allclose(events.values, [[5.0, 3.0, 2.0, 0.0, 4.0, 4.0]])
+
+
+def test_birth_samples_from_tracks():
+    frames, boxes = _track(8, (20.0, 30.0, 6.0, 12.0), (-1.0, 0.5), 3)
+    rows = TrackRows(frames, np.full(3, 2), boxes, np.ones(3))
+    events = birth_samples_from_tracks(rows, (1, 10), warmup_frames=2)
+    assert events.source == "tracks" and events.num_frames == 8
+    np.testing.assert_allclose(events.values, [[23.0, -1.0, 36.0, 0.5, 6.0, 12.0]])
+
+
+def _clutter_scene():
+    """Detections and ground truth over frames 1-4 with known clutter.
+
+    Frame 1: one gt box; a detection on it and one far away (clutter).
+    Frame 2: one gt box, two detections on it (IoU 0.9 and 0.6): one-to-one, so the weaker
+    one is clutter.
+    Frame 3: an ignored (conf 0) gt box with a detection on it (not clutter).
+    Frame 4: no gt; its detection is clutter.
+    """
+    gt = MotTable.from_arrays(
+        [1, 2, 3],
+        [1, 1, 2],
+        [[0, 0, 10, 10], [0, 0, 10, 10], [50, 50, 10, 10]],
+        confs=[1.0, 1.0, 0.0],
+    )
+    det_boxes = [
+        [300, 200, 20, 40],
+        [1, 0, 10, 10],
+        [0, 0, 10, 9],
+        [0, 0, 10, 6],
+        [50, 51, 10, 10],
+        [5, 5, 4, 8],
+    ]
+    det = MotTable.from_arrays([1, 1, 2, 2, 3, 4], np.full(6, -1), det_boxes)
+    return det, gt
+
+
+def test_clutter_samples_from_gt_one_to_one_at_iou_half():
+    det, gt = _clutter_scene()
+    events = clutter_samples_from_gt(det, gt, (1, 5))
+    assert events.source == "gt" and events.num_frames == 5
+    np.testing.assert_array_equal(events.frames, [1, 2, 4])
+    np.testing.assert_allclose(
+        events.values, [[310.0, 220.0, 20.0, 40.0], [5.0, 3.0, 10.0, 6.0], [7.0, 9.0, 4.0, 8.0]]
+    )
+    assert events.magnitude == pytest.approx(3 / 5)
+    # at IoU 0.95 no detection matches (best IoUs 0.82, 0.9, 0.82): all are clutter
+    strict = clutter_samples_from_gt(det, gt, (1, 5), iou_threshold=0.95)
+    np.testing.assert_array_equal(strict.frames, [1, 1, 2, 2, 3, 4])
+
+
+def test_clutter_samples_from_tracks_by_best_iou():
+    det, _ = _clutter_scene()
+    # track boxes: frame 1 on the gt object, frame 2 on the weaker detection; none later
+    rows = TrackRows(
+        np.array([1, 2]),
+        np.array([1, 1]),
+        np.array([[0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, 6.0]]),
+        np.ones(2),
+    )
+    events = clutter_samples_from_tracks(det, rows, (1, 4))
+    assert events.source == "tracks" and events.num_frames == 4
+    # frame 2: both detections overlap the track box by >= 0.5 (IoU 6/9 and 1), none is clutter
+    np.testing.assert_array_equal(events.frames, [1, 3, 4])
+    np.testing.assert_allclose(events.values[0], [310.0, 220.0, 20.0, 40.0])
+
+
+def test_clutter_samples_from_labels_file(tmp_path):
+    labels = ClutterLabels(
+        sequence="toy",
+        image_size=(640, 480),
+        labelled_frames=[3, 8, 20, 50],
+        frames=[8, 8, 20, 50],
+        boxes=[[10, 20, 30, 40], [0, 0, 2, 2], [100, 100, 10, 10], [1, 1, 1, 1]],
+    )
+    path = tmp_path / "labels.json"
+    save_clutter_labels(path, labels)
+    events = clutter_samples_from_labels(load_clutter_labels(path), (1, 30), str(path))
+    # frame 50 is outside the span; frames 3, 8, 20 were looked at (3 without clutter)
+    assert events.num_frames == 3 and events.count == 3 and events.source == str(path)
+    np.testing.assert_array_equal(events.frames, [8, 8, 20])
+    np.testing.assert_allclose(
+        events.values, [[25.0, 40.0, 30.0, 40.0], [1.0, 1.0, 2.0, 2.0], [105.0, 105.0, 10.0, 10.0]]
+    )
+    assert events.magnitude == pytest.approx(1.0)
+
+
+def test_event_samples_magnitude_without_frames_is_zero():
+    empty = EventSamples(np.zeros((0, 4)), np.zeros(0, int), 0, "gt")
+    assert empty.count == 0 and empty.magnitude == 0.0
