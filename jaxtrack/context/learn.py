@@ -394,6 +394,18 @@ def learn_context(
             f"than the {warmup_frames} warm-up frames"
         )
 
+    clutter = None
+    if labels_path is not None:  # read before the tracker runs: fail early on a bad file
+        from jaxtrack.context.clutter_labels import load_clutter_labels
+
+        clutter = clutter_samples_from_labels(
+            load_clutter_labels(labels_path), span, str(labels_path)
+        )
+        if clutter.num_frames == 0:
+            raise InputError(
+                f"{labels_path}: no labelled frame inside the span {span[0]}:{span[1]}"
+            )
+
     rows = None
     if birth_from == "tracks" or str(clutter_from) == "tracks":
         notify(f"tracking frames {span[0]}:{span[1]} with uniform intensities")
@@ -404,19 +416,9 @@ def learn_context(
         births = birth_samples_from_gt(sequence.gt_table, span, warmup_frames=warmup_frames)
     else:
         births = birth_samples_from_tracks(rows, span, warmup_frames=warmup_frames)
-    if labels_path is not None:
-        from jaxtrack.context.clutter_labels import load_clutter_labels
-
-        clutter = clutter_samples_from_labels(
-            load_clutter_labels(labels_path), span, str(labels_path)
-        )
-        if clutter.num_frames == 0:
-            raise InputError(
-                f"{labels_path}: no labelled frame inside the span {span[0]}:{span[1]}"
-            )
-    elif str(clutter_from) == "gt":
+    if str(clutter_from) == "gt":
         clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
-    else:
+    elif str(clutter_from) == "tracks":
         clutter = clutter_samples_from_tracks(sequence.det_table, rows, span)
     for name, events in (("birth", births), ("clutter", clutter)):
         if events.count == 0:
