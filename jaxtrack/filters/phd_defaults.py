@@ -98,5 +98,7 @@ def default_phd_params(
             min_iou=jnp.asarray(0.3),
             max_missed_frames=jnp.asarray(10.0),
             confirm_score=jnp.asarray(0.97),
+            new_track_max_iou=jnp.asarray(0.3),
+            velocity_smoothing=jnp.asarray(0.8),
         ),
     )

@@ -12,7 +12,11 @@ from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.labelling import LabelParams, init_labels, label_step
 
 PARAMS = LabelParams(
-    min_iou=jnp.asarray(0.3), max_missed_frames=jnp.asarray(3.0), confirm_score=jnp.asarray(0.0)
+    min_iou=jnp.asarray(0.3),
+    max_missed_frames=jnp.asarray(3.0),
+    confirm_score=jnp.asarray(0.0),
+    new_track_max_iou=jnp.asarray(1.0),
+    velocity_smoothing=jnp.asarray(0.0),
 )
 
 
@@ -122,3 +126,41 @@ def test_overflow_is_flagged():
     _, labels = label_step(init_labels(3), PARAMS, _estimates(boxes))
     assert bool(labels.overflow)
     np.testing.assert_array_equal(labels.ids, [1, 2, 3, -1])
+
+
+def test_an_estimate_overlapping_a_live_track_starts_no_duplicate_track():
+    first = _estimates([(100, 200, 40, 100)])
+    second = _estimates([(100, 200, 40, 100), (104, 204, 40, 100)])  # IoU ~0.77 with the track
+    for threshold, expected in ((0.5, -1), (1.0, 2)):
+        params = PARAMS._replace(new_track_max_iou=jnp.asarray(threshold))
+        state, _ = label_step(init_labels(4), params, first)
+        state, labels = label_step(state, params, second)
+        np.testing.assert_array_equal(labels.ids[:2], [1, expected])
+        assert int(jnp.sum(state.active)) == (1 if expected < 0 else 2)
+
+
+def test_confirmed_tracks_take_precedence_over_tentative_ones():
+    params = PARAMS._replace(confirm_score=jnp.asarray(0.9))
+    # Track 1 (confirmed, score 1) at x=100, track 2 (tentative, score 0.5) at x=130.
+    first = _estimates([(100, 200, 40, 100), (130, 200, 40, 100)], scores=[1.0, 0.5, 0, 0])
+    # One estimate at x=120: IoU 0.33 with track 1, 0.60 with track 2.
+    second = _estimates([(120, 200, 40, 100)], scores=[0.5, 0, 0, 0])
+    state, labels = label_step(init_labels(4), params, first)
+    np.testing.assert_array_equal(labels.confirmed[:2], [True, False])
+    _, labels = label_step(state, params, second)
+    assert int(labels.ids[0]) == 1 and bool(labels.confirmed[0])
+
+
+def test_linked_tracks_smooth_their_box_displacement():
+    params = PARAMS._replace(velocity_smoothing=jnp.asarray(0.75))
+    state, _ = label_step(init_labels(2), params, _estimates([(100, 200, 40, 100)], [(4.0, 0.0)]))
+    np.testing.assert_allclose(state.velocities[0], [4.0, 0.0])  # new track: PHD velocity
+    state, _ = label_step(state, params, _estimates([(112, 202, 40, 100)], [(9.0, 9.0)]))
+    # displacement (12, 2) since the last frame: 0.75 * (4, 0) + 0.25 * (12, 2)
+    np.testing.assert_allclose(state.velocities[0], [6.0, 0.5], rtol=1e-6)
+    empty = _estimates([])
+    state, _ = label_step(state, params, empty)  # missed: velocity kept
+    state, _ = label_step(state, params, _estimates([(130, 203, 40, 100)], [(0.0, 0.0)]))
+    # two frames since the last link: predicted x = 112 + 2 * 6 = 124, IoU 0.74: linked;
+    # displacement per frame (18, 1) / 2.
+    np.testing.assert_allclose(state.velocities[0], [0.75 * 6 + 0.25 * 9, 0.75 * 0.5 + 0.25 * 0.5])
