@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import json
 
+import jax.numpy as jnp
 import pytest
 
 from jaxtrack.cli import main
 from jaxtrack.commands.track import DEFAULT_CONFIG, load_config
+from jaxtrack.context.io import save_context
 from jaxtrack.errors import FileFormatError
-from jaxtrack.io import read_mot_file
+from jaxtrack.filters.phd_tracker import tracker_params
+from jaxtrack.io import read_mot_file, read_seqinfo
 from jaxtrack.metrics.evaluate import evaluate_sequence
 
 
@@ -48,6 +51,9 @@ def test_track_frame_span(mot15_root, tmp_path):
         ('{"num_particles": "many"}', "num_particles must be a int"),
         ('{"clutter_rate": -1}', "clutter_rate must be positive"),
         ('{"extraction": "kmeans"}', "extraction must be"),
+        ('{"output": "batch"}', "output must be"),
+        ('{"max_gap": -1}', "max_gap must be >= 0"),
+        ('{"max_gap": 2.5}', "max_gap must be a int"),
     ],
 )
 def test_bad_config(tmp_path, text, message):
@@ -62,3 +68,40 @@ def test_bad_arguments_exit_2(mot15_root, tmp_path, capsys):
     assert "either SEQ_DIR or --benchmark" in capsys.readouterr().err
     assert main(["track", str(tmp_path / "nope"), "--out", str(tmp_path / "x.txt")]) == 2
     assert "sequence folder not found" in capsys.readouterr().err
+
+
+def test_track_with_context_variant_and_figure(mot15_root, tmp_path, capsys):
+    info = read_seqinfo(mot15_root / "TUD-Campus" / "seqinfo.ini")
+    uniform = tracker_params(info)
+    birth = uniform.birth_intensity._replace(
+        weights=jnp.ones(1),
+        means=jnp.array([[300.0, 0.0, 300.0, 0.0, 60.0, 150.0]]),
+        covs=jnp.diag(jnp.array([50.0, 3.0, 50.0, 3.0, 20.0, 40.0]) ** 2)[None],
+        uniform_weight=jnp.asarray(0.5),
+    )
+    context = tmp_path / "ctx.npz"
+    save_context(
+        context,
+        birth,
+        uniform.clutter_intensity,
+        {"birth": {"magnitude": 0.05}, "clutter": {"magnitude": 0.4}},
+    )
+    out = tmp_path / "a3.txt"
+    figure = tmp_path / "fig.png"
+    args = ["track", str(mot15_root / "TUD-Campus"), "--out", str(out), "--context", str(context)]
+    assert main([*args, "--variant", "A3", "--figure", str(figure), "--figure-frame", "30"]) == 0
+    assert "frame 30" in capsys.readouterr().out and figure.stat().st_size > 10_000
+    used = json.loads((tmp_path / "a3.config.json").read_text())
+    assert used["variant"] == "A3" and used["context"] == str(context)
+    assert len(read_mot_file(out, "res")) > 0
+    assert main([*args, "--figure", str(figure), "--figure-frame", "99"]) == 2
+    assert "outside the frames tracked" in capsys.readouterr().err
+
+
+def test_context_from_another_image_size_is_refused(mot15_root, tmp_path, capsys):
+    params = tracker_params(read_seqinfo(mot15_root / "PETS09-S2L1" / "seqinfo.ini"))
+    context = tmp_path / "pets.npz"
+    save_context(context, params.birth_intensity, params.clutter_intensity)
+    args = ["track", str(mot15_root / "TUD-Campus"), "--out", str(tmp_path / "x.txt")]
+    assert main([*args, "--context", str(context)]) == 2
+    assert "learned on 768x576 images" in capsys.readouterr().err

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from jaxtrack.errors import InputError
+from jaxtrack.io.video import find_frame_source
 
 DEFAULT_NUM_FRAMES = 20
 DEFAULT_SEED = 0
-VIDEO_EXTENSIONS = (".mp4", ".avi")
 
 DESCRIPTION = """\
 Label clutter (detections that are not objects of interest) by hand, for learning the clutter
@@ -149,7 +149,7 @@ def run(args) -> int:
         seed = DEFAULT_SEED if args.seed is None else args.seed
         frames = choose_frames(sequence.first_frame, sequence.last_frame, num_frames, seed)
 
-    source = _frame_source_path(Path(args.sequence), info.name, args.video)
+    source = find_frame_source(Path(args.sequence), info.name, args.video)
     reader = None if source is None else VideoReader(source)
     try:
         if reader is not None:
@@ -172,19 +172,6 @@ def run(args) -> int:
         f"labelled frames ({labels.pending_frames.size} still to show)"
     )
     return 0
-
-
-def _frame_source_path(sequence_dir: Path, name: str, video: Path | None) -> Path | None:
-    """The video or image folder to show: --video, img1/, <name>.mp4/.avi, or None."""
-    if video is not None:
-        return video
-    if (sequence_dir / "img1").is_dir():
-        return sequence_dir / "img1"
-    for extension in VIDEO_EXTENSIONS:
-        candidate = sequence_dir / f"{name}{extension}"
-        if candidate.is_file():
-            return candidate
-    return None
 
 
 def _check_reader(reader, image_size: tuple[int, int], last_frame: int) -> None:

@@ -1,14 +1,25 @@
 """``jaxtrack track``: run the particle PHD tracker on MOTChallenge sequences.
 
-One sequence:  ``jaxtrack track SEQ_DIR --out RES.txt [--frames A:B] [--config FILE]``
-All sequences: ``jaxtrack track --benchmark MOT_ROOT --out RES_DIR`` (one ``<SEQ>.txt`` each)
+One sequence:  ``jaxtrack track SEQ_DIR --out RES.txt [--frames A:B] [--config FILE]
+[--context CTX.npz [--variant GM|A1..A6]] [--figure PNG [--figure-frame N]]``
+All sequences: ``jaxtrack track --benchmark MOT_ROOT --out RES_DIR`` (one ``<SEQ>.txt`` each,
+one compile for all of them)
 
-The default configuration (uniform birth and clutter intensities, see
-``jaxtrack.filters.phd_defaults.default_phd_params``) is the same for every sequence; image
-size and frame rate come from each ``seqinfo.ini``. ``--config FILE.json`` overrides it with
-the keys ``num_particles``, ``births_per_detection``, ``extraction`` ("partition" or "gmm"),
-``birth_rate`` and ``clutter_rate``. The configuration used is written beside the results as
-``<RES>.config.json``.
+The default configuration (uniform birth and clutter intensities, UM) is the same for every
+sequence; image size and frame rate come from each ``seqinfo.ini``. ``--config FILE.json``
+overrides it with the keys ``num_particles``, ``births_per_detection``, ``extraction``
+("partition" or "gmm"), ``birth_rate`` and ``clutter_rate`` (the uniform magnitudes, per
+frame), ``output`` ("offline": confirmed tracks over their whole life, gaps of up to
+``max_gap`` frames interpolated; "online": the filter's frame-by-frame output) and
+``max_gap``.
+
+``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``
+picks the parts (PHD-context Sec. V): GM (default) learned birth and clutter; A1 learned birth
++ uniform clutter; A2 uniform birth + learned clutter; A3 uniform both with the magnitudes
+measured on the training span; A4 = A3 with learned birth; A5 = A3 with learned clutter; A6 =
+GM (learn the context with ``--birth-from gt``).
+
+The configuration used is written beside the results as ``<RES>.config.json``.
 """
 
 from __future__ import annotations
@@ -19,15 +30,7 @@ import time
 from pathlib import Path
 
 from jaxtrack.errors import FileFormatError, InputError
-
-#: The documented default configuration (one for all sequences).
-DEFAULT_CONFIG = {
-    "num_particles": 2048,
-    "births_per_detection": 32,
-    "extraction": "partition",
-    "birth_rate": 0.2,
-    "clutter_rate": 1.0,
-}
+from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, VARIANTS, check_config
 
 
 def register(subparsers) -> None:
@@ -45,6 +48,27 @@ def register(subparsers) -> None:
     parser.add_argument("--frames", metavar="A:B", help="only frames A..B (1-based, inclusive)")
     parser.add_argument("--config", metavar="FILE", help="JSON file overriding the defaults")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument(
+        "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
+    )
+    parser.add_argument(
+        "--variant",
+        choices=[name for name in VARIANTS if name != "UM"],
+        default="GM",
+        help="which parts of the context to use (default GM; see above)",
+    )
+    parser.add_argument(
+        "--figure", metavar="PNG", help="also draw particles, estimates and tracks of one frame"
+    )
+    parser.add_argument(
+        "--figure-frame",
+        type=int,
+        metavar="N",
+        help="MOT frame number of --figure (default: the middle of the span)",
+    )
+    parser.add_argument(
+        "--video", metavar="FILE", help="video or image folder behind --figure (default: found)"
+    )
     parser.set_defaults(func=run)
 
 
@@ -67,79 +91,137 @@ def load_config(path: str | None) -> dict:
         raise FileFormatError(file, err.lineno, f"not valid JSON ({err.msg})") from None
     if not isinstance(overrides, dict):
         raise FileFormatError(file, None, "must hold a JSON object")
+    reason = check_config(overrides)
+    if reason is not None:
+        raise FileFormatError(file, None, reason)
     for key, value in overrides.items():
-        if key not in DEFAULT_CONFIG:
-            raise FileFormatError(
-                file, None, f"unknown key {key!r}; known: {', '.join(DEFAULT_CONFIG)}"
-            )
-        expected = type(DEFAULT_CONFIG[key])
-        if expected is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if not isinstance(value, expected) or isinstance(value, bool):
-            raise FileFormatError(file, None, f"{key} must be a {expected.__name__}, got {value!r}")
-        config[key] = value
-    if config["extraction"] not in ("partition", "gmm"):
-        raise FileFormatError(file, None, "extraction must be 'partition' or 'gmm'")
-    for key in ("num_particles", "births_per_detection", "birth_rate", "clutter_rate"):
-        if config[key] <= 0:
-            raise FileFormatError(file, None, f"{key} must be positive, got {config[key]}")
+        config[key] = float(value) if isinstance(DEFAULT_CONFIG[key], float) else value
     return config
 
 
-def track_sequence(sequence_dir, out_path, config: dict, seed: int = 0, frames=None) -> int:
+def track_sequence(
+    sequence_dir,
+    out_path,
+    config: dict,
+    seed: int = 0,
+    frames=None,
+    context_path: str | None = None,
+    variant: str = "GM",
+) -> int:
     """Tracks one sequence folder and writes MOTChallenge results; returns the row count."""
-    import jax
-
-    from jaxtrack.association.offline import track_rows
-    from jaxtrack.filters.base import run as run_filter
-    from jaxtrack.filters.phd import phd_filter
-    from jaxtrack.filters.phd_defaults import default_phd_params
-    from jaxtrack.io import load_sequence, write_results
+    from jaxtrack.filters.phd_tracker import track_sequences, tracker_params
+    from jaxtrack.io import load_sequence
 
     seq = load_sequence(sequence_dir, frames=frames)
-    params = default_phd_params(
-        seq.info.im_width,
-        seq.info.im_height,
-        seq.info.frame_rate,
-        birth_rate=config["birth_rate"],
-        clutter_rate=config["clutter_rate"],
-    )
-    filt = phd_filter(
-        config["num_particles"],
-        births_per_detection=config["births_per_detection"],
-        extraction=config["extraction"],
-    )
-    _, info = run_filter(filt, jax.random.PRNGKey(seed), params, seq.detections)
-    rows = track_rows(info.tracks, seq.first_frame)
-    write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.scores)
-    used = {**config, "seed": seed, "sequence": str(sequence_dir)}
-    used["frames"] = [seq.first_frame, seq.last_frame]
-    Path(f"{Path(out_path).with_suffix('')}.config.json").write_text(json.dumps(used, indent=2))
+    context = _load_context(context_path)
+    params = tracker_params(seq.info, config, context, variant)
+    (rows,) = track_sequences([seq], config, seed, [params])
+    _write(out_path, rows, config, seed, seq, context_path, variant if context else "UM")
     return len(rows.frames)
 
 
 def run(args) -> int:
-    from tqdm import tqdm
-
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
     config = load_config(args.config)
     if args.sequence is not None:
         start = time.perf_counter()
-        count = track_sequence(args.sequence, args.out, config, args.seed, args.frames)
+        count = track_sequence(
+            args.sequence, args.out, config, args.seed, args.frames, args.context, args.variant
+        )
         print(f"wrote {args.out} ({count} boxes, {time.perf_counter() - start:.1f} s)")
+        if args.figure:
+            _figure(args, config)
         return 0
-    if args.frames is not None:
-        raise InputError("--frames applies to one sequence, not to --benchmark")
+    for option in ("frames", "context", "figure"):
+        if getattr(args, option) is not None:
+            raise InputError(f"--{option} applies to one sequence, not to --benchmark")
+    return _benchmark(args, config)
+
+
+def _benchmark(args, config: dict) -> int:
+    from jaxtrack.filters.phd_tracker import track_sequences
+    from jaxtrack.io import load_sequence
+
     root = Path(args.benchmark)
-    sequences = (
+    folders = (
         sorted(p for p in root.iterdir() if (p / "seqinfo.ini").is_file()) if root.is_dir() else []
     )
-    if not sequences:
+    if not folders:
         raise InputError(f"{root}: no sequence folders (with seqinfo.ini) found")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    for seq_dir in tqdm(sequences, desc="tracking", unit="seq"):
-        track_sequence(seq_dir, out / f"{seq_dir.name}.txt", config, args.seed)
-    print(f"wrote {len(sequences)} result files to {out}")
+    sequences = [load_sequence(folder) for folder in folders]
+    start = time.perf_counter()
+    results = track_sequences(sequences, config, args.seed, progress=True)
+    for seq, rows in zip(sequences, results, strict=True):
+        _write(out / f"{seq.path.name}.txt", rows, config, args.seed, seq, None, "UM")
+    frames = sum(seq.num_frames for seq in sequences)
+    print(
+        f"wrote {len(sequences)} result files to {out} "
+        f"({frames} frames, {time.perf_counter() - start:.1f} s including one compile)"
+    )
     return 0
+
+
+def _load_context(path):
+    if path is None:
+        return None
+    from jaxtrack.context.io import load_context
+    from jaxtrack.filters.phd_tracker import Context
+
+    return Context(*load_context(path))
+
+
+def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
+    from jaxtrack.io import write_results
+
+    write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.scores)
+    used = {**config, "seed": seed, "sequence": str(seq.path), "variant": variant}
+    used["frames"] = [seq.first_frame, seq.last_frame]
+    if context_path is not None:
+        used["context"] = str(context_path)
+    Path(f"{Path(out_path).with_suffix('')}.config.json").write_text(json.dumps(used, indent=2))
+
+
+def _figure(args, config: dict) -> None:
+    """Draws ``--figure`` (PHD-context Fig. 3) for the span tracked."""
+    import jax
+
+    from jaxtrack.filters.phd import phd_filter
+    from jaxtrack.filters.phd_tracker import tracker_params
+    from jaxtrack.io import load_sequence
+    from jaxtrack.io.video import VideoReader, find_frame_source
+    from jaxtrack.plot.tracks import phd_frame_figure
+
+    seq = load_sequence(args.sequence, frames=args.frames)
+    frame = args.figure_frame or (seq.first_frame + seq.last_frame) // 2
+    if not seq.first_frame <= frame <= seq.last_frame:
+        raise InputError(
+            f"--figure-frame {frame} is outside the frames tracked "
+            f"({seq.first_frame}..{seq.last_frame})"
+        )
+    source = find_frame_source(args.sequence, seq.info.name, args.video)
+    image = None
+    if source is not None:
+        with VideoReader(source) as reader:
+            image = reader.read(frame)
+    context = _load_context(args.context)
+    params = tracker_params(seq.info, config, context, args.variant)
+    filt = phd_filter(
+        config["num_particles"],
+        births_per_detection=config["births_per_detection"],
+        extraction=config["extraction"],
+    )
+    path = phd_frame_figure(
+        filt,
+        jax.random.PRNGKey(args.seed),
+        params,
+        seq.detections,
+        frame - seq.first_frame,
+        args.figure,
+        image=image,
+        first_frame=seq.first_frame,
+        image_size=(seq.info.im_width, seq.info.im_height),
+    )
+    print(f"wrote {path} (frame {frame})")

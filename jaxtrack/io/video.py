@@ -196,3 +196,24 @@ def _split(path: Path) -> list[str]:
 def _to_rgb(image: np.ndarray) -> np.ndarray:
     """OpenCV's BGR ``uint8`` image as RGB."""
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+#: Video files a sequence folder may hold as ``<name><extension>``.
+VIDEO_EXTENSIONS = (".mp4", ".avi")
+
+
+def find_frame_source(
+    sequence_dir: str | Path, name: str, video: str | Path | None = None
+) -> Path | None:
+    """The frames of a MOTChallenge sequence: ``video`` if given, else ``img1/``, else
+    ``<name>.mp4`` / ``<name>.avi`` in the folder, else None."""
+    if video is not None:
+        return Path(video)
+    sequence_dir = Path(sequence_dir)
+    if (sequence_dir / "img1").is_dir():
+        return sequence_dir / "img1"
+    for extension in VIDEO_EXTENSIONS:
+        candidate = sequence_dir / f"{name}{extension}"
+        if candidate.is_file():
+            return candidate
+    return None

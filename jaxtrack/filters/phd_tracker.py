@@ -1,0 +1,247 @@
+"""The PHD tracker as a tool: one configuration, learned-context variants, runs over sequences.
+
+What ``jaxtrack track`` does, as library code for scripts and notebooks:
+
+* :data:`DEFAULT_CONFIG` is the documented pedestrian configuration (the same for every
+  sequence; image size and frame rate come from each ``seqinfo.ini``);
+  :func:`check_config` validates overrides.
+* :func:`tracker_params` builds the :class:`~jaxtrack.filters.phd.PHDParams` of a sequence,
+  with uniform intensities (UM) or with a learned context (``jaxtrack learn-context``) in one
+  of the paper's variants (:data:`VARIANTS`: GM, A1-A6; PHD-context Sec. V).
+* :func:`track_sequences` runs the tracker on several sequences with **one compile**: the
+  padded detections of all of them are brought to a common shape (frames and detection slots;
+  extra frames are empty and come after the real ones, so they do not change the output), and
+  the jitted run is reused.
+
+Output: ``"offline"`` (default) keeps every confirmed track over its whole life, the frames
+before its confirmation included, and fills gaps of up to ``max_gap`` frames by linear
+interpolation (:func:`~jaxtrack.association.offline.finalise_tracks`); ``"online"`` writes
+what the filter outputs frame by frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import jax
+import numpy as np
+
+from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.context.intensity import Intensity
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import run
+from jaxtrack.filters.phd import PHDParams, phd_filter
+from jaxtrack.filters.phd_defaults import default_phd_params
+from jaxtrack.io import MotSequence, SequenceInfo
+from jaxtrack.types import PAD_BOX, Detections
+
+#: The documented default configuration (one for all sequences).
+DEFAULT_CONFIG: dict[str, Any] = {
+    "num_particles": 2048,
+    "births_per_detection": 32,
+    "extraction": "partition",
+    "birth_rate": 0.2,
+    "clutter_rate": 1.0,
+    "output": "offline",
+    "max_gap": 8,
+}
+
+
+class Variant(NamedTuple):
+    """Which parts of a learned context a tracker uses.
+
+    Attributes:
+        learned_birth: birth density from the context (else uniform).
+        learned_clutter: clutter density from the context (else uniform).
+        birth_magnitude_from_context: ``lambda_s`` measured on the training span (else the
+            configuration's ``birth_rate``).
+        clutter_magnitude_from_context: ``lambda_r`` measured on the training span (else the
+            configuration's ``clutter_rate``).
+    """
+
+    learned_birth: bool
+    learned_clutter: bool
+    birth_magnitude_from_context: bool
+    clutter_magnitude_from_context: bool
+
+
+#: The variants of PHD-context Sec. V (SPEC section 1). A6 is GM with a context whose birth
+#: samples were labelled (``jaxtrack learn-context --birth-from gt``); at tracking time it is GM.
+VARIANTS: dict[str, Variant] = {
+    "UM": Variant(False, False, False, False),
+    "GM": Variant(True, True, True, True),
+    "A1": Variant(True, False, True, False),
+    "A2": Variant(False, True, False, True),
+    "A3": Variant(False, False, True, True),
+    "A4": Variant(True, False, True, True),
+    "A5": Variant(False, True, True, True),
+    "A6": Variant(True, True, True, True),
+}
+
+
+class Context(NamedTuple):
+    """A learned context as read by :func:`jaxtrack.context.io.load_context`."""
+
+    birth: Intensity
+    clutter: Intensity
+    metadata: dict[str, Any]
+
+
+def check_config(config: dict[str, Any]) -> str | None:
+    """Why ``config`` is not a valid tracker configuration, or None when it is."""
+    for key in config:
+        if key not in DEFAULT_CONFIG:
+            return f"unknown key {key!r}; known: {', '.join(DEFAULT_CONFIG)}"
+    for key, default in DEFAULT_CONFIG.items():
+        value = config.get(key, default)
+        expected = type(default)
+        ok = isinstance(value, expected) or (
+            expected is float and isinstance(value, int) and not isinstance(value, bool)
+        )
+        if not ok or isinstance(value, bool):
+            return f"{key} must be a {expected.__name__}, got {value!r}"
+    merged = {**DEFAULT_CONFIG, **config}
+    if merged["extraction"] not in ("partition", "gmm"):
+        return "extraction must be 'partition' or 'gmm'"
+    if merged["output"] not in ("offline", "online"):
+        return "output must be 'offline' or 'online'"
+    for key in ("num_particles", "births_per_detection", "birth_rate", "clutter_rate"):
+        if merged[key] <= 0:
+            return f"{key} must be positive, got {merged[key]}"
+    if merged["max_gap"] < 0:
+        return f"max_gap must be >= 0, got {merged['max_gap']}"
+    return None
+
+
+def tracker_params(
+    info: SequenceInfo,
+    config: dict[str, Any] | None = None,
+    context: Context | None = None,
+    variant: str = "GM",
+) -> PHDParams:
+    """The PHD tracker's parameters for a sequence.
+
+    Args:
+        info: the sequence's ``seqinfo.ini`` (image size, frame rate).
+        config: overrides of :data:`DEFAULT_CONFIG`.
+        context: a learned context; None gives UM (uniform intensities, the configuration's
+            magnitudes).
+        variant: a key of :data:`VARIANTS` (used only with a context).
+
+    Returns:
+        The parameters.
+
+    Raises:
+        InputError: unknown variant, or a context learned on an image of another size.
+    """
+    config = {**DEFAULT_CONFIG, **(config or {})}
+    if variant not in VARIANTS:
+        raise InputError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
+    use = VARIANTS["UM" if context is None else variant]
+    birth_rate, clutter_rate = config["birth_rate"], config["clutter_rate"]
+    if context is not None:
+        _check_context_size(context, info)
+        if use.birth_magnitude_from_context:
+            birth_rate = _measured_magnitude(context, "birth")
+        if use.clutter_magnitude_from_context:
+            clutter_rate = _measured_magnitude(context, "clutter")
+    params = default_phd_params(
+        info.im_width, info.im_height, info.frame_rate, birth_rate, clutter_rate
+    )
+    if use.learned_birth:
+        params = params._replace(birth_intensity=context.birth)
+    if use.learned_clutter:
+        params = params._replace(clutter_intensity=context.clutter)
+    return params
+
+
+def track_sequences(
+    sequences: Sequence[MotSequence],
+    config: dict[str, Any] | None = None,
+    seed: int = 0,
+    params: Sequence[PHDParams] | None = None,
+    progress: bool = False,
+) -> list[TrackRows]:
+    """Tracks several sequences (or spans) with one compiled run.
+
+    Args:
+        sequences: the loaded sequences.
+        config: overrides of :data:`DEFAULT_CONFIG`.
+        seed: PRNG seed (the same key for every sequence).
+        params: one :class:`~jaxtrack.filters.phd.PHDParams` per sequence; default
+            :func:`tracker_params` with uniform intensities. Parameters of different PyTree
+            shapes (e.g. contexts with different numbers of components) compile once per shape.
+        progress: show a progress bar over the sequences.
+
+    Returns:
+        The result rows of each sequence.
+    """
+    config = {**DEFAULT_CONFIG, **(config or {})}
+    reason = check_config(config)
+    if reason is not None:
+        raise InputError(f"bad tracker configuration: {reason}")
+    if params is None:
+        params = [tracker_params(seq.info, config) for seq in sequences]
+    num_frames = max(seq.num_frames for seq in sequences)
+    capacity = max(seq.detections.mask.shape[1] for seq in sequences)
+    filt = phd_filter(
+        config["num_particles"],
+        births_per_detection=config["births_per_detection"],
+        extraction=config["extraction"],
+    )
+    compiled = jax.jit(lambda key, p, detections: run(filt, key, p, detections)[1])
+    key = jax.random.PRNGKey(seed)
+    results = []
+    items = zip(sequences, params, strict=True)
+    if progress:
+        from tqdm import tqdm
+
+        items = tqdm(items, total=len(sequences), desc="tracking", unit="seq")
+    for seq, seq_params in items:
+        info = compiled(key, seq_params, pad_to(seq.detections, num_frames, capacity))
+        info = jax.tree.map(lambda x, n=seq.num_frames: np.asarray(x)[:n], info)
+        if config["output"] == "online":
+            results.append(track_rows(info.tracks, seq.first_frame))
+        else:
+            results.append(
+                finalise_tracks(info.tracks, info.candidates, config["max_gap"], seq.first_frame)
+            )
+    return results
+
+
+def pad_to(detections: Detections, num_frames: int, capacity: int) -> Detections:
+    """Pads detections ``[T, D]`` with empty frames and empty slots to ``[num_frames, capacity]``.
+
+    Raises:
+        ValueError: the target shape is smaller than the detections.
+    """
+    frames, slots = detections.mask.shape
+    if num_frames < frames or capacity < slots:
+        raise ValueError(f"cannot pad [{frames}, {slots}] detections to [{num_frames}, {capacity}]")
+    extra = ((0, num_frames - frames), (0, capacity - slots))
+    boxes = np.asarray(detections.boxes)
+    padded_boxes = np.tile(np.asarray(PAD_BOX, boxes.dtype), (num_frames, capacity, 1))
+    padded_boxes[:frames, :slots] = boxes
+    return Detections(
+        boxes=padded_boxes,
+        scores=np.pad(np.asarray(detections.scores), extra),
+        mask=np.pad(np.asarray(detections.mask), extra),
+    )
+
+
+def _measured_magnitude(context: Context, part: str) -> float:
+    """Events per training frame of a context part (its intensity's magnitude if unrecorded)."""
+    recorded = context.metadata.get(part, {})
+    if isinstance(recorded, dict) and "magnitude" in recorded:
+        return float(recorded["magnitude"])
+    return float(getattr(context, part).magnitude)
+
+
+def _check_context_size(context: Context, info: SequenceInfo) -> None:
+    upper = np.asarray(context.clutter.upper)
+    if not np.allclose(upper[:2], [info.im_width, info.im_height]):
+        raise InputError(
+            f"the context was learned on {upper[0]:g}x{upper[1]:g} images, the sequence "
+            f"{info.name} has {info.im_width}x{info.im_height}"
+        )
