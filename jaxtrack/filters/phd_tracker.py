@@ -9,9 +9,9 @@ What ``jaxtrack track`` does, as library code for scripts and notebooks:
   with uniform intensities (UM) or with a learned context (``jaxtrack learn-context``) in one
   of the paper's variants (:data:`VARIANTS`: GM, A1-A6; PHD-context Sec. V).
 * :func:`track_sequences` runs the tracker on several sequences with **one compile**: the
-  padded detections of all of them are brought to a common shape (frames and detection slots;
-  extra frames are empty and come after the real ones, so they do not change the output), and
-  the jitted run is reused.
+  padded detections of all of them are brought to a common number of detection slots and run
+  in chunks of a fixed number of frames (:func:`~jaxtrack.filters.base.run_chunked`), so the
+  compiled chunk is reused across frames and sequences.
 
 Output: ``"offline"`` (default) keeps every confirmed track over its whole life, the frames
 before its confirmation included, and fills gaps of up to ``max_gap`` frames by linear
@@ -30,7 +30,7 @@ import numpy as np
 from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import run
+from jaxtrack.filters.base import run_chunked
 from jaxtrack.filters.phd import PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
 from jaxtrack.io import MotSequence, SequenceInfo
@@ -162,6 +162,7 @@ def track_sequences(
     seed: int = 0,
     params: Sequence[PHDParams] | None = None,
     progress: bool = False,
+    chunk_frames: int = 128,
 ) -> list[TrackRows]:
     """Tracks several sequences (or spans) with one compiled run.
 
@@ -173,6 +174,7 @@ def track_sequences(
             :func:`tracker_params` with uniform intensities. Parameters of different PyTree
             shapes (e.g. contexts with different numbers of components) compile once per shape.
         progress: show a progress bar over the sequences.
+        chunk_frames: frames per compiled call.
 
     Returns:
         The result rows of each sequence.
@@ -183,14 +185,12 @@ def track_sequences(
         raise InputError(f"bad tracker configuration: {reason}")
     if params is None:
         params = [tracker_params(seq.info, config) for seq in sequences]
-    num_frames = max(seq.num_frames for seq in sequences)
     capacity = max(seq.detections.mask.shape[1] for seq in sequences)
     filt = phd_filter(
         config["num_particles"],
         births_per_detection=config["births_per_detection"],
         extraction=config["extraction"],
     )
-    compiled = jax.jit(lambda key, p, detections: run(filt, key, p, detections)[1])
     key = jax.random.PRNGKey(seed)
     results = []
     items = zip(sequences, params, strict=True)
@@ -199,8 +199,8 @@ def track_sequences(
 
         items = tqdm(items, total=len(sequences), desc="tracking", unit="seq")
     for seq, seq_params in items:
-        info = compiled(key, seq_params, pad_to(seq.detections, num_frames, capacity))
-        info = jax.tree.map(lambda x, n=seq.num_frames: np.asarray(x)[:n], info)
+        detections = pad_to(seq.detections, seq.num_frames, capacity)
+        _, info = run_chunked(filt, key, seq_params, detections, chunk_frames)
         if config["output"] == "online":
             results.append(track_rows(info.tracks, seq.first_frame))
         else:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from phd_scenes import walking_scene
 
-from jaxtrack.filters.base import run
+from jaxtrack.filters.base import _chunk_functions, run, run_chunked
 from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
 
@@ -132,3 +132,18 @@ def test_one_step_gradient_matches_finite_differences():
         numeric = (value_at(values + steps) - value_at(values - steps)) / 2e-6
     assert np.all(np.asarray(grad) != 0)
     np.testing.assert_allclose(grad, numeric, rtol=1e-4)
+
+
+def test_chunked_run_equals_run_and_compiles_once():
+    filt = phd_filter(256, births_per_detection=8)
+    key = jax.random.PRNGKey(2)
+    _, expected = jax.jit(lambda k, p, d: run(filt, k, p, d))(key, PARAMS, DETECTIONS)
+    _, chunked = run_chunked(filt, key, PARAMS, DETECTIONS, chunk_frames=5)  # 12 = 5 + 5 + 2
+    _close(chunked, expected, rtol=1e-5, atol=1e-5)
+    shorter = jax.tree.map(lambda x: x[:7], DETECTIONS)
+    _, prefix = run_chunked(filt, key, PARAMS, shorter, chunk_frames=5)
+    _close(prefix, jax.tree.map(lambda x: x[:7], expected), rtol=1e-5, atol=1e-5)
+    _, scan_chunk = _chunk_functions(filt)
+    assert scan_chunk._cache_size() == 1  # one compile for 12 and 7 frames
+    with pytest.raises(ValueError, match="chunk_frames must be positive"):
+        run_chunked(filt, key, PARAMS, DETECTIONS, chunk_frames=0)
