@@ -62,6 +62,11 @@ class PHDParams(NamedTuple):
         survival_prob: ``e(x)``, a constant in ``(0, 1]`` or a
             :class:`~jaxtrack.models.survival.SurvivalMap`.
         birth_intensity: ``gamma(x)`` over the 6-D state space (PHD-context eq. 19).
+        initial_intensity: the intensity of the targets already present when the run starts:
+            on the first frame it replaces ``birth_intensity`` (births around the first
+            frame's detections). A learned birth intensity describes where targets *enter*;
+            a span that starts with targets in view needs births anywhere on its first frame
+            (the defaults use the uniform birth intensity here).
         clutter_intensity: ``kappa(z)`` over the 4-D measurement space (eq. 20).
         score_weight: ``beta >= 0``, weight of the detector scores: a detection with score
             ``s`` has its clutter intensity divided by ``(s / (1 - s))^beta`` (see
@@ -76,6 +81,7 @@ class PHDParams(NamedTuple):
     detection_prob: Float[Array, ""]
     survival_prob: Float[Array, ""] | SurvivalMap
     birth_intensity: Intensity
+    initial_intensity: Intensity
     clutter_intensity: Intensity
     score_weight: Float[Array, ""]
     mass_threshold: Float[Array, ""]
@@ -90,12 +96,14 @@ class PHDState(NamedTuple):
         log_weights: particle log-weights (``LOG_ZERO`` for no mass).
         mass: total PHD mass ``sum_i w_i`` (expected number of targets).
         labels: the labelling's track table.
+        started: False before the first frame (which uses ``params.initial_intensity``).
     """
 
     particles: Float[Array, "num_particles 6"]
     log_weights: Float[Array, " num_particles"]
     mass: Float[Array, ""]
     labels: LabelState
+    started: Bool[Array, ""]
 
 
 class PHDInfo(NamedTuple):
@@ -165,6 +173,7 @@ def phd_filter(
             log_weights=jnp.full((num_particles,), LOG_ZERO, particles.dtype),
             mass=jnp.zeros(()),
             labels=init_labels(max_tracks),
+            started=jnp.asarray(False),
         )
 
     def step(
@@ -191,6 +200,17 @@ def phd_filter(
                 params.measurement_noise_std,
                 measurement_noise_model,
             )
+            initial, initial_log_weights = sample_births(
+                key_birth,
+                measurements,
+                mask,
+                births_per_detection,
+                params.initial_intensity,
+                params.measurement_noise_std,
+                measurement_noise_model,
+            )
+            births = jnp.where(state.started, births, initial)
+            birth_log_weights = jnp.where(state.started, birth_log_weights, initial_log_weights)
             particles = jnp.concatenate([survivors, births])
             log_weights = jnp.concatenate([survivor_log_weights, birth_log_weights])
 
@@ -242,7 +262,7 @@ def phd_filter(
             )
         label_state, labels = label_step(state.labels, params.labelling, estimates)
         mass = jnp.exp(jax.nn.logsumexp(new_log_weights))
-        new_state = PHDState(new_particles, new_log_weights, mass, label_state)
+        new_state = PHDState(new_particles, new_log_weights, mass, label_state, jnp.asarray(True))
         info = PHDInfo(
             tracks=_tracks(estimates, labels, labels.confirmed),
             candidates=_tracks(estimates, labels, labels.ids >= 0),

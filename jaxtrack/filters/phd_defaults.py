@@ -91,6 +91,7 @@ def default_phd_params(
         detection_prob=jnp.asarray(0.8),
         survival_prob=jnp.asarray(0.99),
         birth_intensity=uniform_birth_intensity(birth_rate, im_width, im_height, max_speed),
+        initial_intensity=uniform_birth_intensity(birth_rate, im_width, im_height, max_speed),
         clutter_intensity=uniform_clutter_intensity(clutter_rate, im_width, im_height),
         score_weight=jnp.asarray(0.0),
         mass_threshold=jnp.asarray(0.5),

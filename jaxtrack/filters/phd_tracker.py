@@ -7,7 +7,10 @@ What ``jaxtrack track`` does, as library code for scripts and notebooks:
   :func:`check_config` validates overrides.
 * :func:`tracker_params` builds the :class:`~jaxtrack.filters.phd.PHDParams` of a sequence,
   with uniform intensities (UM) or with a learned context (``jaxtrack learn-context``) in one
-  of the paper's variants (:data:`VARIANTS`: GM, A1-A6; PHD-context Sec. V).
+  of the paper's variants (:data:`VARIANTS`: GM, A1-A6; PHD-context Sec. V). The first
+  frame's births always use the uniform birth intensity with the configured ``birth_rate``
+  (``PHDParams.initial_intensity``): a learned birth intensity says where targets enter,
+  not where the targets already in view at the start of a span are.
 * :func:`track_sequences` runs the tracker on several sequences with **one compile**: the
   padded detections of all of them are brought to a common number of detection slots and run
   in chunks of a fixed number of frames (:func:`~jaxtrack.filters.base.run_chunked`), so the
@@ -149,6 +152,11 @@ def tracker_params(
     params = default_phd_params(
         info.im_width, info.im_height, info.frame_rate, birth_rate, clutter_rate
     )
+    # Targets in view on the first frame are born anywhere, at the configured uniform rate.
+    uniform = default_phd_params(
+        info.im_width, info.im_height, info.frame_rate, config["birth_rate"], clutter_rate
+    )
+    params = params._replace(initial_intensity=uniform.initial_intensity)
     if use.learned_birth:
         params = params._replace(birth_intensity=context.birth)
     if use.learned_clutter:

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from phd_scenes import walking_scene
 
 from jaxtrack.errors import InputError
+from jaxtrack.filters.base import run
+from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_tracker import (
     VARIANTS,
     Context,
@@ -16,7 +20,7 @@ from jaxtrack.filters.phd_tracker import (
     track_sequences,
     tracker_params,
 )
-from jaxtrack.io import load_sequence
+from jaxtrack.io import SequenceInfo, load_sequence
 
 
 @pytest.fixture(scope="module")
@@ -77,3 +81,41 @@ def test_a_span_tracked_with_a_longer_one_gives_the_prefix_of_its_result(mot15_r
     np.testing.assert_array_equal(rows_short.frames, rows_full.frames[prefix])
     np.testing.assert_array_equal(rows_short.ids, rows_full.ids[prefix])
     np.testing.assert_allclose(rows_short.boxes, rows_full.boxes[prefix], rtol=1e-6)
+
+
+def test_first_frame_births_use_the_initial_intensity():
+    """A learned birth intensity far from both targets: the target in view on the first frame
+    is still picked up (uniform initial intensity), the one appearing later is not born."""
+    detections, truth = walking_scene(
+        10,
+        starts=[(100.0, 100.0), (400.0, 200.0)],
+        velocities=[(2.0, 0.0), (-2.0, 0.0)],
+        missed={t: {1} for t in range(4)},
+        capacity=4,
+    )
+    info = SequenceInfo(name="walk", im_width=640, im_height=480, frame_rate=25.0, seq_length=10)
+    uniform = tracker_params(info)
+    far_birth = uniform.birth_intensity._replace(
+        uniform_weight=jnp.asarray(1e-3),
+        weights=jnp.ones(1),
+        means=jnp.array([[600.0, 0.0, 450.0, 0.0, 40.0, 100.0]]),
+        covs=jnp.diag(jnp.array([10.0, 1.0, 10.0, 1.0, 5.0, 10.0]) ** 2)[None],
+    )
+    context = Context(far_birth, uniform.clutter_intensity, {})
+    params = tracker_params(info, None, context, "A1")
+    filt = phd_filter(512, births_per_detection=16)
+    _, out = run(filt, jax.random.PRNGKey(0), params, detections)
+    centres = truth[:, :, 0] + 20.0  # true centre x of each target
+
+    def found_near(out, target, frames):
+        x = np.asarray(out.estimates.states[frames, :, 0])
+        mask = np.asarray(out.estimates.mask[frames])
+        return (mask & (np.abs(x - centres[frames, target, None]) < 10)).any(axis=-1)
+
+    assert found_near(out, 0, slice(1, 10)).all()  # in view at the start: found
+    assert not found_near(out, 1, slice(4, 10)).any()  # appears later, far from births
+    # Without the uniform initial intensity, the first frame's births carry pi_u = 1e-3 of it.
+    _, out_far = run(
+        filt, jax.random.PRNGKey(0), params._replace(initial_intensity=far_birth), detections
+    )
+    assert float(out.mass[0]) > 100 * float(out_far.mass[0]) and float(out.mass[0]) > 0.1
