@@ -105,3 +105,49 @@ def test_context_from_another_image_size_is_refused(mot15_root, tmp_path, capsys
     args = ["track", str(mot15_root / "TUD-Campus"), "--out", str(tmp_path / "x.txt")]
     assert main([*args, "--context", str(context)]) == 2
     assert "learned on 768x576 images" in capsys.readouterr().err
+
+
+def test_track_kalman_presets_write_results_and_config(mot15_root, tmp_path, capsys):
+    gt = read_mot_file(mot15_root / "TUD-Campus" / "gt" / "gt.txt", "gt")
+    for preset, cost, gate in (("default", "likelihood", 9.4877), ("sort", "iou", "inf")):
+        out = tmp_path / f"{preset}.txt"
+        args = ["track", str(mot15_root / "TUD-Campus"), "--out", str(out), "--tracker", "kalman"]
+        assert main([*args, "--preset", preset]) == 0 and "wrote" in capsys.readouterr().out
+        used = json.loads((tmp_path / f"{preset}.config.json").read_text())
+        assert used["tracker"] == "kalman" and used["preset"] == preset and used["cost"] == cost
+        assert used["params"]["gate"] == gate and used["output"] == "offline"
+        assert "num_particles" not in used and used["frames"] == [1, 71]
+        result = read_mot_file(out, "res", seq_length=71)
+        assert evaluate_sequence(gt, result, frames=(1, 71)).summary()["MOTA"] > 0.3
+
+
+def test_track_kalman_benchmark_and_online_output(mot15_root, tmp_path):
+    root = tmp_path / "bench"
+    root.mkdir()
+    for name in ("TUD-Campus", "KITTI-17"):
+        (root / name).symlink_to(mot15_root / name)
+    config = tmp_path / "online.json"
+    config.write_text(json.dumps({"output": "online"}))
+    out = tmp_path / "res"
+    args = ["track", "--benchmark", str(root), "--out", str(out), "--tracker", "kalman"]
+    assert main([*args, "--config", str(config)]) == 0
+    for name in ("TUD-Campus", "KITTI-17"):
+        used = json.loads((out / f"{name}.config.json").read_text())
+        assert used["tracker"] == "kalman" and used["output"] == "online"
+        assert len(read_mot_file(out / f"{name}.txt", "res")) > 0
+
+
+def test_track_kalman_refuses_phd_options(mot15_root, tmp_path, capsys):
+    args = ["track", str(mot15_root / "TUD-Campus"), "--out", str(tmp_path / "x.txt")]
+    assert main([*args, "--preset", "sort"]) == 2
+    assert "--preset applies to --tracker kalman" in capsys.readouterr().err
+    kalman = [*args, "--tracker", "kalman"]
+    assert main([*kalman, "--context", str(tmp_path / "ctx.npz")]) == 2
+    assert "--context applies to the PHD tracker" in capsys.readouterr().err
+    config = tmp_path / "phd.json"
+    config.write_text(json.dumps({"num_particles": 512}))
+    assert main([*kalman, "--config", str(config)]) == 2
+    assert "num_particles apply to the PHD tracker" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main([*kalman, "--preset", "fast"])
+    assert exit_info.value.code == 2 and "invalid choice: 'fast'" in capsys.readouterr().err

@@ -19,7 +19,15 @@ picks the parts (PHD-context Sec. V): GM (default) learned birth and clutter; A1
 measured on the training span; A4 = A3 with learned birth; A5 = A3 with learned clutter; A6 =
 GM (learn the context with ``--birth-from gt``).
 
-The configuration used is written beside the results as ``<RES>.config.json``.
+``--tracker kalman`` runs the baseline data-association tracker instead (a bank of
+constant-velocity Kalman filters, gating, optimal assignment, M-of-N confirmation, no clutter
+model; ``jaxtrack.filters.kalman``) with ``--preset default`` (Mahalanobis gate) or
+``--preset sort`` (SORT's defaults: IoU gate 0.3, 3 hits to confirm, deleted after one missed
+frame). ``--config`` then only takes ``output`` and ``max_gap``; ``--context`` and
+``--figure`` are for the PHD tracker.
+
+The configuration used (the tracker included) is written beside the results as
+``<RES>.config.json``.
 """
 
 from __future__ import annotations
@@ -30,13 +38,20 @@ import time
 from pathlib import Path
 
 from jaxtrack.errors import FileFormatError, InputError
-from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, VARIANTS, check_config
+from jaxtrack.filters.kalman import KALMAN_PRESETS
+from jaxtrack.filters.phd_tracker import (
+    DEFAULT_CONFIG,
+    KALMAN_CONFIG_KEYS,
+    TRACKERS,
+    VARIANTS,
+    check_config,
+)
 
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "track",
-        help="run the particle PHD tracker on a sequence folder (or a benchmark root)",
+        help="run the particle PHD (or Kalman) tracker on a sequence folder or benchmark root",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -56,6 +71,14 @@ def register(subparsers) -> None:
         choices=[name for name in VARIANTS if name != "UM"],
         default="GM",
         help="which parts of the context to use (default GM; see above)",
+    )
+    parser.add_argument(
+        "--tracker", choices=TRACKERS, default="phd", help="which tracker (default phd)"
+    )
+    parser.add_argument(
+        "--preset",
+        choices=list(KALMAN_PRESETS),
+        help="preset of --tracker kalman (default: default)",
     )
     parser.add_argument(
         "--figure", metavar="PNG", help="also draw particles, estimates and tracks of one frame"
@@ -107,12 +130,18 @@ def track_sequence(
     frames=None,
     context_path: str | None = None,
     variant: str = "GM",
+    tracker: str = "phd",
+    preset: str = "default",
 ) -> int:
     """Tracks one sequence folder and writes MOTChallenge results; returns the row count."""
     from jaxtrack.filters.phd_tracker import track_sequences, tracker_params
     from jaxtrack.io import load_sequence
 
     seq = load_sequence(sequence_dir, frames=frames)
+    if tracker == "kalman":
+        (rows,) = track_sequences([seq], config, seed, tracker="kalman", preset=preset)
+        _write(out_path, rows, config, seed, seq, None, None, tracker, preset)
+        return len(rows.frames)
     context = _load_context(context_path)
     params = tracker_params(seq.info, config, context, variant)
     (rows,) = track_sequences([seq], config, seed, [params])
@@ -124,10 +153,20 @@ def run(args) -> int:
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
     config = load_config(args.config)
+    _check_tracker_options(args, config)
+    preset = args.preset or "default"
     if args.sequence is not None:
         start = time.perf_counter()
         count = track_sequence(
-            args.sequence, args.out, config, args.seed, args.frames, args.context, args.variant
+            args.sequence,
+            args.out,
+            config,
+            args.seed,
+            args.frames,
+            args.context,
+            args.variant,
+            args.tracker,
+            preset,
         )
         print(f"wrote {args.out} ({count} boxes, {time.perf_counter() - start:.1f} s)")
         if args.figure:
@@ -137,6 +176,27 @@ def run(args) -> int:
         if getattr(args, option) is not None:
             raise InputError(f"--{option} applies to one sequence, not to --benchmark")
     return _benchmark(args, config)
+
+
+def _check_tracker_options(args, config: dict) -> None:
+    """Refuses options that do not apply to the chosen tracker."""
+    if args.tracker != "kalman":
+        if args.preset is not None:
+            raise InputError("--preset applies to --tracker kalman")
+        return
+    for option in ("context", "figure"):
+        if getattr(args, option) is not None:
+            raise InputError(f"--{option} applies to the PHD tracker, not to --tracker kalman")
+    changed = [
+        key
+        for key, value in config.items()
+        if key not in KALMAN_CONFIG_KEYS and value != DEFAULT_CONFIG[key]
+    ]
+    if changed:
+        raise InputError(
+            f"--tracker kalman uses only the configuration keys {', '.join(KALMAN_CONFIG_KEYS)}; "
+            f"{', '.join(changed)} apply to the PHD tracker"
+        )
 
 
 def _benchmark(args, config: dict) -> int:
@@ -153,9 +213,23 @@ def _benchmark(args, config: dict) -> int:
     out.mkdir(parents=True, exist_ok=True)
     sequences = [load_sequence(folder) for folder in folders]
     start = time.perf_counter()
-    results = track_sequences(sequences, config, args.seed, progress=True)
+    preset = args.preset or "default"
+    results = track_sequences(
+        sequences, config, args.seed, progress=True, tracker=args.tracker, preset=preset
+    )
+    variant = "UM" if args.tracker == "phd" else None
     for seq, rows in zip(sequences, results, strict=True):
-        _write(out / f"{seq.path.name}.txt", rows, config, args.seed, seq, None, "UM")
+        _write(
+            out / f"{seq.path.name}.txt",
+            rows,
+            config,
+            args.seed,
+            seq,
+            None,
+            variant,
+            args.tracker,
+            preset,
+        )
     frames = sum(seq.num_frames for seq in sequences)
     print(
         f"wrote {len(sequences)} result files to {out} "
@@ -173,11 +247,17 @@ def _load_context(path):
     return Context(*load_context(path))
 
 
-def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
+def _write(
+    out_path, rows, config, seed, seq, context_path, variant, tracker="phd", preset="default"
+) -> None:
+    from jaxtrack.filters.phd_tracker import tracker_description
     from jaxtrack.io import write_results
 
     write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.scores)
-    used = {**config, "seed": seed, "sequence": str(seq.path), "variant": variant}
+    used = {**tracker_description(config, tracker, preset), "seed": seed}
+    used["sequence"] = str(seq.path)
+    if variant is not None:
+        used["variant"] = variant
     used["frames"] = [seq.first_frame, seq.last_frame]
     if context_path is not None:
         used["context"] = str(context_path)

@@ -37,10 +37,10 @@ included), so that :func:`~jaxtrack.association.offline.track_rows` and
 :func:`~jaxtrack.association.offline.finalise_tracks` apply unchanged.
 
 Two parameter presets (:data:`KALMAN_PRESETS`): ``"default"`` (:func:`default_kalman_params`,
-Mahalanobis gate, likelihood cost, 3-of-5 confirmation, tracks coast for up to 10 missed
-frames) and ``"sort"`` (:func:`sort_kalman_params`, the defaults of SORT, Bewley et al. 2016:
-IoU gate 0.3, ``-IoU`` cost, confirmation after 3 consecutive hits, deletion after one missed
-frame without a detection, i.e. ``max_age = 1``).
+Mahalanobis gate, likelihood cost, 3-of-5 confirmation, tracks coast for up to 5 missed
+frames, detections scoring below 0.9 ignored) and ``"sort"`` (:func:`sort_kalman_params`,
+the defaults of SORT, Bewley et al. 2016: IoU gate 0.3, ``-IoU`` cost, confirmation after 3
+consecutive hits, deletion after one missed frame without a detection, i.e. ``max_age = 1``).
 """
 
 from __future__ import annotations
@@ -417,21 +417,24 @@ def default_kalman_params() -> KalmanParams:
     (:func:`~jaxtrack.filters.phd_defaults.default_phd_params`): detections scatter around
     the true box by about ``(0.15 w, 0.08 h)`` for the centre and ``(0.25 w, 0.15 h)`` for the
     size, velocities change by a few percent of the box size per frame; a new track's
-    velocity is within about ``0.2 w`` per frame. Gate at the 0.99 chi-square quantile;
-    a track is confirmed by 3 detections within its first 5 frames and coasts (predicted,
-    not output) through up to 10 missed frames; every detection is used (the public MOT15
-    detections have scores >= 0.5).
+    velocity is within about ``0.2 w`` per frame. Gate at the 0.95 chi-square quantile; a
+    track is confirmed by 3 detections within its first 5 frames and coasts (predicted, not
+    output) through up to 5 missed frames. Detections scoring below 0.9 are ignored: with no
+    clutter model, the score threshold is what keeps detector false positives out (on the 11
+    MOT15 training sequences, thresholds 0, 0.8, 0.9, 0.95 gave MOTA 30, 41, 44, 45 and IDF1
+    46, 50, 50, 49; 0.9 was kept, with the gate and coasting length chosen in the same
+    handful of runs).
     """
     return KalmanParams(
         motion_noise_std=jnp.array([0.05, 0.02, 0.05, 0.05]),
         measurement_noise_std=jnp.array([0.15, 0.08, 0.25, 0.15]),
         initial_velocity_std=jnp.array([0.2, 0.1]),
-        gate=jnp.asarray(CHI2_4DOF[0.99]),
+        gate=jnp.asarray(CHI2_4DOF[0.95]),
         min_iou=jnp.asarray(0.0),
         confirm_hits=jnp.asarray(3.0),
         confirm_window=jnp.asarray(5.0),
-        max_missed_frames=jnp.asarray(10.0),
-        min_score=jnp.asarray(0.0),
+        max_missed_frames=jnp.asarray(5.0),
+        min_score=jnp.asarray(0.9),
     )
 
 
@@ -441,9 +444,9 @@ def sort_kalman_params() -> KalmanParams:
     IoU gate 0.3 (``IOU_min``) and no Mahalanobis gate, a track is confirmed by 3
     consecutive detections (``min_hits = 3``: 3 of the first 3 frames) and deleted when a
     second consecutive frame passes without a detection (``max_age = 1``: it survives one
-    missed frame). Use with ``kalman_filter(cost="iou")`` (:data:`KALMAN_PRESETS`). Unlike
-    SORT, the Kalman noise is the SDV noise of :func:`default_kalman_params` and a track stays
-    confirmed after a missed frame.
+    missed frame), every detection used. Use with ``kalman_filter(cost="iou")``
+    (:data:`KALMAN_PRESETS`). Unlike SORT, the Kalman noise is the SDV noise of
+    :func:`default_kalman_params` and a track stays confirmed after a missed frame.
     """
     return default_kalman_params()._replace(
         gate=jnp.asarray(jnp.inf),
@@ -451,6 +454,7 @@ def sort_kalman_params() -> KalmanParams:
         confirm_hits=jnp.asarray(3.0),
         confirm_window=jnp.asarray(3.0),
         max_missed_frames=jnp.asarray(1.0),
+        min_score=jnp.asarray(0.0),
     )
 
 

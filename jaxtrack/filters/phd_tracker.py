@@ -16,6 +16,11 @@ What ``jaxtrack track`` does, as library code for scripts and notebooks:
   in chunks of a fixed number of frames (:func:`~jaxtrack.filters.base.run_chunked`), so the
   compiled chunk is reused across frames and sequences.
 
+``tracker="kalman"`` runs the baseline data-association tracker instead
+(:mod:`~jaxtrack.filters.kalman`, a bank of Kalman filters with gating and optimal assignment)
+with one of its presets (:data:`~jaxtrack.filters.kalman.KALMAN_PRESETS`: ``"default"``,
+``"sort"``); of the configuration it uses ``output`` and ``max_gap`` (:data:`KALMAN_CONFIG_KEYS`).
+
 Output: ``"offline"`` (default) keeps every confirmed track over its whole life, the frames
 before its confirmation included, and fills gaps of up to ``max_gap`` frames by linear
 interpolation (:func:`~jaxtrack.association.offline.finalise_tracks`); ``"online"`` writes
@@ -24,6 +29,7 @@ what the filter outputs frame by frame.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -33,7 +39,8 @@ import numpy as np
 from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import run_chunked
+from jaxtrack.filters.base import Filter, run_chunked
+from jaxtrack.filters.kalman import KALMAN_PRESETS, KalmanParams, kalman_filter
 from jaxtrack.filters.phd import PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
 from jaxtrack.io import MotSequence, SequenceInfo
@@ -49,6 +56,12 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "output": "offline",
     "max_gap": 8,
 }
+
+
+#: Trackers of :func:`track_sequences` (``jaxtrack track --tracker``).
+TRACKERS = ("phd", "kalman")
+#: The keys of the configuration that the Kalman tracker uses (the others are the PHD's).
+KALMAN_CONFIG_KEYS = ("output", "max_gap")
 
 
 class Variant(NamedTuple):
@@ -168,9 +181,11 @@ def track_sequences(
     sequences: Sequence[MotSequence],
     config: dict[str, Any] | None = None,
     seed: int = 0,
-    params: Sequence[PHDParams] | None = None,
+    params: Sequence[PHDParams] | Sequence[KalmanParams] | None = None,
     progress: bool = False,
     chunk_frames: int = 128,
+    tracker: str = "phd",
+    preset: str = "default",
 ) -> list[TrackRows]:
     """Tracks several sequences (or spans) with one compiled run.
 
@@ -178,27 +193,35 @@ def track_sequences(
         sequences: the loaded sequences.
         config: overrides of :data:`DEFAULT_CONFIG`.
         seed: PRNG seed (the same key for every sequence).
-        params: one :class:`~jaxtrack.filters.phd.PHDParams` per sequence; default
-            :func:`tracker_params` with uniform intensities. Parameters of different PyTree
-            shapes (e.g. contexts with different numbers of components) compile once per shape.
+        params: one parameter PyTree per sequence: :class:`~jaxtrack.filters.phd.PHDParams`
+            (default :func:`tracker_params` with uniform intensities) or, with
+            ``tracker="kalman"``, :class:`~jaxtrack.filters.kalman.KalmanParams` (default:
+            the preset's). Parameters of different PyTree shapes (e.g. contexts with
+            different numbers of components) compile once per shape.
         progress: show a progress bar over the sequences.
         chunk_frames: frames per compiled call.
+        tracker: one of :data:`TRACKERS`.
+        preset: the Kalman tracker's preset (a key of
+            :data:`~jaxtrack.filters.kalman.KALMAN_PRESETS`; its assignment cost is used
+            with ``params`` too).
 
     Returns:
         The result rows of each sequence.
+
+    Raises:
+        InputError: a bad configuration, tracker or preset.
     """
     config = {**DEFAULT_CONFIG, **(config or {})}
     reason = check_config(config)
     if reason is not None:
         raise InputError(f"bad tracker configuration: {reason}")
+    filt = _build_filter(config, tracker, preset)
     if params is None:
-        params = [tracker_params(seq.info, config) for seq in sequences]
+        if tracker == "kalman":
+            params = [KALMAN_PRESETS[preset].params() for _ in sequences]
+        else:
+            params = [tracker_params(seq.info, config) for seq in sequences]
     capacity = max(seq.detections.mask.shape[1] for seq in sequences)
-    filt = phd_filter(
-        config["num_particles"],
-        births_per_detection=config["births_per_detection"],
-        extraction=config["extraction"],
-    )
     key = jax.random.PRNGKey(seed)
     results = []
     items = zip(sequences, params, strict=True)
@@ -216,6 +239,61 @@ def track_sequences(
                 finalise_tracks(info.tracks, info.candidates, config["max_gap"], seq.first_frame)
             )
     return results
+
+
+def tracker_description(
+    config: dict[str, Any], tracker: str = "phd", preset: str = "default"
+) -> dict[str, Any]:
+    """What a run used, for the ``.config.json`` beside the results.
+
+    Args:
+        config: the full configuration (:data:`DEFAULT_CONFIG` with overrides).
+        tracker: one of :data:`TRACKERS`.
+        preset: the Kalman preset.
+
+    Returns:
+        ``{"tracker": "phd", **config}``, or for the Kalman tracker its preset, assignment
+        cost, parameters and the configuration keys it uses.
+    """
+    if tracker != "kalman":
+        return {"tracker": tracker, **config}
+    chosen = KALMAN_PRESETS[preset]
+    params = {name: _json_numbers(value) for name, value in chosen.params()._asdict().items()}
+    return {
+        "tracker": "kalman",
+        "preset": preset,
+        "cost": chosen.cost,
+        **{key: config[key] for key in KALMAN_CONFIG_KEYS},
+        "params": params,
+    }
+
+
+def _json_numbers(value) -> float | str | list:
+    """Numbers of an array for JSON: rounded to 6 decimals, ``"inf"`` for infinity."""
+    array = np.round(np.asarray(value, np.float64), 6)
+    if array.ndim:
+        return [_json_numbers(item) for item in array]
+    return float(array) if np.isfinite(array) else str(float(array))
+
+
+def _build_filter(config: dict[str, Any], tracker: str, preset: str) -> Filter:
+    """The filter of a tracker (one object per setting, so that compiles are shared)."""
+    if tracker == "phd":
+        return phd_filter(
+            config["num_particles"],
+            births_per_detection=config["births_per_detection"],
+            extraction=config["extraction"],
+        )
+    if tracker != "kalman":
+        raise InputError(f"unknown tracker {tracker!r}; known: {', '.join(TRACKERS)}")
+    if preset not in KALMAN_PRESETS:
+        raise InputError(f"unknown preset {preset!r}; known: {', '.join(KALMAN_PRESETS)}")
+    return _kalman_filter(KALMAN_PRESETS[preset].cost)
+
+
+@functools.lru_cache(maxsize=4)
+def _kalman_filter(cost: str) -> Filter:
+    return kalman_filter(cost=cost)
 
 
 def pad_to(detections: Detections, num_frames: int, capacity: int) -> Detections:

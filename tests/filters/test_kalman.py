@@ -231,7 +231,7 @@ def _identities(tracks, truth):
 
 
 @pytest.mark.parametrize(
-    ("preset", "hidden"), [("default", {}), ("default", {1: range(17, 23)}), ("sort", {})]
+    ("preset", "hidden"), [("default", {}), ("default", {1: range(18, 22)}), ("sort", {})]
 )
 def test_crossing_targets_keep_their_identities(preset, hidden):
     """Two walkers cross (boxes overlap fully around frame 20), one possibly occluded."""
