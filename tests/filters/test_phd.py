@@ -9,6 +9,7 @@ import pytest
 from phd_reference import reference_step
 from phd_scenes import padded_detections, walking_scene
 
+import jaxtrack.filters.phd as phd_module
 from jaxtrack.boxes import cxcywh_to_xywh
 from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import PHDParams, phd_filter
@@ -57,8 +58,15 @@ SCORES = np.array([0.97, 0.8, 0.6, 0.0])
 MASK = np.array([True, True, True, False])
 
 
-@pytest.mark.parametrize("score_weight", [0.0, 1.0])
-def test_step_matches_numpy_reference(score_weight):
+@pytest.mark.parametrize(
+    ("score_weight", "block"),
+    [(0.0, None), (1.0, None), (1.0, 20)],
+    ids=["plain", "scores", "blocks"],
+)
+def test_step_matches_numpy_reference(score_weight, block, monkeypatch):
+    if block is not None:  # 48 predicted particles in blocks of 20: 3 blocks, the last overlapping
+        monkeypatch.setattr(phd_module, "_MIN_BLOCK", block)
+        monkeypatch.setattr(phd_module, "_PAIRS_PER_BLOCK", block)
     with jax.enable_x64(True):
         filt = phd_filter(32, births_per_detection=4, extraction="partition")
         params = _to_float64(
