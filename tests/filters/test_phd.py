@@ -14,7 +14,7 @@ from jaxtrack.boxes import cxcywh_to_xywh
 from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
-from jaxtrack.models import constant_std
+from jaxtrack.models import SurvivalMap, constant_std
 
 WIDTH, HEIGHT = 640.0, 480.0
 
@@ -119,6 +119,23 @@ def test_mass_without_detections_decays_by_survival_times_missed_detection():
         np.testing.assert_allclose(
             info.log_likelihood, -0.8 * mass * 0.95 - params.clutter_intensity.magnitude, rtol=1e-5
         )
+
+
+def test_mass_decays_by_the_survival_map_of_each_target():
+    """A state-dependent survival probability (2 x 2 map): each target's mass is multiplied
+    by its own cell's probability (and by the missed-detection probability)."""
+    filt = phd_filter(64, births_per_detection=8)
+    survival = SurvivalMap(
+        probs=jnp.array([[0.5, 0.7], [0.6, 0.9]]),  # rows follow y2, columns y1
+        lower=jnp.array([0.0, 0.0]),
+        upper=jnp.array([WIDTH, HEIGHT]),
+    )
+    params = _params(detection_prob=jnp.asarray(0.8), survival_prob=survival)
+    state = _state_with_targets(filt, jax.random.key(0), TARGETS, 64, mass_per_target=0.9)
+    empty = jax.tree.map(lambda x: x[0], padded_detections([[]], 5))
+    new_state, _ = jax.jit(filt.step)(jax.random.key(1), state, params, empty)
+    # target (200, 150) in cell (0, 0): 0.5; target (400, 300) in cell (1, 1): 0.9
+    np.testing.assert_allclose(new_state.mass, 0.9 * (0.5 + 0.9) * 0.2, rtol=1e-5)
 
 
 @pytest.mark.parametrize(
