@@ -1,8 +1,17 @@
-"""Filters: the particle PHD tracker, resampling, state extraction, the sequence runner."""
+"""Filters: the particle PHD tracker, the Kalman DA baseline, resampling, state extraction,
+the sequence runners."""
 
 from jaxtrack.association.estimates import Estimates
-from jaxtrack.filters.base import Filter, run
+from jaxtrack.filters.base import Filter, run, run_chunked
 from jaxtrack.filters.extraction import gmm_clusters, measurement_partition
+from jaxtrack.filters.kalman import (
+    KalmanInfo,
+    KalmanParams,
+    KalmanState,
+    default_kalman_params,
+    kalman_filter,
+    sort_kalman_params,
+)
 from jaxtrack.filters.phd import (
     PHDInfo,
     PHDParams,
@@ -27,11 +36,16 @@ from jaxtrack.filters.resampling import (
 __all__ = [
     "Estimates",
     "Filter",
+    "KalmanInfo",
+    "KalmanParams",
+    "KalmanState",
     "PHDInfo",
     "PHDParams",
     "PHDState",
+    "default_kalman_params",
     "default_phd_params",
     "gmm_clusters",
+    "kalman_filter",
     "measurement_partition",
     "multinomial",
     "phd_filter",
@@ -39,7 +53,9 @@ __all__ = [
     "resample",
     "residual",
     "run",
+    "run_chunked",
     "score_log_ratio",
+    "sort_kalman_params",
     "stratified",
     "systematic",
     "uniform_birth_intensity",
