@@ -1,0 +1,387 @@
+"""Parameter sweeps: many tracker configurations in one compiled, batched, sharded call.
+
+A sweep runs a filter (tracking, extraction and labelling, :func:`~jaxtrack.filters.base.run`)
+for a batch of parameter PyTrees with ``jax.vmap`` inside one ``jax.jit``, in chunks of
+``chunk_size`` configurations to bound memory, and scores every configuration against the
+ground truth host-side (:func:`~jaxtrack.metrics.evaluate.evaluate_sequence`: MOTA, MOTP,
+MODA, MODP, IDF1, HOTA, ...; no files written). The batch axis of each chunk is sharded over
+all visible JAX devices (``NamedSharding(Mesh(devices, ("batch",)), PartitionSpec("batch"))``),
+so the same call uses one CPU, several forced host devices
+(``XLA_FLAGS=--xla_force_host_platform_device_count=N``), several GPUs, or several hosts after
+``jax.distributed.initialize()``. Chunks are dispatched one ahead, so the host scores a chunk
+while the devices run the next.
+
+Batches are built from a base parameter PyTree and ``updates``, a mapping from dotted leaf
+paths (``"clutter_intensity.magnitude"``) to one value per configuration
+(:func:`batch_params`); :func:`product_grid` and :func:`magnitude_grid` make Cartesian grids.
+
+Example (the lambda_r x lambda_s sweep of PHD-context Fig. 15)::
+
+    updates = magnitude_grid(np.logspace(-1, 1, 9), np.logspace(-2, 0, 9))
+    result = sweep(phd_filter(2048), tracker_params(seq.info), jax.random.PRNGKey(0),
+                   seq.detections, updates, ground_truth=seq.gt_table,
+                   first_frame=seq.first_frame)
+    result.scores["MOTA"].reshape(9, 9)   # [clutter rate, birth rate]
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jaxtyping import Array, ArrayLike
+
+from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.context.intensity import Intensity
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import Filter, run
+from jaxtrack.io import MotTable
+from jaxtrack.metrics.evaluate import SUMMARY_KEYS, EvalConfig, evaluate_sequence
+from jaxtrack.types import Detections
+
+#: Leaf paths of the magnitudes ``lambda_r`` (clutter) and ``lambda_s`` (birth) in PHDParams.
+CLUTTER_MAGNITUDE = "clutter_intensity.magnitude"
+BIRTH_MAGNITUDE = "birth_intensity.magnitude"
+
+
+class SweepResult(NamedTuple):
+    """Outputs of :func:`sweep`, one entry per configuration (batch order).
+
+    Attributes:
+        updates: the swept values, ``{path: [batch, ...]}`` (empty when a batched PyTree was
+            given instead of updates).
+        scores: ``{name: [batch]}`` for every name of
+            :data:`~jaxtrack.metrics.evaluate.SUMMARY_KEYS` (empty without ground truth).
+        log_likelihood: the PHD measurement log-likelihood summed over frames, ``[batch]``
+            (NaN for filters that do not report one).
+        rows: the scored output rows of each configuration.
+    """
+
+    updates: dict[str, np.ndarray]
+    scores: dict[str, np.ndarray]
+    log_likelihood: np.ndarray
+    rows: list[TrackRows]
+
+
+def product_grid(axes: Mapping[str, ArrayLike]) -> dict[str, np.ndarray]:
+    """The Cartesian product of per-path values, flattened in C order (first path slowest).
+
+    Args:
+        axes: ``{path: values[n_k, ...]}``; the grid has ``prod(n_k)`` configurations.
+
+    Returns:
+        ``{path: [prod(n_k), ...]}``, ready for :func:`batch_params` / :func:`sweep`; reshape
+        a score to ``[n_1, n_2, ...]`` to get the grid back.
+
+    Raises:
+        InputError: no axes, or an axis without values.
+    """
+    if not axes:
+        raise InputError("a grid needs at least one axis")
+    values = {path: np.asarray(v) for path, v in axes.items()}
+    for path, v in values.items():
+        if v.ndim == 0 or v.shape[0] == 0:
+            raise InputError(f"grid axis {path!r} needs a non-empty array of values")
+    index = list(itertools.product(*(range(v.shape[0]) for v in values.values())))
+    columns = np.asarray(index, dtype=np.int64).reshape(len(index), len(values))
+    return {path: v[columns[:, k]] for k, (path, v) in enumerate(values.items())}
+
+
+def magnitude_grid(clutter_rates: ArrayLike, birth_rates: ArrayLike) -> dict[str, np.ndarray]:
+    """The ``lambda_r x lambda_s`` grid of PHD-context Fig. 15 (clutter rate slowest).
+
+    Scales the clutter and birth intensities (PHD-context eq. 19-20); the densities, and
+    the first frame's ``initial_intensity``, stay as in the base parameters.
+
+    Args:
+        clutter_rates: ``lambda_r`` values (false detections per frame), 1-D, > 0.
+        birth_rates: ``lambda_s`` values (births per frame), 1-D, > 0.
+
+    Returns:
+        Updates for :data:`CLUTTER_MAGNITUDE` and :data:`BIRTH_MAGNITUDE`,
+        ``len(clutter_rates) * len(birth_rates)`` configurations.
+
+    Raises:
+        InputError: rates that are not 1-D, empty, or not positive and finite.
+    """
+    axes = {CLUTTER_MAGNITUDE: clutter_rates, BIRTH_MAGNITUDE: birth_rates}
+    for path, rates in axes.items():
+        rates = np.asarray(rates, dtype=np.float64)
+        if rates.ndim != 1 or rates.size == 0 or not np.all(np.isfinite(rates) & (rates > 0)):
+            raise InputError(f"{path} values must be a non-empty 1-D array of positive numbers")
+    return product_grid({path: np.asarray(r, np.float32) for path, r in axes.items()})
+
+
+def batch_params(base_params: Any, updates: Mapping[str, ArrayLike]) -> Any:
+    """A batch of parameter PyTrees: ``base_params`` with the swept leaves replaced.
+
+    Args:
+        base_params: an unbatched parameter PyTree of NamedTuples (e.g.
+            :class:`~jaxtrack.filters.phd.PHDParams`).
+        updates: ``{dotted path: values[batch, *leaf shape]}``, the same ``batch`` for all.
+
+    Returns:
+        The PyTree with a leading ``batch`` axis on every leaf (NumPy arrays).
+
+    Raises:
+        InputError: no updates, an unknown path, a path that is not a leaf, values of the
+            wrong shape, or different batch sizes.
+    """
+    if not updates:
+        raise InputError("no parameter updates to sweep")
+    values = {path: np.asarray(v) for path, v in updates.items()}
+    sizes = {path: (v.shape[0] if v.ndim else None) for path, v in values.items()}
+    if len(set(sizes.values())) != 1 or None in sizes.values():
+        raise InputError(f"all updates need the same leading batch size, got {sizes}")
+    (batch,) = set(sizes.values())
+    if batch == 0:
+        raise InputError("the batch of configurations is empty")
+    host = jax.tree.map(np.asarray, base_params)
+    batched = jax.tree.map(lambda leaf: np.broadcast_to(leaf, (batch, *leaf.shape)), host)
+    for path, v in values.items():
+        leaf = _get_path(host, path)
+        if v.shape[1:] != leaf.shape:
+            raise InputError(
+                f"{path}: expected values of shape [batch, {', '.join(map(str, leaf.shape))}]"
+                f" = {(batch, *leaf.shape)}, got {v.shape}"
+            )
+        batched = _set_path(batched, path, v.astype(leaf.dtype))
+    return batched
+
+
+def pad_components(intensity: Intensity, num_components: int) -> Intensity:
+    """The same intensity with dead mixture components (weight 0) appended.
+
+    Dead components contribute nothing (:mod:`~jaxtrack.context.intensity`), so parameter
+    PyTrees of different numbers of components (e.g. UM and GM) can share one batch and one
+    compile.
+
+    Raises:
+        InputError: ``num_components`` smaller than the intensity's.
+    """
+    extra = num_components - intensity.weights.shape[0]
+    if extra < 0:
+        raise InputError(f"cannot pad {intensity.weights.shape[0]} components to {num_components}")
+    dim = intensity.means.shape[-1]
+    return intensity._replace(
+        weights=jnp.concatenate([intensity.weights, jnp.zeros((extra,), intensity.weights.dtype)]),
+        means=jnp.concatenate([intensity.means, jnp.zeros((extra, dim), intensity.means.dtype)]),
+        covs=jnp.concatenate(
+            [
+                intensity.covs,
+                jnp.broadcast_to(jnp.eye(dim, dtype=intensity.covs.dtype), (extra, dim, dim)),
+            ]
+        ),
+    )
+
+
+def sweep(
+    filt: Filter,
+    params: Any,
+    key: Array,
+    detections: Detections,
+    updates: Mapping[str, ArrayLike] | None = None,
+    *,
+    ground_truth: MotTable | None = None,
+    first_frame: int = 1,
+    output: str = "offline",
+    max_gap: int = 8,
+    chunk_size: int = 16,
+    devices: Sequence[jax.Device] | None = None,
+    eval_config: EvalConfig | None = None,
+    progress: bool = False,
+) -> SweepResult:
+    """Runs and scores a filter for a batch of configurations.
+
+    Every configuration ``b`` gives exactly what ``run(filt, keys[b], params_b, detections)``
+    gives (same keys, same frames), post-processed as ``jaxtrack track`` does (``"offline"``:
+    :func:`~jaxtrack.association.offline.finalise_tracks`; ``"online"``: the filter's
+    frame-by-frame output).
+
+    Args:
+        filt: the filter (its per-frame info must have ``tracks`` and ``candidates``, as
+            :func:`~jaxtrack.filters.phd.phd_filter` and the Kalman tracker have).
+        params: the base parameter PyTree when ``updates`` is given; otherwise a batched
+            PyTree (a leading batch axis on every leaf, e.g. from :func:`batch_params`).
+        key: one PRNG key shared by all configurations (common random numbers), or one key
+            per configuration (``[batch]`` typed keys or ``[batch, 2]`` raw keys).
+        detections: padded detections ``[num_frames, max_detections]``.
+        updates: ``{dotted leaf path: values[batch, ...]}`` (see :func:`batch_params`).
+        ground_truth: rows of the ground truth (e.g. ``MotSequence.gt_table``); rows outside
+            the span are ignored. None: no scores.
+        first_frame: 1-based frame number of time index 0.
+        output: ``"offline"`` (default, as ``jaxtrack track``) or ``"online"``.
+        max_gap: longest gap filled by the offline output.
+        chunk_size: configurations per compiled call (rounded up to a multiple of the number
+            of devices); the last chunk is padded by repeating its last configuration.
+        devices: devices to shard the batch over (default: all, ``jax.devices()``).
+        eval_config: evaluation settings.
+        progress: show a progress bar over the chunks.
+
+    Returns:
+        The :class:`SweepResult`.
+
+    Raises:
+        InputError: bad updates or batch, keys of the wrong shape, a bad chunk size or output.
+    """
+    if output not in ("offline", "online"):
+        raise InputError(f"output must be 'offline' or 'online', got {output!r}")
+    if chunk_size <= 0:
+        raise InputError(f"chunk_size must be positive, got {chunk_size}")
+    if max_gap < 0:
+        raise InputError(f"max_gap must be >= 0, got {max_gap}")
+    if updates is None:
+        batched = jax.tree.map(np.asarray, params)
+        swept = {}
+    else:
+        batched = batch_params(params, updates)
+        swept = {path: np.asarray(v) for path, v in updates.items()}
+    batch = _batch_size(batched)
+    keys, key_impl = _config_keys(key, batch)
+    detections = Detections(*(np.asarray(leaf) for leaf in detections))
+    num_frames = detections.mask.shape[0]
+
+    devices = list(jax.devices() if devices is None else devices)
+    mesh = Mesh(np.asarray(devices), ("batch",))
+    chunk = -(-chunk_size // len(devices)) * len(devices)
+    num_chunks = -(-batch // chunk)
+    order = np.minimum(np.arange(num_chunks * chunk), batch - 1)
+    compiled = _sweep_function(filt, mesh, key_impl)
+    replicated = NamedSharding(mesh, PartitionSpec())
+    device_detections = jax.tree.map(lambda x: _put(x, replicated), detections)
+    sharded = NamedSharding(mesh, PartitionSpec("batch"))
+
+    def dispatch(c):
+        window = order[c * chunk : (c + 1) * chunk]
+        chunk_params = jax.tree.map(lambda leaf: _put(leaf[window], sharded), batched)
+        return compiled(_put(keys[window], sharded), chunk_params, device_detections)
+
+    span = (first_frame, first_frame + num_frames - 1)
+    gt = None if ground_truth is None else ground_truth.frame_span(*span)
+    chunks = range(num_chunks)
+    if progress:
+        from tqdm import tqdm
+
+        chunks = tqdm(chunks, desc="sweep", unit="chunk")
+    rows, scores, log_likelihood = [], [], []
+    pending = dispatch(0)
+    for c in chunks:
+        current = pending
+        if c + 1 < num_chunks:
+            pending = dispatch(c + 1)
+        tracks, candidates, chunk_log_likelihood = _gather(current)
+        for b in range(min(chunk, batch - c * chunk)):
+            config_tracks = jax.tree.map(lambda x, b=b: x[b], tracks)
+            if output == "offline":
+                config_candidates = jax.tree.map(lambda x, b=b: x[b], candidates)
+                config_rows = finalise_tracks(
+                    config_tracks, config_candidates, max_gap, first_frame
+                )
+            else:
+                config_rows = track_rows(config_tracks, first_frame)
+            rows.append(config_rows)
+            log_likelihood.append(chunk_log_likelihood[b])
+            if gt is not None:
+                table = MotTable.from_arrays(*config_rows)
+                scores.append(evaluate_sequence(gt, table, span, eval_config).summary())
+    score_arrays = {name: np.asarray([s[name] for s in scores]) for name in SUMMARY_KEYS}
+    return SweepResult(
+        updates=swept,
+        scores=score_arrays if scores else {},
+        log_likelihood=np.asarray(log_likelihood),
+        rows=rows,
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
+    """``jit(vmap(run))`` with the batch axis sharded over ``mesh`` (cached per filter).
+
+    Keys arrive as raw key data; ``key_impl`` names the implementation of typed keys (None
+    for raw keys).
+    """
+    sharded = NamedSharding(mesh, PartitionSpec("batch"))
+    replicated = NamedSharding(mesh, PartitionSpec())
+
+    def one(key, params, detections):
+        if key_impl is not None:
+            key = jax.random.wrap_key_data(key, impl=key_impl)
+        _, info = run(filt, key, params, detections)
+        log_likelihood = getattr(info, "log_likelihood", None)
+        total = jnp.nan if log_likelihood is None else jnp.sum(log_likelihood)
+        return info.tracks, info.candidates, total
+
+    return jax.jit(
+        jax.vmap(one, in_axes=(0, 0, None)),
+        in_shardings=(sharded, sharded, replicated),
+        out_shardings=sharded,
+    )
+
+
+def _put(value: np.ndarray, sharding: NamedSharding) -> jax.Array:
+    """A global array from host data present on every process (one or several hosts)."""
+    value = np.asarray(value)
+    return jax.make_array_from_callback(value.shape, sharding, lambda index: value[index])
+
+
+def _gather(outputs):
+    """Device outputs as host NumPy arrays (all-gathered across processes when several)."""
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        return multihost_utils.process_allgather(outputs, tiled=True)
+    return jax.tree.map(np.asarray, outputs)
+
+
+def _batch_size(batched: Any) -> int:
+    leaves = jax.tree.leaves(batched)
+    sizes = {leaf.shape[0] if leaf.ndim else None for leaf in leaves}
+    if not leaves or len(sizes) != 1 or None in sizes or 0 in sizes:
+        raise InputError(
+            "a batched parameter PyTree needs the same non-zero leading batch size on every "
+            f"leaf, got sizes {sorted(sizes, key=str)}"
+        )
+    return sizes.pop()
+
+
+def _config_keys(key: Array, batch: int) -> tuple[np.ndarray, str | None]:
+    """One key per configuration as raw key data ``[batch, 2]``, and the typed keys' impl."""
+    impl = None
+    if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+        impl = str(jax.random.key_impl(key))
+        key = jax.random.key_data(key)
+    data = np.asarray(key)
+    if data.ndim == 1:
+        return np.broadcast_to(data, (batch, *data.shape)).copy(), impl
+    if data.ndim != 2 or data.shape[0] != batch:
+        raise InputError(
+            f"key must be one key or one per configuration ({batch}), got key data of shape "
+            f"{data.shape}"
+        )
+    return data, impl
+
+
+def _get_path(tree: Any, path: str) -> Any:
+    node = tree
+    for name in path.split("."):
+        if not hasattr(node, "_fields") or name not in node._fields:
+            known = ", ".join(getattr(node, "_fields", ())) or "none (a leaf)"
+            raise InputError(
+                f"unknown parameter path {path!r}: no field {name!r} (fields: {known})"
+            )
+        node = getattr(node, name)
+    if not isinstance(node, np.ndarray):
+        raise InputError(f"parameter path {path!r} is not a leaf array")
+    return node
+
+
+def _set_path(tree: Any, path: str, value: np.ndarray) -> Any:
+    head, _, rest = path.partition(".")
+    child = getattr(tree, head)
+    return tree._replace(**{head: _set_path(child, rest, value) if rest else value})

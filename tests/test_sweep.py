@@ -1,0 +1,202 @@
+"""The sweep engine: vmapped == loop of single runs; sharded == unsharded; input errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import numpy as np
+import pytest
+
+from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import run
+from jaxtrack.filters.phd import phd_filter
+from jaxtrack.filters.phd_tracker import tracker_params
+from jaxtrack.io import MotTable, load_sequence
+from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.sweep import (
+    BIRTH_MAGNITUDE,
+    CLUTTER_MAGNITUDE,
+    batch_params,
+    magnitude_grid,
+    pad_components,
+    product_grid,
+    sweep,
+)
+
+FRAMES = (11, 40)
+CLUTTER_RATES = np.array([0.3, 3.0], np.float32)
+BIRTH_RATES = np.array([0.05, 0.2, 0.8], np.float32)
+
+
+@pytest.fixture(scope="module")
+def campus(mot15_root):
+    return load_sequence(mot15_root / "TUD-Campus", frames=FRAMES)
+
+
+@pytest.fixture(scope="module")
+def small_filter():
+    return phd_filter(128, births_per_detection=8)
+
+
+def test_magnitude_grid_is_a_c_order_product():
+    grid = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
+    assert set(grid) == {CLUTTER_MAGNITUDE, BIRTH_MAGNITUDE}
+    np.testing.assert_array_equal(grid[CLUTTER_MAGNITUDE], np.repeat(CLUTTER_RATES, 3))
+    np.testing.assert_array_equal(grid[BIRTH_MAGNITUDE], np.tile(BIRTH_RATES, 2))
+    both = product_grid({"a": [1, 2], "b": [3, 4, 5], "c": [6]})
+    assert [(a, b, c) for a, b, c in zip(*both.values(), strict=True)] == [
+        (1, 3, 6), (1, 4, 6), (1, 5, 6), (2, 3, 6), (2, 4, 6), (2, 5, 6)
+    ]  # fmt: skip
+
+
+def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter):
+    params = tracker_params(campus.info)
+    updates = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
+    key = jax.random.PRNGKey(3)
+    # chunk_size 4: two chunks, the second padded with a repeated configuration.
+    result = sweep(
+        small_filter,
+        params,
+        key,
+        campus.detections,
+        updates,
+        ground_truth=campus.gt_table,
+        first_frame=campus.first_frame,
+        chunk_size=4,
+    )
+    single = jax.jit(lambda p: run(small_filter, key, p, campus.detections)[1])
+    batched = batch_params(params, updates)
+    assert len(result.rows) == 6
+    for b in range(6):
+        info = single(jax.tree.map(lambda x, b=b: x[b], batched))
+        expected = finalise_tracks(info.tracks, info.candidates, 8, campus.first_frame)
+        got = result.rows[b]
+        np.testing.assert_array_equal(got.frames, expected.frames)
+        np.testing.assert_array_equal(got.ids, expected.ids)
+        np.testing.assert_allclose(got.boxes, expected.boxes, rtol=1e-5, atol=1e-3)
+        np.testing.assert_allclose(result.log_likelihood[b], np.sum(info.log_likelihood), rtol=1e-5)
+        scores = evaluate_sequence(
+            campus.gt_table, MotTable.from_arrays(*expected), FRAMES
+        ).summary()
+        for name in ("MOTA", "MOTP", "MODA", "MODP", "IDF1", "HOTA"):
+            np.testing.assert_allclose(result.scores[name][b], scores[name], atol=1e-6)
+    # The grid matters: the magnitudes change the output.
+    assert len({len(rows.frames) for rows in result.rows}) > 1
+    assert np.ptp(result.log_likelihood) > 1.0
+
+
+def test_sweep_online_output_and_per_configuration_keys(campus, small_filter):
+    params = tracker_params(campus.info)
+    keys = jax.random.split(jax.random.key(1), 2)
+    updates = {CLUTTER_MAGNITUDE: np.array([1.0, 1.0], np.float32)}
+    result = sweep(small_filter, params, keys, campus.detections, updates, output="online")
+    assert result.scores == {}
+    for b in range(2):
+        _, info = jax.jit(lambda k: run(small_filter, k, params, campus.detections))(keys[b])
+        expected = track_rows(info.tracks, 1)
+        np.testing.assert_array_equal(result.rows[b].ids, expected.ids)
+        np.testing.assert_allclose(result.rows[b].boxes, expected.boxes, rtol=1e-5, atol=1e-3)
+    # Different keys, same parameters: different runs.
+    assert not np.isclose(result.log_likelihood[0], result.log_likelihood[1])
+
+
+def test_pad_components_leaves_the_intensity_unchanged(campus):
+    params = tracker_params(campus.info)
+    from jaxtrack.context.intensity import log_intensity
+
+    clutter = params.clutter_intensity._replace(uniform_weight=np.float32(0.5))
+    clutter = clutter._replace(weights=np.ones(1, np.float32))
+    padded = pad_components(clutter, 4)
+    assert padded.weights.shape == (4,) and padded.covs.shape == (4, 4, 4)
+    points = np.array([[100.0, 200.0, 40.0, 90.0], [1.0, 5.0, 30.0, 30.0]], np.float32)
+    np.testing.assert_allclose(log_intensity(padded, points), log_intensity(clutter, points))
+    with pytest.raises(InputError, match="cannot pad"):
+        pad_components(padded, 2)
+
+
+def test_sweep_input_errors(campus, small_filter):
+    params = tracker_params(campus.info)
+    key = jax.random.PRNGKey(0)
+    detections = campus.detections
+    with pytest.raises(InputError, match="same leading batch size"):
+        batch_params(params, {CLUTTER_MAGNITUDE: np.ones(3), BIRTH_MAGNITUDE: np.ones(2)})
+    with pytest.raises(InputError, match="no field 'clutter_rate'"):
+        batch_params(params, {"clutter_rate": np.ones(3)})
+    with pytest.raises(InputError, match="not a leaf"):
+        batch_params(params, {"clutter_intensity": np.ones(3)})
+    with pytest.raises(InputError, match=r"shape \[batch, 4\]"):
+        batch_params(params, {"motion_noise_std": np.ones(3)})
+    with pytest.raises(InputError, match="empty"):
+        batch_params(params, {CLUTTER_MAGNITUDE: np.ones(0)})
+    with pytest.raises(InputError, match="positive"):
+        magnitude_grid([1.0, -1.0], [0.1])
+    with pytest.raises(InputError, match="one key or one per configuration"):
+        sweep(
+            small_filter,
+            params,
+            jax.random.split(key, 3),
+            detections,
+            magnitude_grid([1.0], [0.1, 0.2]),
+        )
+    with pytest.raises(InputError, match="same non-zero leading batch size"):
+        sweep(small_filter, params, key, detections)
+    with pytest.raises(InputError, match="output"):
+        sweep(small_filter, params, key, detections, magnitude_grid([1.0], [0.1]), output="x")
+    with pytest.raises(InputError, match="chunk_size"):
+        sweep(small_filter, params, key, detections, magnitude_grid([1.0], [0.1]), chunk_size=0)
+
+
+_SHARD_SCRIPT = textwrap.dedent(
+    """
+    import json, sys
+    import jax, numpy as np
+    from jaxtrack.filters.phd import phd_filter
+    from jaxtrack.filters.phd_tracker import tracker_params
+    from jaxtrack.io import load_sequence
+    from jaxtrack.sweep import magnitude_grid, sweep
+
+    assert jax.device_count() == 4, jax.devices()
+    seq = load_sequence(sys.argv[1], frames=(11, 40))
+    filt = phd_filter(128, births_per_detection=8)
+    args = (filt, tracker_params(seq.info), jax.random.PRNGKey(5), seq.detections,
+            magnitude_grid([0.3, 3.0], [0.05, 0.2, 0.8]))
+    kwargs = dict(ground_truth=seq.gt_table, first_frame=seq.first_frame, chunk_size=3)
+    sharded = sweep(*args, **kwargs)
+    single = sweep(*args, devices=jax.devices()[:1], **kwargs)
+    print(json.dumps({
+        "ids_equal": all(np.array_equal(a.ids, b.ids) and np.array_equal(a.frames, b.frames)
+                         for a, b in zip(sharded.rows, single.rows)),
+        "max_box_diff": max(float(np.max(np.abs(a.boxes - b.boxes), initial=0))
+                            for a, b in zip(sharded.rows, single.rows)),
+        "mota": [sharded.scores["MOTA"].tolist(), single.scores["MOTA"].tolist()],
+        "hota": [sharded.scores["HOTA"].tolist(), single.scores["HOTA"].tolist()],
+        "log_likelihood": [sharded.log_likelihood.tolist(), single.log_likelihood.tolist()],
+    }))
+    """
+)
+
+
+def test_sharded_sweep_on_four_devices_equals_unsharded(mot15_root):
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=4"}
+    env["JAX_PLATFORMS"] = "cpu"
+    done = subprocess.run(
+        [sys.executable, "-c", _SHARD_SCRIPT, str(mot15_root / "TUD-Campus")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["ids_equal"]
+    assert report["max_box_diff"] < 1e-3
+    np.testing.assert_allclose(*report["mota"], atol=1e-9)
+    np.testing.assert_allclose(*report["hota"], atol=1e-9)
+    np.testing.assert_allclose(*report["log_likelihood"], rtol=1e-5)
+    assert len(set(report["mota"][0])) > 1
