@@ -22,6 +22,7 @@ from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.sweep import (
     BIRTH_MAGNITUDE,
     CLUTTER_MAGNITUDE,
+    _config_keys,
     batch_params,
     magnitude_grid,
     pad_components,
@@ -44,6 +45,12 @@ def small_filter():
     return phd_filter(128, births_per_detection=8)
 
 
+@pytest.fixture(scope="module")
+def single_run(campus, small_filter):
+    """One configuration, jitted once for the module: ``(key, params) -> info``."""
+    return jax.jit(lambda key, params: run(small_filter, key, params, campus.detections)[1])
+
+
 def test_magnitude_grid_is_a_c_order_product():
     grid = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
     assert set(grid) == {CLUTTER_MAGNITUDE, BIRTH_MAGNITUDE}
@@ -55,7 +62,7 @@ def test_magnitude_grid_is_a_c_order_product():
     ]  # fmt: skip
 
 
-def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter):
+def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_run):
     params = tracker_params(campus.info)
     updates = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
     key = jax.random.PRNGKey(3)
@@ -70,11 +77,10 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter):
         first_frame=campus.first_frame,
         chunk_size=4,
     )
-    single = jax.jit(lambda p: run(small_filter, key, p, campus.detections)[1])
     batched = batch_params(params, updates)
     assert len(result.rows) == 6
     for b in range(6):
-        info = single(jax.tree.map(lambda x, b=b: x[b], batched))
+        info = single_run(key, jax.tree.map(lambda x, b=b: x[b], batched))
         expected = finalise_tracks(info.tracks, info.candidates, 8, campus.first_frame)
         got = result.rows[b]
         np.testing.assert_array_equal(got.frames, expected.frames)
@@ -91,19 +97,31 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter):
     assert np.ptp(result.log_likelihood) > 1.0
 
 
-def test_sweep_online_output_and_per_configuration_keys(campus, small_filter):
+def test_sweep_online_output_and_per_configuration_keys(campus, small_filter, single_run):
     params = tracker_params(campus.info)
-    keys = jax.random.split(jax.random.key(1), 2)
+    keys = jax.random.split(jax.random.PRNGKey(1), 2)
     updates = {CLUTTER_MAGNITUDE: np.array([1.0, 1.0], np.float32)}
-    result = sweep(small_filter, params, keys, campus.detections, updates, output="online")
+    result = sweep(
+        small_filter, params, keys, campus.detections, updates, output="online", chunk_size=4
+    )
     assert result.scores == {}
     for b in range(2):
-        _, info = jax.jit(lambda k: run(small_filter, k, params, campus.detections))(keys[b])
+        info = single_run(keys[b], params)
         expected = track_rows(info.tracks, 1)
         np.testing.assert_array_equal(result.rows[b].ids, expected.ids)
         np.testing.assert_allclose(result.rows[b].boxes, expected.boxes, rtol=1e-5, atol=1e-3)
     # Different keys, same parameters: different runs.
     assert not np.isclose(result.log_likelihood[0], result.log_likelihood[1])
+
+
+def test_typed_keys_are_passed_as_key_data():
+    typed = jax.random.split(jax.random.key(7), 3)
+    data, impl = _config_keys(typed, 3)
+    np.testing.assert_array_equal(data, jax.random.key_data(typed))
+    assert impl == "threefry2x32"
+    single, impl = _config_keys(jax.random.PRNGKey(7), 3)
+    assert single.shape == (3, 2) and impl is None
+    np.testing.assert_array_equal(single[2], jax.random.PRNGKey(7))
 
 
 def test_pad_components_leaves_the_intensity_unchanged(campus):
