@@ -1,0 +1,239 @@
+"""What every experiment shares: data, splits, scores and the files written.
+
+**Data.** An experiment runs on one MOTChallenge sequence folder, by default the synthetic
+scene of :mod:`jaxtrack.datasets.synthetic` generated from the experiment's seed and written
+into the output folder (:func:`synthetic_sequence`); ``quick=True`` gives a short scene
+(:data:`QUICK_SCENE`) for seconds-long smoke runs.
+
+**Protocol** (PHD-context Sec. V): context is learned on a training span and the trackers are
+scored on the disjoint rest. :func:`split_halves` takes the first half of the frames for
+training and the second half for testing (``n // 2`` and ``n - n // 2`` frames).
+
+**Scores** (:func:`score_summary`): CLEAR MOT / TrackEval MOTA and MOTP, the VACE detection
+scores MODA and MODP (pooled over frames, :mod:`jaxtrack.metrics.vace`), IDF1 and HOTA, in
+percent, plus the FP, FN and ID-switch counts, all at IoU 0.5 with MOT15's rules.
+
+**Files.** Each experiment writes a CSV table (:func:`write_csv`), a PNG figure and a
+short markdown summary (:func:`markdown_table`) into its output folder
+(:func:`output_folder`).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import NamedTuple
+
+import jax.numpy as jnp
+
+from jaxtrack.association.offline import TrackRows
+from jaxtrack.context.intensity import Intensity
+from jaxtrack.context.samples import WARMUP_FRAMES
+from jaxtrack.datasets.scene_config import SceneConfig
+from jaxtrack.errors import InputError
+from jaxtrack.filters.phd import PHDParams
+from jaxtrack.io import MotSequence, MotTable, load_sequence
+from jaxtrack.io.motchallenge import read_seqinfo
+from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
+
+#: Scores reported in percent, in this order.
+SCORE_KEYS = ("MOTA", "MOTP", "MODA", "MODP", "IDF1", "HOTA")
+#: Error counts reported beside the scores.
+COUNT_KEYS = ("FP", "FN", "IDSW")
+#: The short synthetic scene of ``--quick`` runs: 120 frames, a short burn-in (fewer targets
+#: in view, so fast runs) and more births than the default scene, so that a 60-frame
+#: training half still holds birth events.
+QUICK_SCENE = SceneConfig(num_frames=120, burn_in_frames=40, birth_rate=0.15)
+#: Tracker configuration overrides of ``--quick`` runs (few particles).
+QUICK_TRACKER_CONFIG = {"num_particles": 256, "births_per_detection": 8}
+#: The shortest training span: the birth events' warm-up plus as many frames again.
+MIN_TRAIN_FRAMES = 2 * WARMUP_FRAMES
+
+
+class Split(NamedTuple):
+    """A sequence cut into a training span and a disjoint test span.
+
+    Attributes:
+        train: the training span (context is learned here).
+        test: the test span (trackers are scored here).
+    """
+
+    train: MotSequence
+    test: MotSequence
+
+
+def output_folder(path: str | Path) -> Path:
+    """Creates (if needed) and returns an experiment's output folder.
+
+    Raises:
+        InputError: ``path`` exists and is not a folder.
+    """
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: exists and is not a folder")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def synthetic_sequence(out_dir: str | Path, seed: int, quick: bool = False) -> Path:
+    """Generates the synthetic scene of ``seed`` and writes it as a MOTChallenge folder.
+
+    Args:
+        out_dir: the sequence folder to write (created if needed).
+        seed: the scene's seed (>= 0).
+        quick: the short :data:`QUICK_SCENE` instead of the default 800-frame scene.
+
+    Returns:
+        The sequence folder.
+
+    Raises:
+        InputError: a negative seed.
+    """
+    from jaxtrack.datasets.synthetic import generate_scene, write_scene
+
+    if seed < 0:
+        raise InputError(f"seed must be >= 0, got {seed}")
+    scene = generate_scene(seed, QUICK_SCENE if quick else None)
+    return write_scene(scene, out_dir)
+
+
+def split_halves(sequence_dir: str | Path) -> Split:
+    """Loads a sequence folder as a training first half and a test second half.
+
+    Args:
+        sequence_dir: a MOTChallenge sequence folder with ground truth.
+
+    Returns:
+        The :class:`Split`: frames ``1..n//2`` and ``n//2+1..n``.
+
+    Raises:
+        InputError: no ground truth (the test span is scored against it), or a sequence too
+            short to learn from half of it.
+        FileFormatError: a missing or malformed file.
+    """
+    folder = Path(sequence_dir)
+    if not folder.is_dir():
+        raise InputError(f"{folder}: sequence folder not found")
+    info = read_seqinfo(folder / "seqinfo.ini")
+    half = info.seq_length // 2
+    if half < MIN_TRAIN_FRAMES:
+        raise InputError(
+            f"{folder}: {info.seq_length} frames; a half needs at least {MIN_TRAIN_FRAMES}"
+        )
+    train = load_sequence(folder, frames=(1, half))
+    if train.gt_table is None:
+        raise InputError(f"{folder}: no ground truth (gt/gt.txt) to score against")
+    return Split(train=train, test=load_sequence(folder, frames=(half + 1, info.seq_length)))
+
+
+def pad_components(intensity: Intensity, num_components: int) -> Intensity:
+    """The same intensity with dead components (weight 0) appended up to ``num_components``.
+
+    Dead components are masked out of the density (:mod:`jaxtrack.context.intensity`), so
+    the intensity's values are unchanged; only its array shapes grow.
+
+    Raises:
+        ValueError: the intensity already has more components.
+    """
+    extra = num_components - intensity.weights.shape[0]
+    if extra < 0:
+        raise ValueError(f"cannot pad {intensity.weights.shape[0]} components to {num_components}")
+    dim = intensity.means.shape[-1]
+    dtype = intensity.weights.dtype
+    return intensity._replace(
+        weights=jnp.concatenate([intensity.weights, jnp.zeros(extra, dtype)]),
+        means=jnp.concatenate([intensity.means, jnp.zeros((extra, dim), dtype)]),
+        covs=jnp.concatenate([intensity.covs, jnp.tile(jnp.eye(dim, dtype=dtype), (extra, 1, 1))]),
+    )
+
+
+def common_shapes(params: Sequence[PHDParams]) -> list[PHDParams]:
+    """Pads the intensities of several parameter sets to common numbers of components.
+
+    Uniform (UM) and learned intensities, or contexts learned on different data, differ in
+    their numbers of mixture components and so in their PyTree shapes; padded with dead
+    components (:func:`pad_components`) they track identically, and
+    :func:`~jaxtrack.filters.phd_tracker.track_sequences` compiles once for all of them.
+    """
+    fields = [name for name, value in params[0]._asdict().items() if isinstance(value, Intensity)]
+    sizes = {name: max(getattr(p, name).weights.shape[0] for p in params) for name in fields}
+    return [
+        p._replace(**{name: pad_components(getattr(p, name), sizes[name]) for name in fields})
+        for p in params
+    ]
+
+
+def evaluate_rows(sequence: MotSequence, rows: TrackRows) -> Evaluation:
+    """Scores a tracker's rows against a sequence span's ground truth.
+
+    Raises:
+        InputError: the sequence has no ground truth.
+    """
+    if sequence.gt_table is None:
+        raise InputError(f"{sequence.path}: no ground truth (gt/gt.txt) to score against")
+    result = MotTable.from_arrays(rows.frames, rows.ids, rows.boxes, rows.scores)
+    return evaluate_sequence(
+        sequence.gt_table, result, frames=(sequence.first_frame, sequence.last_frame)
+    )
+
+
+def score_summary(evaluation: Evaluation) -> dict[str, float | int]:
+    """The :data:`SCORE_KEYS` in percent (rounded to 0.01) and the :data:`COUNT_KEYS`."""
+    summary = evaluation.summary()
+    scores: dict[str, float | int] = {key: round(100 * summary[key], 2) for key in SCORE_KEYS}
+    scores.update({key: int(summary[key]) for key in COUNT_KEYS})
+    return scores
+
+
+def percent_difference(value: float, reference: float) -> float:
+    """``100 (value - reference) / |reference|``: a score's change relative to a baseline.
+
+    The denominator is the magnitude of the reference, so that an improvement is positive
+    also when the reference is negative (a MOTA below 0). NaN when the reference is 0.
+    """
+    if reference == 0:
+        return math.nan
+    return 100.0 * (value - reference) / abs(reference)
+
+
+def write_csv(path: str | Path, rows: Sequence[dict], columns: Sequence[str]) -> Path:
+    """Writes ``rows`` (dicts holding every column) as a CSV file with a header line."""
+    path = Path(path)
+    with path.open("w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=list(columns), extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
+
+
+def markdown_table(rows: Sequence[dict], columns: Sequence[str]) -> str:
+    """A markdown table of ``rows``: floats with one decimal, NaN as ``n/a``."""
+
+    def cell(value) -> str:
+        if isinstance(value, float):
+            if math.isnan(value):
+                return "n/a"
+            return f"{value:.1f}"
+        return str(value)
+
+    lines = [
+        "| " + " | ".join(columns) + " |",
+        "|" + "|".join("---" for _ in columns) + "|",
+    ]
+    lines += ["| " + " | ".join(cell(row[column]) for column in columns) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def run_script(main: Callable[[], int], name: str) -> int:
+    """Runs an experiment script's body: bad input prints ``name: error: ...``, exit 2."""
+    try:
+        return main()
+    except InputError as err:
+        print(f"{name}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted", file=sys.stderr)
+        return 130
