@@ -1,0 +1,125 @@
+"""Experiment scripts (PHD-context Fig. 14 and 16): quick runs, files, % differences."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import math
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.context.intensity import Intensity, log_intensity
+from jaxtrack.experiments.ablation import ABLATION_COLUMNS, add_differences
+from jaxtrack.experiments.common import markdown_table, pad_components, percent_difference
+from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, TRACKERS
+from jaxtrack.filters.phd_tracker import VARIANTS
+
+SCRIPTS = Path(__file__).resolve().parents[1] / "experiments"
+
+
+def _script(name: str):
+    """Imports ``experiments/<name>.py`` as a module (the scripts are not a package)."""
+    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _read_csv(path: Path) -> tuple[list[str], list[dict]]:
+    with path.open(newline="") as file:
+        reader = csv.DictReader(file)
+        return list(reader.fieldnames), list(reader)
+
+
+def test_percent_difference_against_hand_numbers():
+    assert percent_difference(93.2, 92.9) == pytest.approx(100 * 0.3 / 92.9)
+    assert percent_difference(45.0, 50.0) == pytest.approx(-10.0)
+    # A negative reference: an improvement stays positive.
+    assert percent_difference(-5.0, -10.0) == pytest.approx(50.0)
+    assert math.isnan(percent_difference(1.0, 0.0))
+
+
+def test_add_differences_against_hand_numbers():
+    rows = [
+        {"variant": "UM", "MOTA": 80.0, "MOTP": 70.0, "MODA": 50.0, "MODP": 60.0},
+        {"variant": "GM", "MOTA": 88.0, "MOTP": 63.0, "MODA": 50.0, "MODP": 66.0},
+    ]
+    add_differences(rows, "UM")
+    assert [rows[0][f"{k}_diff_pct"] for k in ("MOTA", "MOTP", "MODA", "MODP")] == [0, 0, 0, 0]
+    assert rows[1]["MOTA_diff_pct"] == pytest.approx(10.0)
+    assert rows[1]["MOTP_diff_pct"] == pytest.approx(-10.0)
+    assert rows[1]["MODA_diff_pct"] == pytest.approx(0.0)
+    assert rows[1]["MODP_diff_pct"] == pytest.approx(10.0)
+    with pytest.raises(KeyError):
+        add_differences(rows, "A1")
+
+
+def test_padded_intensity_has_the_same_values():
+    intensity = Intensity(
+        magnitude=jnp.float32(2.0),
+        uniform_weight=jnp.float32(0.1),
+        lower=jnp.zeros(2),
+        upper=jnp.full(2, 10.0),
+        weights=jnp.array([0.7, 0.3]),
+        means=jnp.array([[2.0, 3.0], [7.0, 7.0]]),
+        covs=jnp.stack([jnp.eye(2), 2 * jnp.eye(2)]),
+    )
+    padded = pad_components(intensity, 5)
+    assert padded.weights.shape == (5,) and padded.covs.shape == (5, 2, 2)
+    points = jax.random.uniform(jax.random.PRNGKey(0), (50, 2), maxval=10.0)
+    np.testing.assert_allclose(
+        log_intensity(padded, points), log_intensity(intensity, points), rtol=1e-6
+    )
+    with pytest.raises(ValueError):
+        pad_components(padded, 3)
+
+
+def test_markdown_table():
+    text = markdown_table([{"a": "UM", "b": 1.26, "c": math.nan}], ["a", "b", "c"])
+    assert text.splitlines() == ["| a | b | c |", "|---|---|---|", "| UM | 1.3 | n/a |"]
+
+
+def test_bad_sequence_exits_2(tmp_path, capsys):
+    module = _script("context_ablation")
+    code = module.main(["--out", str(tmp_path / "out"), "--sequence", str(tmp_path / "none")])
+    assert code == 2
+    assert "not found" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_context_ablation_quick(tmp_path):
+    out = tmp_path / "ablation"
+    assert _script("context_ablation").main(["--out", str(out), "--quick", "--seed", "0"]) == 0
+    columns, rows = _read_csv(out / "ablation.csv")
+    assert columns == list(ABLATION_COLUMNS)
+    assert [row["variant"] for row in rows] == list(VARIANTS)
+    um = rows[0]
+    assert all(float(um[f"{key}_diff_pct"]) == 0 for key in ("MOTA", "MOTP", "MODA", "MODP"))
+    for row in rows[1:]:  # the % columns agree with the scores
+        expected = percent_difference(float(row["MOTA"]), float(um["MOTA"]))
+        assert float(row["MOTA_diff_pct"]) == pytest.approx(expected, abs=0.01)
+        assert 0 < float(row["MOTP"]) <= 100
+    assert (out / "ablation.png").stat().st_size > 10_000
+    summary = (out / "summary.md").read_text()
+    assert all(f"| {name} |" in summary for name in VARIANTS)
+    assert (out / "scene" / "gt" / "gt.txt").is_file()
+
+
+@pytest.mark.slow
+def test_compare_trackers_quick(tmp_path):
+    out = tmp_path / "compare"
+    assert _script("compare_trackers").main(["--out", str(out), "--quick"]) == 0
+    columns, rows = _read_csv(out / "comparison.csv")
+    assert columns == list(COMPARISON_COLUMNS)
+    assert [row["tracker"] for row in rows] == list(TRACKERS)
+    assert {row["sequence"] for row in rows} == {"synthetic-0"}
+    assert rows[0]["context"].startswith("learned on frames 1:60")
+    # Different trackers give different results on the same detections.
+    assert len({(row["FP"], row["FN"]) for row in rows}) == len(rows)
+    assert (out / "comparison.png").stat().st_size > 10_000
+    summary = (out / "summary.md").read_text()
+    assert all(f"| {name} |" in summary for name in TRACKERS)
