@@ -49,7 +49,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--quick",
         action="store_true",
-        help="seconds-long smoke run (short synthetic scene, few particles, no --mot-root)",
+        help="short smoke run (short synthetic scene, few particles, no --mot-root)",
     )
     return parser.parse_args(argv)
 

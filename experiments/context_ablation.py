@@ -8,8 +8,7 @@ of ``--seed`` (written to ``OUT/scene``) unless ``--sequence SEQ_DIR`` is given.
 is in :mod:`jaxtrack.experiments.ablation`.
 
     python experiments/context_ablation.py --out /tmp/ablation
-    python experiments/context_ablation.py --out /tmp/pets \
-        --sequence ../shared/data/mot15/PETS09-S2L1
+    python experiments/context_ablation.py --out /tmp/pets --sequence SEQ_DIR
 """
 
 from __future__ import annotations
@@ -36,7 +35,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--sequence", metavar="SEQ_DIR", help="MOTChallenge sequence with gt (default: synthetic)"
     )
     parser.add_argument(
-        "--quick", action="store_true", help="seconds-long smoke run (short scene, few particles)"
+        "--quick", action="store_true", help="short smoke run (short scene, few particles)"
     )
     return parser.parse_args(argv)
 
