@@ -217,3 +217,136 @@ def find_frame_source(
         if candidate.is_file():
             return candidate
     return None
+
+
+#: Codec of written ``.mp4`` / ``.avi`` files (MPEG-4 part 2, in every OpenCV build).
+WRITER_FOURCC = "mp4v"
+#: Frame rate of written videos when the source has none.
+DEFAULT_WRITE_FPS = 7.0
+
+
+class FrameWriter:
+    """Writes RGB frames to a video file (``.mp4`` / ``.avi``) or a folder of PNG images.
+
+    A path ending in ``.mp4`` or ``.avi`` is a video file; any other path is a folder that
+    receives ``000001.png``, ``000002.png``, ... (numbered by the frame numbers given).
+    Use as a context manager (or call :meth:`close`).
+
+    Args:
+        path: the video file or PNG folder.
+        size: ``(width, height)`` of every frame.
+        fps: frames per second of a video file (default :data:`DEFAULT_WRITE_FPS`).
+
+    Raises:
+        FileFormatError: OpenCV cannot open the video file for writing.
+    """
+
+    def __init__(self, path: str | Path, size: tuple[int, int], fps: float | None = None):
+        self.path = Path(path)
+        self.size = (int(size[0]), int(size[1]))
+        self._video = None
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.path.suffix.lower() in VIDEO_EXTENSIONS:
+            fourcc = cv2.VideoWriter_fourcc(*WRITER_FOURCC)
+            self._video = cv2.VideoWriter(
+                str(self.path), fourcc, fps or DEFAULT_WRITE_FPS, self.size
+            )
+            if not self._video.isOpened():
+                raise FileFormatError(self.path, None, "OpenCV cannot write this video file")
+        else:
+            self.path.mkdir(parents=True, exist_ok=True)
+
+    def write(self, image: np.ndarray, frame: int) -> None:
+        """Appends an RGB ``uint8`` ``[height, width, 3]`` image (PNG: named by ``frame``).
+
+        Raises:
+            InputError: the image is not of the writer's size.
+        """
+        if image.shape[:2] != (self.size[1], self.size[0]):
+            raise InputError(
+                f"frame is {image.shape[1]}x{image.shape[0]}, writer expects "
+                f"{self.size[0]}x{self.size[1]}"
+            )
+        bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+        if self._video is not None:
+            self._video.write(bgr)
+        elif not cv2.imwrite(str(self.path / f"{frame:06d}.png"), bgr):
+            raise FileFormatError(self.path, None, f"cannot write frame {frame} as PNG")
+
+    def close(self) -> None:
+        """Finishes the video file."""
+        if self._video is not None:
+            self._video.release()
+            self._video = None
+
+    def __enter__(self) -> FrameWriter:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+def id_colour(track_id: int) -> tuple[int, int, int]:
+    """A distinct, stable RGB colour per id (golden-ratio hue steps)."""
+    hue = int((track_id * 0.618033988749895 % 1.0) * 180)
+    hsv = np.uint8([[[hue, 220, 255]]])
+    return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)[0, 0])
+
+
+def annotate_frame(
+    image: np.ndarray,
+    boxes: np.ndarray,
+    ids: np.ndarray | None = None,
+    trails: dict[int, np.ndarray] | None = None,
+    overlay: np.ndarray | None = None,
+    label: str | None = None,
+) -> np.ndarray:
+    """Draws boxes (by id colour), trails and an optional intensity overlay on a frame.
+
+    Args:
+        image: RGB ``uint8`` ``[height, width, 3]`` (not modified).
+        boxes: ``(x, y, w, h)``, ``[num_boxes, 4]``.
+        ids: id of each box; None draws detections (white, thin) without labels.
+        trails: per id, the ``[num_points, 2]`` image points of its recent path (drawn as a
+            polyline in the id's colour).
+        overlay: ``[height, width]`` non-negative intensity blended in as a heat map
+            (scaled by its maximum).
+        label: text in the top-left corner (e.g. the frame number).
+
+    Returns:
+        The annotated copy.
+    """
+    out = image.copy()
+    if overlay is not None:
+        peak = float(np.max(overlay)) if overlay.size else 0.0
+        if peak > 0:
+            heat = cv2.applyColorMap(
+                np.uint8(np.clip(overlay / peak, 0, 1) * 255), cv2.COLORMAP_INFERNO
+            )
+            out = cv2.addWeighted(out, 0.6, cv2.cvtColor(heat, cv2.COLOR_BGR2RGB), 0.4, 0)
+    for track_id, points in (trails or {}).items():
+        if len(points) > 1:
+            cv2.polylines(
+                out, [np.round(points).astype(np.int32)], False, id_colour(int(track_id)), 2
+            )
+    for k, (x, y, w, h) in enumerate(np.asarray(boxes, np.float64).reshape(-1, 4).tolist()):
+        top_left = (round(x), round(y))
+        bottom_right = (round(x + w), round(y + h))
+        if ids is None:
+            cv2.rectangle(out, top_left, bottom_right, (255, 255, 255), 1)
+            continue
+        colour = id_colour(int(ids[k]))
+        cv2.rectangle(out, top_left, bottom_right, colour, 2)
+        cv2.putText(
+            out,
+            str(int(ids[k])),
+            (top_left[0], top_left[1] - 3),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.5,
+            colour,
+            1,
+            cv2.LINE_AA,
+        )
+    if label:
+        cv2.putText(out, label, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 0), 2)
+    return out
