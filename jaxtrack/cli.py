@@ -14,7 +14,16 @@ import sys
 from jaxtrack.errors import InputError
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
-COMMANDS = ("simulate", "inspect", "track", "eval", "label_clutter", "learn_context")
+COMMANDS = (
+    "simulate",
+    "inspect",
+    "track",
+    "eval",
+    "label_clutter",
+    "learn_context",
+    "detect",
+    "track_video",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
