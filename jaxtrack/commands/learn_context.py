@@ -24,6 +24,9 @@ Event sources:
   --clutter-from tracks detections overlapping no tracker output box by IoU 0.5
   --clutter-from FILE   detections labelled as clutter with `jaxtrack label-clutter`
                         (magnitude: clutter per labelled frame)
+A video (or image folder) instead of SEQ_DIR: give its detections with --detections
+(`jaxtrack detect VIDEO --out DET.txt`) and, for the gt sources, its ground truth with --gt;
+size, length and frame rate (--fps overrides it) come from the video.
 Trajectories that start in the first --warmup frames of the span are the population already
 in view, not births.
 
@@ -37,7 +40,10 @@ examples:
   jaxtrack simulate --seed 3 --out /tmp/s3
   jaxtrack learn-context /tmp/s3 --frames 1:400 --out /tmp/ctx.npz --plot /tmp/ctxplots
   jaxtrack learn-context data/PETS09-S2L1 --frames 1:397 --clutter-from labels.json \\
-      --out pets.npz --plot plots --video vtest.avi"""
+      --out pets.npz --plot plots --video vtest.avi
+  jaxtrack detect vtest.avi --out det.txt
+  jaxtrack learn-context vtest.avi --detections det.txt --gt gt.txt --fps 7 \
+      --frames 1:400 --out ctx.npz"""
 
 
 def register(subparsers) -> None:
@@ -56,7 +62,16 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("sequence", metavar="SEQ_DIR", help="MOTChallenge sequence folder")
+    parser.add_argument(
+        "sequence",
+        metavar="SEQ_DIR",
+        help="MOTChallenge sequence folder, or a video file / image folder with --detections",
+    )
+    parser.add_argument(
+        "--detections", metavar="DET.txt", help="detections of the video given as SEQ_DIR"
+    )
+    parser.add_argument("--gt", metavar="GT.txt", help="ground truth of the video (gt sources)")
+    parser.add_argument("--fps", type=float, metavar="F", help="frame rate of the video")
     parser.add_argument(
         "--frames", metavar="A:B", help="training span, 1-based inclusive (default: all frames)"
     )
@@ -131,6 +146,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(
             f"--clutter-from must be gt, tracks or a labels file; {clutter_from!r} is neither"
         )
+    if Path(args.sequence).is_file() and not args.detections:
+        raise InputError(f"{args.sequence} is a video: give its detections with --detections")
+    if (args.gt or args.fps) and not args.detections:
+        raise InputError("--gt and --fps apply to a video given with --detections")
     if args.video is not None and not Path(args.video).exists():
         raise InputError(f"--video {args.video}: not found")
 
@@ -149,9 +168,10 @@ def run(args: argparse.Namespace) -> int:
             started.append(message)
             bar.set_description_str(message)
 
+        sequence, frames = _video_sequence(args) if args.detections else (args.sequence, None)
         learned = learn_context(
-            args.sequence,
-            args.frames,
+            sequence,
+            frames if args.detections else args.frames,
             birth_from=args.birth_from,
             clutter_from=clutter_from,
             seed=args.seed,
@@ -181,13 +201,35 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _video_sequence(args: argparse.Namespace):
+    """``(sequence, None)``: the video's training span with its detections (and gt)."""
+    from jaxtrack.detect.sequence import video_info, video_sequence
+    from jaxtrack.io import parse_frame_span, read_mot_file
+    from jaxtrack.io.video import VideoReader
+
+    with VideoReader(args.sequence, fps=args.fps) as reader:
+        info = video_info(reader)
+    span = parse_frame_span(args.frames, info.seq_length)
+    detections = read_mot_file(args.detections, "det", info.seq_length)
+    return video_sequence(args.sequence, detections, span, info, args.gt), None
+
+
 def _plot(args: argparse.Namespace, learned) -> list[Path]:
     """Writes the figures of ``learned`` to ``args.plot``."""
     from jaxtrack.io import read_seqinfo
     from jaxtrack.plot.context import save_context_plots
 
     sequence = Path(args.sequence)
-    info = read_seqinfo(sequence / "seqinfo.ini")
+    if args.detections:
+        from jaxtrack.detect.sequence import video_info
+        from jaxtrack.io.video import VideoReader
+
+        with VideoReader(sequence, fps=args.fps) as reader:
+            info = video_info(reader)
+        if args.video is None:
+            args.video = str(sequence)
+    else:
+        info = read_seqinfo(sequence / "seqinfo.ini")
     truth = None
     truth_path = sequence / "context_truth.npz"
     if truth_path.is_file():
