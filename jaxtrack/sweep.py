@@ -8,8 +8,7 @@ MODA, MODP, IDF1, HOTA, ...; no files written). The batch axis of each chunk is 
 all visible JAX devices (``NamedSharding(Mesh(devices, ("batch",)), PartitionSpec("batch"))``),
 so the same call uses one CPU, several forced host devices
 (``XLA_FLAGS=--xla_force_host_platform_device_count=N``), several GPUs, or several hosts after
-``jax.distributed.initialize()``. Chunks are dispatched one ahead, so the host scores a chunk
-while the devices run the next.
+``jax.distributed.initialize()``. The host scores a chunk while the devices run the next.
 
 Batches are built from a base parameter PyTree and ``updates``, a mapping from dotted leaf
 paths (``"clutter_intensity.magnitude"``) to one value per configuration
@@ -181,6 +180,27 @@ def pad_components(intensity: Intensity, num_components: int) -> Intensity:
     )
 
 
+def common_shapes(params: Sequence[Any]) -> list[Any]:
+    """Pads the intensities of several parameter sets to common numbers of components.
+
+    Uniform (UM) and learned intensities, or contexts learned on different data, differ in
+    their numbers of mixture components and so in their PyTree shapes; padded with dead
+    components (:func:`pad_components`) they track identically, can be stacked into one
+    batch, and :func:`~jaxtrack.filters.phd_tracker.track_sequences` or :func:`sweep`
+    compiles once for all of them.
+
+    Args:
+        params: parameter NamedTuples of one type (e.g. ``PHDParams``); every field holding
+            an :class:`~jaxtrack.context.intensity.Intensity` is padded.
+    """
+    fields = [name for name, value in params[0]._asdict().items() if isinstance(value, Intensity)]
+    sizes = {name: max(getattr(p, name).weights.shape[0] for p in params) for name in fields}
+    return [
+        p._replace(**{name: pad_components(getattr(p, name), sizes[name]) for name in fields})
+        for p in params
+    ]
+
+
 def sweep(
     filt: Filter,
     params: Any,
@@ -272,10 +292,12 @@ def sweep(
     rows, scores, log_likelihood = [], [], []
     pending = dispatch(0)
     for c in chunks:
-        current = pending
+        # Fetch this chunk, launch the next, then score this one while the next runs. (Two
+        # executions in flight at once can deadlock XLA's CPU client with several forced
+        # host devices, so the next chunk starts only once this one is done.)
+        tracks, candidates, chunk_log_likelihood = _gather(pending)
         if c + 1 < num_chunks:
             pending = dispatch(c + 1)
-        tracks, candidates, chunk_log_likelihood = _gather(current)
         for b in range(min(chunk, batch - c * chunk)):
             config_tracks = jax.tree.map(lambda x, b=b: x[b], tracks)
             if output == "offline":
@@ -301,13 +323,15 @@ def sweep(
 
 @functools.lru_cache(maxsize=8)
 def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
-    """``jit(vmap(run))`` with the batch axis sharded over ``mesh`` (cached per filter).
+    """``jit(shard_map(vmap(run)))`` over the ``batch`` axis of ``mesh`` (cached per filter).
 
-    Keys arrive as raw key data; ``key_impl`` names the implementation of typed keys (None
-    for raw keys).
+    ``shard_map`` gives every device its own slice of configurations to run independently:
+    no cross-device communication at all. (Sharding a plain ``jit(vmap(run))`` instead lets
+    the partitioner turn the batched predicates of the filter's while loops into
+    cross-device all-reduces inside the loops, which is slow and can deadlock XLA's CPU
+    client with forced host devices.) Keys arrive as raw key data; ``key_impl`` names the
+    implementation of typed keys (None for raw keys).
     """
-    sharded = NamedSharding(mesh, PartitionSpec("batch"))
-    replicated = NamedSharding(mesh, PartitionSpec())
 
     def one(key, params, detections):
         if key_impl is not None:
@@ -317,10 +341,17 @@ def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
         total = jnp.nan if log_likelihood is None else jnp.sum(log_likelihood)
         return info.tracks, info.candidates, total
 
+    batch = PartitionSpec("batch")
     return jax.jit(
-        jax.vmap(one, in_axes=(0, 0, None)),
-        in_shardings=(sharded, sharded, replicated),
-        out_shardings=sharded,
+        jax.shard_map(
+            jax.vmap(one, in_axes=(0, 0, None)),
+            mesh=mesh,
+            in_specs=(batch, batch, PartitionSpec()),
+            out_specs=batch,
+            # The filter's scans start from unsharded initial states; nothing here
+            # communicates across devices, so the varying-axis type check is not needed.
+            check_vma=False,
+        )
     )
 
 

@@ -7,14 +7,10 @@ import importlib.util
 import math
 from pathlib import Path
 
-import jax
-import jax.numpy as jnp
-import numpy as np
 import pytest
 
-from jaxtrack.context.intensity import Intensity, log_intensity
 from jaxtrack.experiments.ablation import ABLATION_COLUMNS, add_differences
-from jaxtrack.experiments.common import markdown_table, pad_components, percent_difference
+from jaxtrack.experiments.common import markdown_table, percent_difference
 from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, TRACKERS
 from jaxtrack.filters.phd_tracker import VARIANTS
 
@@ -56,26 +52,6 @@ def test_add_differences_against_hand_numbers():
     assert rows[1]["MODP_diff_pct"] == pytest.approx(10.0)
     with pytest.raises(KeyError):
         add_differences(rows, "A1")
-
-
-def test_padded_intensity_has_the_same_values():
-    intensity = Intensity(
-        magnitude=jnp.float32(2.0),
-        uniform_weight=jnp.float32(0.1),
-        lower=jnp.zeros(2),
-        upper=jnp.full(2, 10.0),
-        weights=jnp.array([0.7, 0.3]),
-        means=jnp.array([[2.0, 3.0], [7.0, 7.0]]),
-        covs=jnp.stack([jnp.eye(2), 2 * jnp.eye(2)]),
-    )
-    padded = pad_components(intensity, 5)
-    assert padded.weights.shape == (5,) and padded.covs.shape == (5, 2, 2)
-    points = jax.random.uniform(jax.random.PRNGKey(0), (50, 2), maxval=10.0)
-    np.testing.assert_allclose(
-        log_intensity(padded, points), log_intensity(intensity, points), rtol=1e-6
-    )
-    with pytest.raises(ValueError):
-        pad_components(padded, 3)
 
 
 def test_markdown_table():

@@ -24,7 +24,6 @@ from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
     SCORE_KEYS,
     Split,
-    common_shapes,
     evaluate_rows,
     markdown_table,
     output_folder,
@@ -41,6 +40,7 @@ from jaxtrack.filters.phd_tracker import (
     track_sequences,
     tracker_params,
 )
+from jaxtrack.sweep import common_shapes
 
 #: What each variant uses (PHD-context Sec. V), for tables and summaries.
 VARIANT_DESCRIPTIONS = {

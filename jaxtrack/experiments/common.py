@@ -27,14 +27,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
-import jax.numpy as jnp
-
 from jaxtrack.association.offline import TrackRows
-from jaxtrack.context.intensity import Intensity
 from jaxtrack.context.samples import WARMUP_FRAMES
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.errors import InputError
-from jaxtrack.filters.phd import PHDParams
 from jaxtrack.io import MotSequence, MotTable, load_sequence
 from jaxtrack.io.motchallenge import read_seqinfo
 from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
@@ -127,43 +123,6 @@ def split_halves(sequence_dir: str | Path) -> Split:
     if train.gt_table is None:
         raise InputError(f"{folder}: no ground truth (gt/gt.txt) to score against")
     return Split(train=train, test=load_sequence(folder, frames=(half + 1, info.seq_length)))
-
-
-def pad_components(intensity: Intensity, num_components: int) -> Intensity:
-    """The same intensity with dead components (weight 0) appended up to ``num_components``.
-
-    Dead components are masked out of the density (:mod:`jaxtrack.context.intensity`), so
-    the intensity's values are unchanged; only its array shapes grow.
-
-    Raises:
-        ValueError: the intensity already has more components.
-    """
-    extra = num_components - intensity.weights.shape[0]
-    if extra < 0:
-        raise ValueError(f"cannot pad {intensity.weights.shape[0]} components to {num_components}")
-    dim = intensity.means.shape[-1]
-    dtype = intensity.weights.dtype
-    return intensity._replace(
-        weights=jnp.concatenate([intensity.weights, jnp.zeros(extra, dtype)]),
-        means=jnp.concatenate([intensity.means, jnp.zeros((extra, dim), dtype)]),
-        covs=jnp.concatenate([intensity.covs, jnp.tile(jnp.eye(dim, dtype=dtype), (extra, 1, 1))]),
-    )
-
-
-def common_shapes(params: Sequence[PHDParams]) -> list[PHDParams]:
-    """Pads the intensities of several parameter sets to common numbers of components.
-
-    Uniform (UM) and learned intensities, or contexts learned on different data, differ in
-    their numbers of mixture components and so in their PyTree shapes; padded with dead
-    components (:func:`pad_components`) they track identically, and
-    :func:`~jaxtrack.filters.phd_tracker.track_sequences` compiles once for all of them.
-    """
-    fields = [name for name, value in params[0]._asdict().items() if isinstance(value, Intensity)]
-    sizes = {name: max(getattr(p, name).weights.shape[0] for p in params) for name in fields}
-    return [
-        p._replace(**{name: pad_components(getattr(p, name), sizes[name]) for name in fields})
-        for p in params
-    ]
 
 
 def evaluate_rows(sequence: MotSequence, rows: TrackRows) -> Evaluation:

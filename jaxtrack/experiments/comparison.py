@@ -13,7 +13,7 @@ score on the second) four trackers see the same detections:
 * ``SORT-like``: the same baseline with SORT's defaults (preset ``sort``).
 
 Every tracker runs all sequences with one compile (PHD parameters padded to common shapes,
-:func:`~jaxtrack.experiments.common.common_shapes`). With several sequences, a pooled row
+:func:`~jaxtrack.sweep.common_shapes`). With several sequences, a pooled row
 per tracker (:func:`~jaxtrack.metrics.evaluate.combine_sequences`) closes the table.
 """
 
@@ -31,7 +31,6 @@ from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
     SCORE_KEYS,
     Split,
-    common_shapes,
     evaluate_rows,
     markdown_table,
     output_folder,
@@ -47,6 +46,7 @@ from jaxtrack.filters.phd_tracker import (
     tracker_params,
 )
 from jaxtrack.metrics.evaluate import combine_sequences
+from jaxtrack.sweep import common_shapes
 
 #: The compared trackers: name -> (``track_sequences`` tracker, Kalman preset or variant).
 TRACKERS = {

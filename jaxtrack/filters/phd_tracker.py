@@ -215,7 +215,7 @@ def track_sequences(
     reason = check_config(config)
     if reason is not None:
         raise InputError(f"bad tracker configuration: {reason}")
-    filt = _build_filter(config, tracker, preset)
+    filt = build_filter(config, tracker, preset)
     if params is None:
         if tracker == "kalman":
             params = [KALMAN_PRESETS[preset].params() for _ in sequences]
@@ -276,8 +276,17 @@ def _json_numbers(value) -> float | str | list:
     return float(array) if np.isfinite(array) else str(float(array))
 
 
-def _build_filter(config: dict[str, Any], tracker: str, preset: str) -> Filter:
-    """The filter of a tracker (one object per setting, so that compiles are shared)."""
+def build_filter(config: dict[str, Any], tracker: str = "phd", preset: str = "default") -> Filter:
+    """The filter of a tracker configuration (one object per setting: compiles are shared).
+
+    Args:
+        config: a full tracker configuration (:data:`DEFAULT_CONFIG` keys).
+        tracker: ``"phd"`` or ``"kalman"``.
+        preset: the Kalman tracker's preset (:data:`KALMAN_PRESETS`).
+
+    Raises:
+        InputError: an unknown tracker or preset.
+    """
     if tracker == "phd":
         return phd_filter(
             config["num_particles"],
