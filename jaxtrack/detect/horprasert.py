@@ -14,7 +14,8 @@ Both are normalised by their own variation over the training frames, ``a_i`` (RM
 ``alpha_i - 1``) and ``b_i`` (RMS of ``CD_i``): ``alpha^_i = (alpha_i - 1) / a_i``,
 ``CD^_i = CD_i / b_i`` (eq. 5-7), so that one threshold per quantity serves the whole image.
 The thresholds are chosen automatically as quantiles of the normalised distortions of the
-training frames (a detection rate, eq. 8). Classes (eq. 9, with the dark-pixel bound):
+training frames (a detection rate, eq. 8), after leaving out gross outliers (people in the
+training frames; :func:`trimmed`). Classes (eq. 9, with the dark-pixel bound):
 
 * FOREGROUND: ``CD^ > tau_CD`` (a colour change);
 * DARK_FOREGROUND: not FOREGROUND but ``alpha < dark_brightness`` (much darker than any
@@ -52,6 +53,9 @@ MIN_COLOUR_STD = 2.0
 #: Smallest normalising spreads of alpha and CD.
 MIN_BRIGHTNESS_STD = 0.02
 MIN_CHROMA_STD = 0.5
+#: Training samples further than this many robust spreads from the median of all samples
+#: are foreground in the training frames and left out of the automatic thresholds.
+TRIM_SPREADS = 10.0
 
 
 class HorprasertModel(NamedTuple):
@@ -151,19 +155,31 @@ def fit_horprasert(
     norm_alpha = (alpha - 1.0) / brightness_std
     norm_cd = cd / chroma_std
     tail = (1.0 - detection_rate) / 2
-    low, high = np.quantile(norm_alpha, [tail, 1.0 - tail])
+    low, high = np.quantile(trimmed(norm_alpha), [tail, 1.0 - tail])
     return HorprasertModel(
         mean=mean.astype(np.float32),
         inv_std=inv_std.astype(np.float32),
         brightness_std=brightness_std.astype(np.float32),
         chroma_std=chroma_std.astype(np.float32),
-        chroma_threshold=float(np.quantile(norm_cd, detection_rate)),
+        chroma_threshold=float(np.quantile(trimmed(norm_cd), detection_rate)),
         brightness_low=float(min(low, -1e-3)),
         brightness_high=float(max(high, 1e-3)),
         dark_brightness=float(dark_brightness),
         scaled_mean=scaled_mean,
         alpha_weights=alpha_weights,
     )
+
+
+def trimmed(values: np.ndarray, spreads: float = TRIM_SPREADS) -> np.ndarray:
+    """The values within ``spreads`` robust spreads (1.4826 MAD) of their median.
+
+    Training frames of a busy scene hold people; their pixels are gross outliers of the
+    per-pixel statistics and would otherwise set the automatic thresholds.
+    """
+    values = values.reshape(-1)
+    centre = np.median(values)
+    spread = MAD_TO_STD * np.median(np.abs(values - centre))
+    return values[np.abs(values - centre) <= spreads * max(spread, 1e-6)]
 
 
 def classify(model: HorprasertModel, frame: np.ndarray) -> np.ndarray:

@@ -10,7 +10,8 @@
    walking through the training frames do not enter the model; foreground and dark
    foreground are kept, shadows and highlights dropped) or ``"mog2"`` (OpenCV's Gaussian
    mixture background subtractor with its shadow detection, Zivkovic 2004/2006, warmed up on
-   the same training frames; shadow pixels dropped).
+   the training frames' per-pixel median and then the training frames themselves, so that
+   the first frame seen is a clean background; shadow pixels dropped).
 3. Mask cleaning (:func:`~jaxtrack.detect.blobs.clean_mask`): an opening with a vertical
    line (removes thin horizontal structures such as a waving barrier tape, which would
    otherwise join people into one blob) and a closing with a tall ellipse.
@@ -145,6 +146,7 @@ def mask_function(config: DetectorConfig, training: np.ndarray) -> Callable:
         varThreshold=config.mog2_var_threshold,
         detectShadows=True,
     )
+    subtractor.apply(np.median(training, axis=0).astype(np.uint8))
     for frame in training:
         subtractor.apply(frame)
     return lambda frame: subtractor.apply(frame) == 255
