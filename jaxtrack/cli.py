@@ -15,6 +15,7 @@ from jaxtrack.errors import InputError
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
 COMMANDS = (
+    "demo",
     "simulate",
     "inspect",
     "track",

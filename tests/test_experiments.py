@@ -99,3 +99,92 @@ def test_compare_trackers_quick(tmp_path):
     assert (out / "comparison.png").stat().st_size > 10_000
     summary = (out / "summary.md").read_text()
     assert all(f"| {name} |" in summary for name in TRACKERS)
+
+
+@pytest.mark.slow
+def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
+    from jaxtrack.experiments.common import (
+        QUICK_TRACKER_CONFIG,
+        evaluate_rows,
+        score_summary,
+        split_halves,
+    )
+    from jaxtrack.experiments.magnitudes import (
+        QUICK_BIRTH_RATES,
+        QUICK_CLUTTER_RATES,
+        SWEEP_COLUMNS,
+    )
+    from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, track_sequences
+
+    out = tmp_path / "sweep"
+    assert _script("sweep_magnitudes").main(["--out", str(out), "--quick", "--seed", "0"]) == 0
+    columns, rows = _read_csv(out / "sweep.csv")
+    assert columns == list(SWEEP_COLUMNS)
+    grid = [(r, s) for r in QUICK_CLUTTER_RATES for s in QUICK_BIRTH_RATES]
+    assert [row["variant"] for row in rows] == ["UM"] * len(grid) + ["GM"] * len(grid)
+    for row, (r, s) in zip(rows, grid + grid, strict=True):
+        assert float(row["lambda_r"]) == pytest.approx(r) and float(row["lambda_s"]) == (
+            pytest.approx(s)
+        )
+    # The grid point of the default magnitudes (clutter 1, birth 0.2) is exactly the UM
+    # tracker of `jaxtrack track` (a separate, unbatched, chunked run with the same seed).
+    split = split_halves(out / "scene")
+    (single,) = track_sequences([split.test], QUICK_TRACKER_CONFIG, seed=0)
+    expected = score_summary(evaluate_rows(split.test, single))
+    assert (DEFAULT_CONFIG["clutter_rate"], DEFAULT_CONFIG["birth_rate"]) == (1.0, 0.2)
+    (point,) = [
+        row
+        for row in rows
+        if row["variant"] == "UM"
+        and float(row["lambda_r"]) == 1.0
+        and float(row["lambda_s"]) == 0.2
+    ]
+    assert {key: int(point[key]) for key in ("FP", "FN", "IDSW")} == {
+        key: expected[key] for key in ("FP", "FN", "IDSW")
+    }
+    assert float(point["MOTA"]) == pytest.approx(expected["MOTA"], abs=0.01)
+    # Different magnitudes change the result.
+    assert len({(row["FP"], row["FN"]) for row in rows}) > len(rows) // 2
+    assert (out / "sweep.png").stat().st_size > 10_000
+    assert (out / "sweep_mota.png").stat().st_size > 10_000
+    summary = (out / "summary.md").read_text()
+    assert "| UM |" in summary and "| GM |" in summary and "best MOTA" in summary
+
+
+@pytest.mark.slow
+def test_demo_quick(tmp_path, capsys):
+    from jaxtrack.cli import main
+
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "| UM |" in printed and "| GM |" in printed
+    for name in (
+        "demo.png",
+        "intensities.png",
+        "sweep.png",
+        "sweep_mota.png",
+        "tracks.png",
+        "results.csv",
+        "sweep.csv",
+        "UM.txt",
+        "GM.txt",
+        "summary.md",
+    ):
+        assert (out / name).stat().st_size > 0, name
+    assert (out / "demo.png").stat().st_size > 20_000
+    _, rows = _read_csv(out / "results.csv")
+    assert [row["variant"] for row in rows] == ["UM", "GM"]
+    # The written results score as the table says.
+    from jaxtrack.association.offline import TrackRows
+    from jaxtrack.experiments.common import evaluate_rows, score_summary, split_halves
+    from jaxtrack.io.motchallenge import read_mot_file
+
+    split = split_halves(out / "scene")
+    for row in rows:
+        table = read_mot_file(out / f"{row['variant']}.txt", kind="res")
+        rows_read = TrackRows(table.frames, table.ids, table.boxes, table.confs)
+        rescored = score_summary(evaluate_rows(split.test, rows_read))
+        assert rescored["MOTA"] == pytest.approx(float(row["MOTA"]), abs=0.01)
+    _, sweep_rows = _read_csv(out / "sweep.csv")
+    assert len(sweep_rows) == 8

@@ -1,10 +1,14 @@
-"""Figures of the experiments: context ablation (PHD-context Fig. 14), tracker comparison (Fig. 16).
+"""Figures of the experiments: magnitude sweep (PHD-context Fig. 15), context ablation (Fig. 14),
+tracker comparison (Fig. 16).
 
 * :func:`save_ablation_figure`: for each variant but the reference (UM), one group of bars,
   the % difference of each score with respect to UM (the ``<score>_diff_pct`` columns of
   :func:`jaxtrack.experiments.ablation.ablation_table`).
 * :func:`save_comparison_figure`: one panel per score; per sequence a group of bars, one per
   tracker (the rows of :func:`jaxtrack.experiments.comparison.comparison_table`).
+* :func:`save_sweep_figure` / :func:`save_sweep_heatmaps`: scores against the clutter and
+  birth magnitudes, and MOTA over the whole grid, of a
+  :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep`.
 
 Matplotlib's object-oriented API with the Agg canvas: no display, no pyplot global state.
 """
@@ -18,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 
 def _grouped_bars(axes, groups: Sequence[str], series: dict[str, Sequence[float]]) -> None:
@@ -113,6 +118,97 @@ def save_comparison_figure(
         if index == 0:
             axes.legend(fontsize="small")
     figure.suptitle(title or "Trackers on the same detections")
+    path = Path(path)
+    figure.savefig(path, dpi=100)
+    return path
+
+
+def save_sweep_figure(
+    result,
+    path: str | Path,
+    scores: Sequence[str] = ("MOTA", "MOTP", "MODA", "MODP"),
+    title: str = "",
+) -> Path:
+    """Scores against ``lambda_r`` and against ``lambda_s``, one line per variant (Fig. 15).
+
+    Top row: each score against the clutter magnitude ``lambda_r`` with ``lambda_s`` at the
+    grid value nearest the measured birth magnitude; bottom row: against ``lambda_s`` with
+    ``lambda_r`` at the grid value nearest the measured clutter magnitude. Log-scaled x axes.
+
+    Args:
+        result: a :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep`.
+        path: the PNG to write.
+        scores: the scores drawn, one column each.
+        title: the figure's title (e.g. the sequence name).
+
+    Returns:
+        ``path`` as a :class:`~pathlib.Path`.
+    """
+    i_r, i_s = result.slice_index()
+    figure = Figure(figsize=(3.2 * len(scores), 6), layout="constrained")
+    FigureCanvasAgg(figure)
+    slices = (
+        ("lambda_r (false detections / frame)", result.clutter_rates, np.s_[:, i_s]),
+        ("lambda_s (births / frame)", result.birth_rates, np.s_[i_r, :]),
+    )
+    fixed = (
+        f"lambda_s = {result.birth_rates[i_s]:.3g}",
+        f"lambda_r = {result.clutter_rates[i_r]:.3g}",
+    )
+    for row, (label, rates, index) in enumerate(slices):
+        for column, score in enumerate(scores):
+            axes = figure.add_subplot(2, len(scores), row * len(scores) + column + 1)
+            for variant, grids in result.scores.items():
+                axes.plot(rates, grids[score][index], marker="o", label=variant)
+            axes.set_xscale("log")
+            axes.set_xticks(rates, [f"{v:.2g}" for v in rates], fontsize="small")
+            axes.xaxis.set_minor_formatter(NullFormatter())
+            axes.set_xlabel(label)
+            axes.set_ylabel(f"{score} (%)")
+            axes.grid(alpha=0.3)
+            axes.set_title(fixed[row], fontsize="small")
+            if row == 0 and column == 0:
+                axes.legend()
+    figure.suptitle(f"{title}: scores against the clutter and birth magnitudes".lstrip(": "))
+    path = Path(path)
+    figure.savefig(path, dpi=100)
+    return path
+
+
+def save_sweep_heatmaps(result, path: str | Path, score: str = "MOTA", title: str = "") -> Path:
+    """One heat map of a score over the ``lambda_r x lambda_s`` grid per variant.
+
+    Args:
+        result: a :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep`.
+        path: the PNG to write.
+        score: the score drawn (one shared colour scale).
+        title: the figure's title.
+
+    Returns:
+        ``path`` as a :class:`~pathlib.Path`.
+    """
+    grids = {variant: values[score] for variant, values in result.scores.items()}
+    low = min(float(np.min(g)) for g in grids.values())
+    high = max(float(np.max(g)) for g in grids.values())
+    figure = Figure(figsize=(5 * len(grids) + 1, 4.5), layout="constrained")
+    FigureCanvasAgg(figure)
+    for index, (variant, grid) in enumerate(grids.items()):
+        axes = figure.add_subplot(1, len(grids), index + 1)
+        image = axes.imshow(grid, origin="lower", vmin=low, vmax=high, cmap="viridis")
+        axes.set_xticks(range(len(result.birth_rates)), [f"{v:.2g}" for v in result.birth_rates])
+        axes.set_yticks(
+            range(len(result.clutter_rates)), [f"{v:.2g}" for v in result.clutter_rates]
+        )
+        axes.tick_params(axis="x", labelrotation=45)
+        axes.set_xlabel("lambda_s (births / frame)")
+        axes.set_ylabel("lambda_r (false detections / frame)")
+        best = np.unravel_index(int(np.argmax(grid)), grid.shape)
+        axes.plot(best[1], best[0], marker="*", color="red", markersize=14)
+        axes.set_title(f"{variant}: best {score} {grid[best]:.1f}")
+        for (i, j), value in np.ndenumerate(grid):
+            axes.text(j, i, f"{value:.0f}", ha="center", va="center", fontsize=7, color="white")
+    figure.colorbar(image, ax=figure.axes, label=f"{score} (%)")
+    figure.suptitle(f"{title}: {score} over the magnitude grid".lstrip(": "))
     path = Path(path)
     figure.savefig(path, dpi=100)
     return path

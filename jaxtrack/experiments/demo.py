@@ -1,0 +1,264 @@
+"""``jaxtrack demo``: the toolkit's main job, end to end, on the embedded synthetic scene.
+
+1. simulate the default surveillance scene of a seed (:mod:`jaxtrack.datasets.synthetic`: 800
+   frames, entry zones, localised clutter sources; the true intensities are known);
+2. learn the birth and clutter intensities on the first half (births from a UM tracker run,
+   clutter from the ground truth; :func:`~jaxtrack.context.learn.learn_context`);
+3. track the second half with uniform intensities (UM) and with the learned context (GM),
+   score both (MOTA, MOTP, MODA, MODP, IDF1, HOTA);
+4. sweep the clutter and birth magnitudes over a small log-spaced grid for UM and GM in one
+   vmapped call (:func:`~jaxtrack.experiments.magnitudes.magnitude_sweep`);
+5. write the figures: ``demo.png`` (learned intensities and MOTA against the magnitudes),
+   ``intensities.png`` (learned vs true intensities), ``sweep.png``, ``sweep_mota.png``,
+   ``tracks.png`` (particles, estimates and tracks over a test frame), plus ``results.csv``,
+   ``sweep.csv``, the tracker outputs ``UM.txt`` / ``GM.txt`` and ``summary.md``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import jax
+import numpy as np
+
+from jaxtrack.context.learn import learn_context
+from jaxtrack.experiments.common import (
+    COUNT_KEYS,
+    QUICK_TRACKER_CONFIG,
+    SCORE_KEYS,
+    evaluate_rows,
+    markdown_table,
+    output_folder,
+    score_summary,
+    split_halves,
+    synthetic_sequence,
+    write_csv,
+)
+from jaxtrack.experiments.magnitudes import MagnitudeSweep, magnitude_sweep, sweep_summary
+from jaxtrack.filters.phd_tracker import (
+    DEFAULT_CONFIG,
+    Context,
+    build_filter,
+    track_sequences,
+    tracker_params,
+)
+from jaxtrack.io.motchallenge import write_results
+from jaxtrack.sweep import common_shapes
+
+#: The demo's magnitude grid: ``lambda_r`` (false detections / frame) x ``lambda_s``
+#: (births / frame), log-spaced.
+DEMO_CLUTTER_RATES = np.logspace(-1.0, 1.0, 5)
+DEMO_BIRTH_RATES = np.logspace(np.log10(0.02), np.log10(2.0), 5)
+#: The 2 x 2 grid of ``--quick`` runs.
+QUICK_RATES = (np.array([0.3, 3.0]), np.array([0.05, 0.5]))
+#: Columns of ``results.csv``.
+RESULT_COLUMNS = ("variant", *SCORE_KEYS, *COUNT_KEYS)
+
+
+class DemoResult(NamedTuple):
+    """What the demo measured.
+
+    Attributes:
+        rows: UM and GM scores on the test span (:data:`RESULT_COLUMNS`).
+        sweep: the magnitude sweep.
+        files: the files written.
+        seconds: wall time of each step, ``{step: seconds}``.
+    """
+
+    rows: list[dict[str, Any]]
+    sweep: MagnitudeSweep
+    files: list[Path]
+    seconds: dict[str, float]
+
+
+def run_demo(
+    out_dir: str | Path = "jaxtrack-demo",
+    seed: int = 0,
+    quick: bool = False,
+    progress: Callable[[str], None] | None = None,
+) -> DemoResult:
+    """Runs the demo and writes its files into ``out_dir``.
+
+    Args:
+        out_dir: the output folder (created if needed).
+        seed: seeds the scene, the learning and the tracking.
+        quick: a seconds-long smoke run (short scene, few particles, 2 x 2 grid).
+        progress: called with a short description before each step.
+
+    Returns:
+        The :class:`DemoResult`.
+
+    Raises:
+        InputError: a bad output folder or seed.
+    """
+    from jaxtrack.datasets.context_truth import load_context_truth
+    from jaxtrack.plot.context import save_context_plots
+    from jaxtrack.plot.experiments import save_sweep_figure, save_sweep_heatmaps
+    from jaxtrack.plot.tracks import phd_frame_figure
+
+    notify = progress or (lambda _: None)
+    seconds: dict[str, float] = {}
+    clock = time.perf_counter()
+
+    def lap(step: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        seconds[step] = round(now - clock, 1)
+        clock = now
+
+    out = output_folder(out_dir)
+    notify(f"simulating the synthetic scene of seed {seed}")
+    scene_dir = synthetic_sequence(out / "scene", seed, quick)
+    split = split_halves(scene_dir)
+    info = split.test.info
+    config = {**DEFAULT_CONFIG, **(QUICK_TRACKER_CONFIG if quick else {})}
+    lap("simulate")
+
+    notify(f"learning context on frames {split.train.first_frame}:{split.train.last_frame}")
+    learned = learn_context(
+        split.train,
+        birth_from="tracks",
+        clutter_from="gt",
+        seed=seed,
+        num_particles=config["num_particles"],
+    )
+    context = Context(learned.birth, learned.clutter, learned.metadata)
+    truth = load_context_truth(scene_dir / "context_truth.npz")
+    files = save_context_plots(out, learned, info.im_width, info.im_height, truth)
+    lap("learn context")
+
+    notify(f"tracking frames {split.test.first_frame}:{split.test.last_frame} with UM and GM")
+    params = common_shapes(
+        [tracker_params(info, config), tracker_params(info, config, context, "GM")]
+    )
+    results = track_sequences([split.test, split.test], config, seed, params)
+    rows = []
+    for variant, result in zip(("UM", "GM"), results, strict=True):
+        path = out / f"{variant}.txt"
+        write_results(path, *result)
+        files.append(path)
+        rows.append({"variant": variant, **score_summary(evaluate_rows(split.test, result))})
+    files.append(write_csv(out / "results.csv", rows, RESULT_COLUMNS))
+    lap("track UM and GM")
+
+    rates = QUICK_RATES if quick else (DEMO_CLUTTER_RATES, DEMO_BIRTH_RATES)
+    notify(f"sweeping {len(rates[0])} x {len(rates[1])} magnitudes for UM and GM")
+    sweep = magnitude_sweep(split, context, config, seed, *rates)
+    files.append(
+        write_csv(
+            out / "sweep.csv",
+            sweep.rows,
+            ("variant", "lambda_r", "lambda_s", *SCORE_KEYS, *COUNT_KEYS),
+        )
+    )
+    files.append(save_sweep_figure(sweep, out / "sweep.png", title=info.name))
+    files.append(save_sweep_heatmaps(sweep, out / "sweep_mota.png", title=info.name))
+    lap("magnitude sweep")
+
+    notify("drawing the figures")
+    frame_index = split.test.num_frames // 2
+    files.append(
+        phd_frame_figure(
+            build_filter(config),
+            jax.random.PRNGKey(seed),
+            params[1],
+            split.test.detections,
+            frame_index,
+            out / "tracks.png",
+            first_frame=split.test.first_frame,
+            image_size=(info.im_width, info.im_height),
+        )
+    )
+    files.append(save_demo_figure(out / "demo.png", context, sweep, rows, info))
+    lap("figures")
+
+    summary = out / "summary.md"
+    summary.write_text(demo_markdown(rows, sweep, split, seed, quick, config, seconds))
+    files.append(summary)
+    return DemoResult(rows, sweep, files, seconds)
+
+
+def demo_markdown(
+    rows: list[dict[str, Any]],
+    sweep: MagnitudeSweep,
+    split,
+    seed: int,
+    quick: bool,
+    config: dict[str, Any],
+    seconds: dict[str, float],
+) -> str:
+    """The demo's ``summary.md`` (also printed by ``jaxtrack demo``)."""
+    head = sweep_summary(sweep)
+    meta = sweep.context
+    lines = [
+        f"# jaxtrack demo: {split.test.info.name} (seed {seed}{', quick run' if quick else ''})\n",
+        f"Context learned on frames {split.train.first_frame}:{split.train.last_frame}: "
+        f"{meta['birth']['num_events']} births (lambda_s {meta['birth']['magnitude']:.3f}/frame, "
+        f"{meta['birth']['components_alive']} Gaussians), {meta['clutter']['num_events']} "
+        f"clutter detections (lambda_r {meta['clutter']['magnitude']:.3f}/frame, "
+        f"{meta['clutter']['components_alive']} Gaussians). Frames "
+        f"{split.test.first_frame}:{split.test.last_frame} tracked with "
+        f"{config['num_particles']} particles, configured magnitudes lambda_r "
+        f"{config['clutter_rate']}, lambda_s {config['birth_rate']} (scores in %):\n",
+        markdown_table(rows, RESULT_COLUMNS),
+        f"Magnitude sweep ({len(sweep.clutter_rates)} x {len(sweep.birth_rates)} grid, one "
+        f"vmapped call): best MOTA UM {head['best']['UM']['MOTA']:.1f}, GM "
+        f"{head['best']['GM']['MOTA']:.1f}; GM better than UM at "
+        f"{100 * head['gm_better_fraction']:.0f}% of the grid points.\n",
+        "Time per step (s): " + ", ".join(f"{k} {v}" for k, v in seconds.items()) + f"; total "
+        f"{sum(seconds.values()):.0f} s.\n",
+    ]
+    return "\n".join(lines)
+
+
+def save_demo_figure(path: Path, context: Context, sweep: MagnitudeSweep, rows, info) -> Path:
+    """The demo's overview: learned birth and clutter maps, MOTA against both magnitudes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import NullFormatter
+
+    from jaxtrack.plot.context import (
+        BIRTH_POSITION_DIMS,
+        CLUTTER_POSITION_DIMS,
+        draw_intensity,
+        position_map,
+    )
+
+    width, height = info.im_width, info.im_height
+    figure = Figure(figsize=(12, 7.5), layout="constrained")
+    FigureCanvasAgg(figure)
+    axes = figure.subplots(2, 2)
+    for ax, name, intensity, dims in (
+        (axes[0, 0], "birth", context.birth, BIRTH_POSITION_DIMS),
+        (axes[0, 1], "clutter", context.clutter, CLUTTER_POSITION_DIMS),
+    ):
+        values = position_map(intensity, dims, width, height)
+        image = draw_intensity(ax, values, width, height, float(values.max()))
+        figure.colorbar(image, ax=ax, fraction=0.035, label="events / frame / px²")
+        ax.set_title(f"learned {name} intensity ({float(intensity.magnitude):.3g} / frame)")
+    i_r, i_s = sweep.slice_index()
+    scores = {row["variant"]: row["MOTA"] for row in rows}
+    for ax, rates, index, label in (
+        (axes[1, 0], sweep.clutter_rates, np.s_[:, i_s], "lambda_r (false detections / frame)"),
+        (axes[1, 1], sweep.birth_rates, np.s_[i_r, :], "lambda_s (births / frame)"),
+    ):
+        for variant, grids in sweep.scores.items():
+            ax.plot(rates, grids["MOTA"][index], marker="o", label=f"{variant}")
+        ax.set_xscale("log")
+        ax.set_xticks(rates, [f"{v:.2g}" for v in rates])
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel(label)
+        ax.set_ylabel("MOTA (%)")
+        ax.grid(alpha=0.3)
+    axes[1, 0].set_title(f"MOTA vs clutter magnitude (lambda_s = {sweep.birth_rates[i_s]:.2g})")
+    axes[1, 1].set_title(f"MOTA vs birth magnitude (lambda_r = {sweep.clutter_rates[i_r]:.2g})")
+    axes[1, 0].legend()
+    figure.suptitle(
+        f"{info.name}: context learned on the first half; test half MOTA UM {scores['UM']:.1f}, "
+        f"GM {scores['GM']:.1f}"
+    )
+    figure.savefig(path, dpi=90)
+    return path
