@@ -23,8 +23,9 @@ of detecting. The frame rate (motion model) is the video's unless --fps override
 
 --annotate writes the frames with the tracks (box and id in the id's colour, a trail of the
 last --trail centres of the feet) and the detections (thin white boxes) to a video (.mp4 or
-.avi) or, for any other path, a folder of PNGs. --gt GT.txt prints MOTA, MOTP, MODA, MODP
-and IDF1 against that ground truth.
+.avi) or, for any other path, a folder of PNGs; --overlay birth|clutter blends in the
+context's birth or clutter intensity over the image (heat map). --gt GT.txt prints MOTA,
+MOTP, MODA, MODP and IDF1 against that ground truth.
 
 Writes RES.txt, RES.config.json (settings used) and, with --save-detections, the detections."""
 
@@ -83,6 +84,11 @@ def register(subparsers) -> None:
         metavar="N",
         help=f"trail length in frames for --annotate (default {DEFAULT_TRAIL})",
     )
+    parser.add_argument(
+        "--overlay",
+        choices=("birth", "clutter"),
+        help="with --annotate and --context: draw that intensity as a heat map",
+    )
     parser.add_argument("--gt", metavar="GT.txt", help="print tracking metrics against this gt")
     parser.set_defaults(func=run)
 
@@ -108,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.trail < 0:
         raise InputError("--trail must be >= 0")
+    if args.overlay and not (args.context and args.annotate):
+        raise InputError("--overlay needs --context and --annotate")
     config = load_config(args.config)
     context = _load_context(args.context)
     start = time.perf_counter()
@@ -149,7 +157,12 @@ def run(args: argparse.Namespace) -> int:
         if args.gt:
             print_tracking_scores(args.gt, rows, span, reader.num_frames)
         if args.annotate:
-            write_annotated(reader, rows, sequence.det_table, span, args.annotate, args.trail)
+            overlay = None
+            if args.overlay:
+                overlay = intensity_overlay(context, args.overlay, reader.width, reader.height)
+            write_annotated(
+                reader, rows, sequence.det_table, span, args.annotate, args.trail, overlay
+            )
             print(f"  annotated: {args.annotate}")
     return 0
 
@@ -167,8 +180,21 @@ def print_tracking_scores(gt_path: str, rows, span: tuple[int, int], num_frames:
     return scores
 
 
-def write_annotated(reader, rows, det_table, span, path: str, trail: int) -> None:
-    """Writes the span's frames with detections, tracks (id colours) and trails."""
+def intensity_overlay(context, part: str, width: int, height: int):
+    """The context's birth or clutter intensity over the image centres, ``[height, width]``."""
+    import cv2
+
+    from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
+    from jaxtrack.plot.context import position_map
+
+    intensity = context.birth if part == "birth" else context.clutter
+    dims = BIRTH_POSITION_DIMS if part == "birth" else CLUTTER_POSITION_DIMS
+    grid = position_map(intensity, dims, width, height, step=8.0)
+    return cv2.resize(grid, (width, height), interpolation=cv2.INTER_LINEAR)
+
+
+def write_annotated(reader, rows, det_table, span, path: str, trail: int, overlay=None) -> None:
+    """Writes the span's frames with detections, tracks (id colours), trails and overlay."""
     import numpy as np
     from tqdm import tqdm
 
@@ -178,7 +204,7 @@ def write_annotated(reader, rows, det_table, span, path: str, trail: int) -> Non
     with FrameWriter(path, (reader.width, reader.height), reader.fps) as writer:
         for k in tqdm(range(span[0], span[1] + 1), desc="annotate", unit="frame"):
             image = reader.read(k)
-            image = annotate_frame(image, det_table.boxes[det_table.frames == k])
+            image = annotate_frame(image, det_table.boxes[det_table.frames == k], overlay=overlay)
             here = np.flatnonzero(rows.frames == k)
             recent = (rows.frames > k - trail) & (rows.frames <= k)
             trails = {}
