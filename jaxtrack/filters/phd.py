@@ -138,6 +138,8 @@ def phd_filter(
     max_tracks: int = 64,
     resampling: ResamplingScheme = systematic,
     stop_gradient_resampling: bool = False,
+    soft_resampling: float = 0.0,
+    expected_birth_mass: bool = False,
     motion_noise_model: NoiseModel = state_dependent_std,
     measurement_noise_model: NoiseModel = state_dependent_std,
 ) -> Filter:
@@ -156,6 +158,14 @@ def phd_filter(
         max_tracks: slots of the labelling's track table (live and coasting tracks).
         resampling: resampling scheme (:mod:`~jaxtrack.filters.resampling`).
         stop_gradient_resampling: unbiased-gradient resampling (Scibior & Wood 2021).
+        soft_resampling: ``alpha`` in ``[0, 1)`` of soft resampling (Karkus et al. 2018;
+            :func:`~jaxtrack.filters.resampling.resample`); 0 (default) resamples plainly.
+        expected_birth_mass: in the log-likelihood's term ``-sum_i (1 - pM) w_i``, count the
+            births by their expected mass ``(1 - pM) int gamma = (1 - pM) lambda_s`` instead of
+            the birth particles' mass. Births drawn around the detections cover only their
+            neighbourhood, so the particles' mass misses most of ``int gamma`` and the
+            likelihood then grows without bound in ``lambda_s``; with this option it has a
+            finite maximiser (for tuning ``lambda_s``, :mod:`jaxtrack.tuning`). Default False.
         motion_noise_model: noise model of the dynamics (SDV by default).
         measurement_noise_model: noise model of the likelihood (SDV by default).
 
@@ -164,6 +174,10 @@ def phd_filter(
     """
     if extraction not in ("gmm", "partition"):
         raise ValueError(f"extraction must be 'gmm' or 'partition', got {extraction!r}")
+    if not 0.0 <= soft_resampling < 1.0:
+        raise ValueError(f"soft_resampling must lie in [0, 1), got {soft_resampling}")
+    if soft_resampling > 0 and stop_gradient_resampling:
+        raise ValueError("soft_resampling and stop_gradient_resampling are exclusive")
 
     def init(key: Array, params: PHDParams) -> PHDState:
         del key
@@ -223,6 +237,14 @@ def phd_filter(
             log_weights,
             measurement_noise_model,
         )
+        if births_per_detection > 0 and expected_birth_mass:
+            magnitude = jnp.where(
+                state.started,
+                params.birth_intensity.magnitude,
+                params.initial_intensity.magnitude,
+            )
+            birth_mass = jnp.sum(jnp.exp(birth_log_weights))
+            log_likelihood_k = log_likelihood_k + params.detection_prob * (birth_mass - magnitude)
         if extraction == "gmm":
             detected_scores = _expected_scores(log_detection_terms, detections.scores)
             resampled, new_log_weights = resample(
@@ -232,6 +254,7 @@ def phd_filter(
                 num_particles,
                 resampling,
                 stop_gradient_resampling,
+                soft_resampling,
             )
             new_particles = resampled[:, :STATE_DIM]
             estimates = gmm_clusters(
@@ -251,6 +274,7 @@ def phd_filter(
                 num_particles,
                 resampling,
                 stop_gradient_resampling,
+                soft_resampling,
             )
             estimates = measurement_partition(
                 jax.lax.stop_gradient(particles),

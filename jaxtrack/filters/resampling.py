@@ -102,6 +102,7 @@ def resample(
     num_samples: int,
     scheme: ResamplingScheme = systematic,
     stop_gradient: bool = False,
+    soft_weight: float = 0.0,
 ) -> tuple[Float[Array, "num_samples state_dim"], Float[Array, " num_samples"]]:
     """Resamples to ``num_samples`` particles of weight ``M / num_samples``, ``M = sum w``.
 
@@ -117,12 +118,31 @@ def resample(
             the same values, but gradients carry the score of the ancestor draw, which makes
             gradient estimates unbiased. If False, ancestors are treated as constants
             (lower variance, biased).
+        soft_weight: ``alpha`` in ``[0, 1)`` of soft resampling (Karkus, Hsu & Lee 2018),
+            0 (default) for plain resampling: ancestors are drawn from
+            ``q = (1 - alpha) p + alpha / n`` (``p`` the normalised weights) and get weights
+            ``M p_a / q_a`` normalised to the mass ``M``, with gradients through ``p_a`` (a
+            biased, lower-variance gradient estimator; the weights are no longer equal).
+            Not combined with ``stop_gradient``.
 
     Returns:
         The resampled particles and their log-weights.
+
+    Raises:
+        ValueError: ``soft_weight`` outside ``[0, 1)``, or combined with ``stop_gradient``.
     """
+    if not 0.0 <= soft_weight < 1.0:
+        raise ValueError(f"soft_weight must lie in [0, 1), got {soft_weight}")
+    if soft_weight > 0 and stop_gradient:
+        raise ValueError("soft resampling and stop-gradient resampling are exclusive")
     log_mass = jax.nn.logsumexp(log_weights)
     probs = jnp.exp(jax.lax.stop_gradient(log_weights - log_mass))
+    if soft_weight > 0:
+        n = log_weights.shape[0]
+        proposal = jax.lax.stop_gradient((1 - soft_weight) * probs + soft_weight / n)
+        ancestors = scheme(key, proposal, num_samples)
+        log_ratios = (log_weights - log_mass)[ancestors] - jnp.log(proposal[ancestors])
+        return particles[ancestors], log_mass + jax.nn.log_softmax(log_ratios)
     ancestors = scheme(key, probs, num_samples)
     new_log_weights = jnp.full((num_samples,), log_mass - math.log(num_samples))
     if stop_gradient:

@@ -1,1 +1,46 @@
-"""jaxtrack.tuning."""
+"""Differentiable filtering and gradient-based tuning of the PHD tracker (optax).
+
+* :mod:`~jaxtrack.tuning.transforms`: the tunable parameters, their log / logit transforms,
+  trainable / frozen flags, and the tracker configuration they map to.
+* :mod:`~jaxtrack.tuning.objectives`: the unsupervised PHD log-likelihood and the supervised
+  relaxed-GOSPA objectives over a sequence, with a choice of resampling gradient estimator.
+* :mod:`~jaxtrack.tuning.tuner`: :func:`tune`, optax optimisation with common random numbers,
+  early stopping and a history.
+"""
+
+from jaxtrack.tuning.objectives import (
+    ESTIMATORS,
+    Objective,
+    likelihood_objective,
+    make_objective,
+    relaxed_gospa,
+    scan_filter,
+    supervised_objective,
+    tuning_filter,
+)
+from jaxtrack.tuning.transforms import (
+    DEFAULT_TRAINABLE,
+    PARAMETERS,
+    ParameterSpace,
+    parameter_space,
+    to_config,
+)
+from jaxtrack.tuning.tuner import TuneResult, tune
+
+__all__ = [
+    "DEFAULT_TRAINABLE",
+    "ESTIMATORS",
+    "PARAMETERS",
+    "Objective",
+    "ParameterSpace",
+    "TuneResult",
+    "likelihood_objective",
+    "make_objective",
+    "parameter_space",
+    "relaxed_gospa",
+    "scan_filter",
+    "supervised_objective",
+    "to_config",
+    "tune",
+    "tuning_filter",
+]
