@@ -17,18 +17,18 @@ def synthetic_folder(tmp_path_factory):
     return write_synthetic_folder(tmp_path_factory.mktemp("video") / "img1")
 
 
-def test_detections_to_one_track_with_annotated_frames(synthetic_folder, tmp_path, capsys):
+def test_video_to_one_track_with_annotated_frames(synthetic_folder, tmp_path, capsys):
     det = tmp_path / "det.txt"
-    assert main(["detect", str(synthetic_folder), "--no-split", "--out", str(det)]) == 0
     out = tmp_path / "res.txt"
     frames_dir = tmp_path / "annotated"
     code = main(
         [
-            "track-video", str(synthetic_folder), "--detections", str(det), "--fps", "7",
-            "--out", str(out), "--annotate", str(frames_dir), "--trail", "5",
+            "track-video", str(synthetic_folder), "--no-split", "--save-detections", str(det),
+            "--fps", "7", "--out", str(out), "--annotate", str(frames_dir), "--trail", "5",
         ]
     )  # fmt: skip
     assert code == 0
+    assert len(read_mot_file(det, "det", NUM_FRAMES)) == NUM_FRAMES  # one walker per frame
     result = read_mot_file(out, "det", NUM_FRAMES)
     assert len(set(result.ids.tolist())) == 1  # one walker, one identity
     assert len(result) >= NUM_FRAMES - 5
@@ -39,7 +39,7 @@ def test_detections_to_one_track_with_annotated_frames(synthetic_folder, tmp_pat
     assert np.median(centre_error) < 3.0
     assert len(list(frames_dir.glob("*.png"))) == NUM_FRAMES
     used = json.loads((tmp_path / "res.config.json").read_text())
-    assert used["detector"] == "file" and used["fps"] == 7.0 and used["variant"] == "UM"
+    assert used["detector"] == "horprasert" and used["fps"] == 7.0 and used["variant"] == "UM"
     assert "1 tracks" in capsys.readouterr().out
 
 

@@ -63,6 +63,9 @@ def register(subparsers) -> None:
         "--detections", metavar="DET.txt", help="track these detections instead of detecting"
     )
     parser.add_argument(
+        "--no-split", action="store_true", help="keep blobs whole (no perspective splitting)"
+    )
+    parser.add_argument(
         "--save-detections", metavar="DET.txt", help="also write the detections made"
     )
     parser.add_argument("--config", metavar="FILE", help="JSON tracker configuration overrides")
@@ -125,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
         if args.detections:
             detections = read_mot_file(args.detections, "det", reader.num_frames)
         else:
-            found = detect_video(reader, span, DetectorConfig(method=args.method), progress=True)
+            config_detect = DetectorConfig(method=args.method, split=not args.no_split)
+            found = detect_video(reader, span, config_detect, progress=True)
             detections = found.table
             if args.save_detections:
                 write_mot_file(args.save_detections, detections)

@@ -69,7 +69,7 @@ def fit_perspective(boxes: np.ndarray, iterations: int = 5) -> PerspectivePrior:
     if len(single) < 10:
         raise InputError(
             f"only {len(single)} person-shaped blobs to learn the perspective prior from "
-            "(need 10); use more frames or no blob splitting"
+            "(need 10); use more frames or no blob splitting (--no-split)"
         )
     foot = single[:, 1] + single[:, 3]
     height = single[:, 3]
