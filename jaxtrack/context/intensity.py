@@ -25,6 +25,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from jaxtrack.linalg import cholesky, solve_lower
+
 
 class Intensity(NamedTuple):
     """``magnitude * [pi_u / V + (1 - pi_u) * sum_m w_m N(x; mu_m, Sigma_m)]``.
@@ -79,7 +81,7 @@ def log_density(intensity: Intensity, x: Float[Array, "*batch dim"]) -> Float[Ar
     log_uniform = jnp.log(intensity.uniform_weight) - log_volume(intensity)
     alive = intensity.weights > 0
     safe_weights = jnp.where(alive, intensity.weights, 1.0)
-    log_gauss = jax.vmap(lambda mean, cov: _log_normal(x, mean, cov), out_axes=-1)(
+    log_gauss = jax.vmap(lambda mean, cov: log_normal(x, mean, cov), out_axes=-1)(
         intensity.means, intensity.covs
     )
     log_components = jnp.where(alive, jnp.log(safe_weights) + log_gauss, -jnp.inf)
@@ -116,20 +118,17 @@ def sample(key, intensity: Intensity, num_samples: int) -> Float[Array, "num_sam
         maxval=intensity.upper,
     )
     component = jnp.maximum(choice - 1, 0)
-    chol = jnp.linalg.cholesky(intensity.covs)[component]
+    chol = cholesky(intensity.covs)[component]
     noise = jax.random.normal(key_gauss, (num_samples, intensity.dim))
     gauss = intensity.means[component] + jnp.einsum("nij,nj->ni", chol, noise)
     return jnp.where((choice == 0)[:, None], uniform, gauss)
 
 
-def _log_normal(x, mean, cov):
-    """``log N(x; mean, cov)`` for a batch of points ``x[..., dim]``."""
+def log_normal(x, mean, cov):
+    """``log N(x; mean, cov)`` for a point or a batch of points ``x[..., dim]``."""
     dim = mean.shape[-1]
-    chol = jnp.linalg.cholesky(cov)
-    diff = x - mean
-    solved = jax.scipy.linalg.solve_triangular(chol, diff.reshape(-1, dim).T, lower=True).T.reshape(
-        diff.shape
-    )
+    chol = cholesky(cov)
+    solved = solve_lower(chol, x - mean)
     log_det = 2 * jnp.sum(jnp.log(jnp.diagonal(chol)))
     return -0.5 * (jnp.sum(solved**2, axis=-1) + log_det + dim * jnp.log(2 * jnp.pi))
 

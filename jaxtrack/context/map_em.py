@@ -91,7 +91,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from jaxtrack.context.intensity import Intensity
+from jaxtrack.context.intensity import Intensity, log_normal
 
 #: Minimum value of the uniform weight ``pi_u`` (PHD-context Sec. IV-B).
 UNIFORM_FLOOR = 1e-3
@@ -229,8 +229,8 @@ def map_em_learner(
         weights = jnp.where(alive, state.weights, 0.0)
         safe_weights = jnp.where(alive, weights, 1.0)
         # eq. 17: ownerships of the Gaussian part, in log space
-        log_normal = jax.vmap(lambda m, c: _log_normal(x, m, c))(state.means, state.covs)
-        log_joint = jnp.where(alive, jnp.log(safe_weights) + log_normal, -jnp.inf)
+        log_components = jax.vmap(lambda m, c: log_normal(x, m, c))(state.means, state.covs)
+        log_joint = jnp.where(alive, jnp.log(safe_weights) + log_components, -jnp.inf)
         log_gauss = jax.nn.logsumexp(log_joint)
         ownership = jnp.where(alive, jnp.exp(log_joint - log_gauss), 0.0)
 
@@ -536,12 +536,3 @@ def _grid_centres(width, height, grid):
     step1, step2 = width / g1, height / g2
     cols, rows = np.meshgrid((np.arange(g1) + 0.5) * step1, (np.arange(g2) + 0.5) * step2)
     return cols.ravel(), rows.ravel(), (step1, step2)
-
-
-def _log_normal(x, mean, cov):
-    """``log N(x; mean, cov)`` of one point via a Cholesky factor."""
-    dim = mean.shape[-1]
-    chol = jnp.linalg.cholesky(cov)
-    solved = jax.scipy.linalg.solve_triangular(chol, x - mean, lower=True)
-    log_det = 2 * jnp.sum(jnp.log(jnp.diagonal(chol)))
-    return -0.5 * (jnp.sum(solved**2) + log_det + dim * jnp.log(2 * jnp.pi))

@@ -55,6 +55,7 @@ from jaxtyping import Array, Bool, Float, Int
 from jaxtrack.association.assignment import gated_assignment
 from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.filters.base import Filter
+from jaxtrack.linalg import cholesky, solve_lower, solve_spd
 from jaxtrack.models.dynamics import (
     MEASURED,
     MIN_SIZE,
@@ -212,7 +213,7 @@ def kalman_update(
     )
     selection = jnp.eye(STATE_DIM, dtype=mean.dtype)[jnp.array(MEASURED)]
     cross = cov @ selection.T
-    gain = jax.scipy.linalg.solve(innovation_cov, cross.T, assume_a="pos").T
+    gain = solve_spd(innovation_cov[None], cross)  # rows of cross S^-1 (S symmetric)
     posterior = mean + gain @ (measurement - predicted)
     posterior = posterior.at[jnp.array(SIZE)].set(jnp.maximum(posterior[jnp.array(SIZE)], MIN_SIZE))
     reduction = jnp.eye(STATE_DIM, dtype=mean.dtype) - gain @ selection
@@ -244,9 +245,9 @@ def mahalanobis_costs(
         predicted, innovation_cov, _ = innovation_covariance(
             mean, cov, measurement_noise_std, noise_model
         )
-        chol = jnp.linalg.cholesky(innovation_cov)
-        whitened = jax.scipy.linalg.solve_triangular(chol, (measurements - predicted).T, lower=True)
-        return jnp.sum(whitened**2, axis=0), 2.0 * jnp.sum(jnp.log(jnp.diag(chol)))
+        chol = cholesky(innovation_cov)
+        whitened = solve_lower(chol, measurements - predicted)
+        return jnp.sum(whitened**2, axis=-1), 2.0 * jnp.sum(jnp.log(jnp.diag(chol)))
 
     return jax.vmap(one_track)(means, covs)
 
