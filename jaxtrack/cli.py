@@ -22,6 +22,7 @@ COMMANDS = (
     "eval",
     "label_clutter",
     "learn_context",
+    "tune",
     "detect",
     "track_video",
 )

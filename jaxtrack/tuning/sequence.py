@@ -1,0 +1,183 @@
+"""Tuning the PHD tracker on a MOTChallenge sequence span: what ``jaxtrack tune`` does.
+
+:func:`tune_sequence` starts from the tracker's configuration
+(:data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG` with overrides, uniform intensities),
+tunes the chosen parameters with :func:`~jaxtrack.tuning.tuner.tune` on the span's
+detections (and ground truth for the supervised objective), and returns the tuned tracker
+configuration (a JSON object for ``jaxtrack track --config``) with a report of the run.
+
+The tuning filter is the tracker's filter with fewer particles by default
+(:data:`TUNING_PARTICLES`): the tuned magnitudes hardly depend on the particle count, and a
+gradient step costs a forward and a backward pass per key.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
+
+import jax
+import numpy as np
+import optax
+
+from jaxtrack.errors import InputError
+from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, check_config, tracker_params
+from jaxtrack.io import MotSequence
+from jaxtrack.tuning.objectives import ESTIMATORS, make_objective, tuning_filter
+from jaxtrack.tuning.transforms import (
+    PARAMETERS,
+    get_path,
+    not_in_config,
+    parameter_space,
+    to_config,
+)
+from jaxtrack.tuning.tuner import DEFAULT_LEARNING_RATE, TuneResult, tune
+
+#: Particles of the tuning filter (the tracker itself runs with the configuration's count).
+TUNING_PARTICLES = 512
+#: Birth particles per detection of the tuning filter.
+TUNING_BIRTHS_PER_DETECTION = 16
+#: Parameters that ``jaxtrack tune`` tunes by default: those the tracker configuration
+#: carries.
+CONFIG_TRAINABLE = ("clutter_rate", "birth_rate")
+
+
+class SequenceTuning(NamedTuple):
+    """Outcome of :func:`tune_sequence`.
+
+    Attributes:
+        config: the tuned tracker configuration overrides (``jaxtrack track --config``).
+        result: the :class:`~jaxtrack.tuning.tuner.TuneResult`.
+        report: a JSON-ready summary: sequence, frames, objective, settings, start and tuned
+            values of the trainable parameters, the history and the run time.
+    """
+
+    config: dict[str, Any]
+    result: TuneResult
+    report: dict[str, Any]
+
+
+def tune_sequence(
+    sequence: MotSequence,
+    objective: str = "likelihood",
+    config: Mapping[str, Any] | None = None,
+    trainable: Sequence[str] = CONFIG_TRAINABLE,
+    *,
+    seed: int = 0,
+    num_steps: int = 60,
+    num_keys: int = 2,
+    learning_rate: float = DEFAULT_LEARNING_RATE,
+    patience: int = 20,
+    num_particles: int = TUNING_PARTICLES,
+    births_per_detection: int = TUNING_BIRTHS_PER_DETECTION,
+    estimator: str = "stop_gradient",
+    progress: bool = False,
+) -> SequenceTuning:
+    """Tunes the tracker's parameters on a sequence span.
+
+    Args:
+        sequence: the loaded span (ground truth needed for ``"supervised"``).
+        objective: ``"likelihood"`` (no ground truth) or ``"supervised"``.
+        config: tracker configuration overrides to start from (kept in the output).
+        trainable: names of :data:`~jaxtrack.tuning.transforms.PARAMETERS` to tune.
+        seed: PRNG seed of the filter runs.
+        num_steps: the most adam steps.
+        num_keys: keys per step (common random numbers).
+        learning_rate: adam's learning rate (log / logit units).
+        patience: early-stopping patience (0: run all steps).
+        num_particles: particles of the tuning filter.
+        births_per_detection: birth particles per detection of the tuning filter.
+        estimator: resampling gradient estimator (:data:`~jaxtrack.tuning.objectives.ESTIMATORS`).
+        progress: show a progress bar.
+
+    Returns:
+        The :class:`SequenceTuning`.
+
+    Raises:
+        InputError: a bad objective, estimator, configuration, setting or parameter name, a
+            supervised objective without ground truth, or a span without detections.
+    """
+    if objective not in ("likelihood", "supervised"):
+        raise InputError(f"objective must be 'likelihood' or 'supervised', got {objective!r}")
+    if estimator not in ESTIMATORS:
+        raise InputError(f"estimator must be one of {', '.join(ESTIMATORS)}, got {estimator!r}")
+    for name, value in (("steps", num_steps), ("keys", num_keys), ("particles", num_particles)):
+        if value <= 0:
+            raise InputError(f"{name} must be positive, got {value}")
+    if births_per_detection <= 0:
+        raise InputError(f"births per detection must be positive, got {births_per_detection}")
+    if not learning_rate > 0:
+        raise InputError(f"learning rate must be positive, got {learning_rate}")
+    if patience < 0:
+        raise InputError(f"patience must be >= 0, got {patience}")
+    overrides = dict(config or {})
+    reason = check_config(overrides)
+    if reason is not None:
+        raise InputError(f"bad tracker configuration: {reason}")
+    if objective == "supervised" and sequence.ground_truth is None:
+        raise InputError(f"{sequence.path}: the supervised objective needs gt/gt.txt")
+    if not np.any(np.asarray(sequence.detections.mask)):
+        raise InputError(f"{sequence.path}: no detections in frames {_span(sequence)}")
+    space = parameter_space(trainable)
+    start = tracker_params(sequence.info, {**DEFAULT_CONFIG, **overrides})
+    filt = tuning_filter(num_particles, births_per_detection, estimator)
+    began = time.perf_counter()
+    result = tune(
+        make_objective(objective, filt),
+        start,
+        sequence.detections,
+        jax.random.key(seed),
+        ground_truth=sequence.ground_truth if objective == "supervised" else None,
+        space=space,
+        optimizer=optax.adam(learning_rate),
+        num_steps=num_steps,
+        num_keys=num_keys,
+        patience=patience,
+        progress=progress,
+    )
+    seconds = time.perf_counter() - began
+    tuned_config = to_config(result.params, overrides)
+    report = {
+        "sequence": str(sequence.path),
+        "frames": [sequence.first_frame, sequence.last_frame],
+        "objective": objective,
+        "estimator": estimator,
+        "seed": seed,
+        "num_particles": num_particles,
+        "births_per_detection": births_per_detection,
+        "learning_rate": learning_rate,
+        "num_keys": num_keys,
+        "steps": len(result.history["loss"]),
+        "stop_reason": result.stop_reason,
+        "filter_runs": result.filter_runs,
+        "seconds": round(seconds, 1),
+        "start": _values(start, space.trainable),
+        "tuned": _values(result.params, space.trainable),
+        "not_in_config": list(not_in_config(space)),
+        "config": tuned_config,
+        "history": {
+            "loss": _round(result.history["loss"]),
+            **{name: _round(v) for name, v in result.history["values"].items()},
+        },
+    }
+    return SequenceTuning(tuned_config, result, report)
+
+
+def _values(params, names) -> dict[str, float | list[float]]:
+    out = {}
+    for name in names:
+        value = np.asarray(get_path(params, PARAMETERS[name].paths[0]), np.float64)
+        out[name] = _round(value)
+    return out
+
+
+def _round(value) -> float | list:
+    array = np.asarray(value, np.float64)
+    if array.ndim:
+        return [_round(v) for v in array]
+    return float(f"{float(array):.6g}")
+
+
+def _span(sequence: MotSequence) -> str:
+    return f"{sequence.first_frame}:{sequence.last_frame}"
