@@ -69,6 +69,7 @@ def tune_sequence(
     num_keys: int = 2,
     learning_rate: float = DEFAULT_LEARNING_RATE,
     patience: int = 20,
+    average_steps: int = 10,
     num_particles: int = TUNING_PARTICLES,
     births_per_detection: int = TUNING_BIRTHS_PER_DETECTION,
     estimator: str = "stop_gradient",
@@ -86,6 +87,7 @@ def tune_sequence(
         num_keys: keys per step (common random numbers).
         learning_rate: adam's learning rate (log / logit units).
         patience: early-stopping patience (0: run all steps).
+        average_steps: the result averages the last ``average_steps`` iterates.
         num_particles: particles of the tuning filter.
         births_per_detection: birth particles per detection of the tuning filter.
         estimator: resampling gradient estimator (:data:`~jaxtrack.tuning.objectives.ESTIMATORS`).
@@ -109,8 +111,8 @@ def tune_sequence(
         raise InputError(f"births per detection must be positive, got {births_per_detection}")
     if not learning_rate > 0:
         raise InputError(f"learning rate must be positive, got {learning_rate}")
-    if patience < 0:
-        raise InputError(f"patience must be >= 0, got {patience}")
+    if patience < 0 or average_steps <= 0:
+        raise InputError("patience must be >= 0 and average_steps positive")
     overrides = dict(config or {})
     reason = check_config(overrides)
     if reason is not None:
@@ -134,6 +136,7 @@ def tune_sequence(
         num_steps=num_steps,
         num_keys=num_keys,
         patience=patience,
+        average_steps=average_steps,
         progress=progress,
     )
     seconds = time.perf_counter() - began
