@@ -134,12 +134,14 @@ def main() -> None:
                 "ratio_loop_over_sweep": loop_s / sweep_s,
                 "goal_sweep_under_120_s": sweep_s < 120,
                 "goal_ratio_at_least_5": loop_s / sweep_s >= 5,
-                "loop_matches_sweep_mota": bool(
-                    np.allclose(loop_mota, result.scores["MOTA"][timed], atol=1e-9)
+                # Batched and unbatched XLA programs round differently (float32); over 398
+                # frames the discrete decisions (resampling, assignment) can then diverge.
+                "loop_vs_sweep_max_abs_mota_diff_pct": float(
+                    100 * np.max(np.abs(np.asarray(loop_mota) - result.scores["MOTA"][timed]))
                 ),
                 "best_mota": {
                     variant: {
-                        "MOTA": float(mota[v][best[v]]),
+                        "MOTA_pct": float(100 * mota[v][best[v]]),
                         "lambda_r": float(CLUTTER_RATES[best[v][0]]),
                         "lambda_s": float(BIRTH_RATES[best[v][1]]),
                     }
