@@ -103,13 +103,16 @@ def crop_ellipse(crop: np.ndarray, x: float = 0.0, y: float = 0.0) -> np.ndarray
         y: image row of the crop's top edge.
 
     Returns:
-        The ellipse in image coordinates (pixel centres at integer positions).
+        The ellipse in image coordinates (pixel centres at integer positions): the
+        eigenvalues of the pixel covariance are ``(var_x + var_y) / 2 +- sqrt(((var_x -
+        var_y) / 2)^2 + cov_xy^2)``, the major axis at ``atan2(2 cov_xy, var_x - var_y) / 2``.
     """
-    rows, cols = np.nonzero(crop)
-    cx, cy = cols.mean(), rows.mean()
-    cov = np.cov(np.stack([cols, rows]).astype(np.float64), bias=True).reshape(2, 2)
-    eigenvalues, eigenvectors = np.linalg.eigh(cov)
-    major_vector = eigenvectors[:, 1]
-    angle = np.degrees(np.arctan2(major_vector[1], major_vector[0])) % 180.0
-    major, minor = 4.0 * np.sqrt(np.maximum(eigenvalues[::-1], 0.0))
+    moments = cv2.moments(crop.astype(np.uint8), binaryImage=True)
+    count = moments["m00"]
+    cx, cy = moments["m10"] / count, moments["m01"] / count
+    var_x, var_y, cov_xy = moments["mu20"] / count, moments["mu02"] / count, moments["mu11"] / count
+    half_trace, half_gap = (var_x + var_y) / 2, np.hypot((var_x - var_y) / 2, cov_xy)
+    major = 4.0 * np.sqrt(max(half_trace + half_gap, 0.0))
+    minor = 4.0 * np.sqrt(max(half_trace - half_gap, 0.0))
+    angle = np.degrees(0.5 * np.arctan2(2 * cov_xy, var_x - var_y)) % 180.0
     return np.array([x + cx, y + cy, major, minor, angle])

@@ -68,3 +68,17 @@ def test_clean_mask_removes_thin_line_keeps_person_and_joins_a_gap():
 def test_mask_must_be_two_dimensional():
     with pytest.raises(InputError, match="height, width"):
         extract_blobs(np.zeros((4, 4, 3), bool))
+
+
+def test_ellipse_matches_covariance_eigen_decomposition_on_random_blobs():
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        crop = rng.random((23, 17)) < 0.4
+        rows, cols = np.nonzero(crop)
+        cov = np.cov(np.stack([cols, rows]).astype(float), bias=True)
+        values, vectors = np.linalg.eigh(cov)
+        cx, cy, major, minor, angle = crop_ellipse(crop, 100, 200)
+        assert (cx, cy) == pytest.approx((100 + cols.mean(), 200 + rows.mean()))
+        assert (major, minor) == pytest.approx(4 * np.sqrt(values[::-1]))
+        expected = np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1])) % 180
+        assert min(abs(angle - expected), 180 - abs(angle - expected)) < 1e-6
