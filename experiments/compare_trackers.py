@@ -19,7 +19,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from jaxtrack.experiments.common import markdown_table, run_script
+from jaxtrack.experiments.common import experiment_parser, markdown_table, run_script
 from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, run_comparison
 
 NAME = "compare_trackers.py"
@@ -28,16 +28,10 @@ DEFAULT_MOT_ROOT = Path(__file__).resolve().parents[1].parent / "shared" / "data
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog=NAME,
-        description=__doc__.split("\n\n")[0],
-        epilog=__doc__.split("\n\n", 1)[1],
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument(
-        "--sequence", metavar="SEQ_DIR", help="MOTChallenge sequence with gt (default: synthetic)"
+    parser = experiment_parser(
+        NAME,
+        __doc__,
+        quick_help="short smoke run (short synthetic scene, few particles, no --mot-root)",
     )
     parser.add_argument(
         "--mot-root",
@@ -46,11 +40,6 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="folder of sequence folders also compared (default: %(default)s)",
     )
     parser.add_argument("--no-mot", action="store_true", help="skip the --mot-root sequences")
-    parser.add_argument(
-        "--quick",
-        action="store_true",
-        help="short smoke run (short synthetic scene, few particles, no --mot-root)",
-    )
     return parser.parse_args(argv)
 
 

@@ -17,25 +17,14 @@ import argparse
 import sys
 
 from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
-from jaxtrack.experiments.common import markdown_table, run_script
+from jaxtrack.experiments.common import experiment_parser, markdown_table, run_script
 
 NAME = "context_ablation.py"
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog=NAME,
-        description=__doc__.split("\n\n")[0],
-        epilog=__doc__.split("\n\n", 1)[1],
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument(
-        "--sequence", metavar="SEQ_DIR", help="MOTChallenge sequence with gt (default: synthetic)"
-    )
-    parser.add_argument(
-        "--quick", action="store_true", help="short smoke run (short scene, few particles)"
+    parser = experiment_parser(
+        NAME, __doc__, quick_help="short smoke run (short scene, few particles)"
     )
     return parser.parse_args(argv)
 

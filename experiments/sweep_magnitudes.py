@@ -21,26 +21,15 @@ import argparse
 import json
 import sys
 
-from jaxtrack.experiments.common import run_script
+from jaxtrack.experiments.common import experiment_parser, run_script
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 
 NAME = "sweep_magnitudes.py"
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog=NAME,
-        description=__doc__.split("\n\n")[0],
-        epilog=__doc__.split("\n\n", 1)[1],
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument(
-        "--sequence", metavar="SEQ_DIR", help="MOTChallenge sequence with gt (default: synthetic)"
-    )
-    parser.add_argument(
-        "--quick", action="store_true", help="short smoke run (short scene, few particles, 3 x 3)"
+    parser = experiment_parser(
+        NAME, __doc__, quick_help="short smoke run (short scene, few particles, 3 x 3)"
     )
     return parser.parse_args(argv)
 
