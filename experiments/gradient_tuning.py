@@ -4,8 +4,8 @@ From mis-specified magnitudes (lambda_r = 10, lambda_s = 1), tunes the PHD track
 the unsupervised PHD log-likelihood of a training span and compares it on the test span with
 the best configuration of an 8x8 grid sweep (chosen by training MOTA): on the synthetic scene
 of --seed (halves) and on PETS09-S2L1 (frames 1-400 / 401-795). Writes summary.csv,
-steps.csv (loss and test MOTA per step), summary.md and gradient_tuning.png (loss and MOTA
-against the step) into --out. All logic is in jaxtrack.experiments.tuning.
+steps.csv (loss and test MOTA per step), goals.csv, summary.md and gradient_tuning.png
+(loss and MOTA against the step) into --out. All logic is in jaxtrack.experiments.tuning.
 
     python experiments/gradient_tuning.py --out /tmp/gt
     python experiments/gradient_tuning.py --out /tmp/gt-quick --quick
@@ -55,11 +55,13 @@ def main(argv: list[str] | None = None) -> int:
         for goal in result["goals"]:
             print(
                 f"{goal['dataset']}: tuned MOTA {goal['tuned_MOTA']:.2f} vs grid "
-                f"{goal['grid_MOTA']:.2f} ({100 * goal['mota_ratio']:.1f}%), "
+                f"{goal['grid_MOTA']:.2f} ({goal['tuned_vs_grid_percent']:.1f}%), "
                 f"{goal['tuning_runs']} vs {goal['grid_runs']} runs: "
                 f"goal {'met' if goal['met'] else 'NOT met'}"
             )
-        print(f"wrote {args.out}/summary.csv, steps.csv, summary.md, gradient_tuning.png")
+        print(
+            f"wrote {args.out}/summary.csv, steps.csv, goals.csv, summary.md, gradient_tuning.png"
+        )
         return 0
 
     return run_script(body, NAME)
