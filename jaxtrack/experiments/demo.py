@@ -226,6 +226,7 @@ def save_demo_figure(path: Path, context: Context, sweep: MagnitudeSweep, rows, 
         draw_intensity,
         position_map,
     )
+    from jaxtrack.plot.experiments import tick_labels
 
     width, height = info.im_width, info.im_height
     figure = Figure(figsize=(12, 7.5), layout="constrained")
@@ -248,7 +249,7 @@ def save_demo_figure(path: Path, context: Context, sweep: MagnitudeSweep, rows, 
         for variant, grids in sweep.scores.items():
             ax.plot(rates, grids["MOTA"][index], marker="o", label=f"{variant}")
         ax.set_xscale("log")
-        ax.set_xticks(rates, [f"{v:.2g}" for v in rates])
+        ax.set_xticks(rates, tick_labels(rates))
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel(label)
         ax.set_ylabel("MOTA (%)")

@@ -123,6 +123,12 @@ def save_comparison_figure(
     return path
 
 
+def tick_labels(values: Sequence[float], most: int = 5) -> list[str]:
+    """Labels for ticks at ``values``: every k-th value (``%.2g``), at most ``most`` shown."""
+    every = max(1, -(-len(values) // most))
+    return [f"{v:.2g}" if k % every == 0 else "" for k, v in enumerate(values)]
+
+
 def save_sweep_figure(
     result,
     path: str | Path,
@@ -161,7 +167,7 @@ def save_sweep_figure(
             for variant, grids in result.scores.items():
                 axes.plot(rates, grids[score][index], marker="o", label=variant)
             axes.set_xscale("log")
-            axes.set_xticks(rates, [f"{v:.2g}" for v in rates], fontsize="small")
+            axes.set_xticks(rates, tick_labels(rates))
             axes.xaxis.set_minor_formatter(NullFormatter())
             axes.set_xlabel(label)
             axes.set_ylabel(f"{score} (%)")
