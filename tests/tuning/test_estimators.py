@@ -58,9 +58,8 @@ def test_expected_birth_mass_replaces_the_birth_particles_mass():
     for expected in (False, True):
         filt = phd_filter(64, births_per_detection=8, expected_birth_mass=expected)
         state = filt.init(jax.random.key(0), params)
-        results[expected] = float(
-            filt.step(jax.random.key(1), state, params, frame)[1].log_likelihood
-        )
+        info = jax.jit(filt.step)(jax.random.key(1), state, params, frame)[1]
+        results[expected] = float(info.log_likelihood)
     # First frame: no survivors; the birth particles' mass is far below int gamma = 0.5.
     pd = float(params.detection_prob)
     difference = results[False] - results[True]
