@@ -18,7 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from jaxtrack.experiments.common import markdown_table, run_script
+from jaxtrack.experiments.common import experiment_parser, markdown_table, run_script
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
 
 NAME = "gradient_tuning.py"
@@ -26,21 +26,13 @@ PETS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mot15" 
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog=NAME,
-        description=__doc__.split("\n\n")[0],
-        epilog=__doc__.split("\n\n", 1)[1],
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    parser = experiment_parser(
+        NAME, __doc__, sequence=False, quick_help="short smoke run (short spans, 3x3 grid, 2 steps)"
     )
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument(
         "--pets", default=str(PETS), metavar="SEQ_DIR", help=f"PETS09-S2L1 folder (default {PETS})"
     )
     parser.add_argument("--no-pets", action="store_true", help="only the synthetic scene")
-    parser.add_argument(
-        "--quick", action="store_true", help="short smoke run (short spans, 3x3 grid, 2 steps)"
-    )
     return parser.parse_args(argv)
 
 
