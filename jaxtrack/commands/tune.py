@@ -151,11 +151,6 @@ def run(args) -> int:
         f"wrote {out} and {report_path} ({report['steps']} steps, {report['stop_reason']}, "
         f"{report['seconds']:.1f} s): {changes}"
     )
-    if report["not_in_config"]:
-        print(
-            f"note: {', '.join(report['not_in_config'])} are not keys of the tracker "
-            f"configuration; their tuned values are only in {report_path}"
-        )
     return 0
 
 

@@ -55,6 +55,16 @@ def uniform_clutter_intensity(clutter_rate: float, im_width: float, im_height: f
     )
 
 
+#: SDV motion noise ``(sigma_n1, sigma_n2, sigma_nw, sigma_nh)``, relative to the box size.
+DEFAULT_MOTION_NOISE_STD = (0.05, 0.02, 0.05, 0.05)
+#: SDV measurement noise ``(s_1, s_2, s_w, s_h)``, relative to the box size.
+DEFAULT_MEASUREMENT_NOISE_STD = (0.15, 0.08, 0.25, 0.15)
+#: Detection probability ``pD = 1 - pM``.
+DEFAULT_DETECTION_PROB = 0.8
+#: Survival probability ``e(x)`` per frame.
+DEFAULT_SURVIVAL_PROB = 0.99
+
+
 def default_phd_params(
     im_width: float,
     im_height: float,
@@ -86,10 +96,10 @@ def default_phd_params(
     frame_rate = DEFAULT_FRAME_RATE if frame_rate is None else frame_rate
     max_speed = 0.4 * im_height / frame_rate
     return PHDParams(
-        motion_noise_std=jnp.array([0.05, 0.02, 0.05, 0.05]),
-        measurement_noise_std=jnp.array([0.15, 0.08, 0.25, 0.15]),
-        detection_prob=jnp.asarray(0.8),
-        survival_prob=jnp.asarray(0.99),
+        motion_noise_std=jnp.array(DEFAULT_MOTION_NOISE_STD),
+        measurement_noise_std=jnp.array(DEFAULT_MEASUREMENT_NOISE_STD),
+        detection_prob=jnp.asarray(DEFAULT_DETECTION_PROB),
+        survival_prob=jnp.asarray(DEFAULT_SURVIVAL_PROB),
         birth_intensity=uniform_birth_intensity(birth_rate, im_width, im_height, max_speed),
         initial_intensity=uniform_birth_intensity(birth_rate, im_width, im_height, max_speed),
         clutter_intensity=uniform_clutter_intensity(clutter_rate, im_width, im_height),

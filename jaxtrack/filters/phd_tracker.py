@@ -30,10 +30,12 @@ what the filter outputs frame by frame.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
@@ -42,7 +44,13 @@ from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, run_chunked
 from jaxtrack.filters.kalman import KALMAN_PRESETS, KalmanParams, kalman_filter
 from jaxtrack.filters.phd import PHDParams, phd_filter
-from jaxtrack.filters.phd_defaults import default_phd_params
+from jaxtrack.filters.phd_defaults import (
+    DEFAULT_DETECTION_PROB,
+    DEFAULT_MEASUREMENT_NOISE_STD,
+    DEFAULT_MOTION_NOISE_STD,
+    DEFAULT_SURVIVAL_PROB,
+    default_phd_params,
+)
 from jaxtrack.io import MotSequence, SequenceInfo
 from jaxtrack.types import PAD_BOX, Detections
 
@@ -53,9 +61,15 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "extraction": "partition",
     "birth_rate": 0.2,
     "clutter_rate": 1.0,
+    "detection_prob": DEFAULT_DETECTION_PROB,
+    "survival_prob": DEFAULT_SURVIVAL_PROB,
+    "motion_noise_std": list(DEFAULT_MOTION_NOISE_STD),
+    "measurement_noise_std": list(DEFAULT_MEASUREMENT_NOISE_STD),
     "output": "offline",
     "max_gap": 8,
 }
+#: Keys whose values are lists of 4 positive numbers (the SDV noise scales).
+NOISE_KEYS = ("motion_noise_std", "measurement_noise_std")
 
 
 #: Trackers of :func:`track_sequences` (``jaxtrack track --tracker``).
@@ -109,7 +123,17 @@ def check_config(config: dict[str, Any]) -> str | None:
     for key in config:
         if key not in DEFAULT_CONFIG:
             return f"unknown key {key!r}; known: {', '.join(DEFAULT_CONFIG)}"
+    for key in NOISE_KEYS:
+        value = config.get(key, DEFAULT_CONFIG[key])
+        if (
+            not isinstance(value, list)
+            or len(value) != 4
+            or not all(_is_number(v) and math.isfinite(v) and v > 0 for v in value)
+        ):
+            return f"{key} must be a list of 4 positive numbers, got {value!r}"
     for key, default in DEFAULT_CONFIG.items():
+        if key in NOISE_KEYS:
+            continue
         value = config.get(key, default)
         expected = type(default)
         ok = isinstance(value, expected) or (
@@ -127,7 +151,14 @@ def check_config(config: dict[str, Any]) -> str | None:
             return f"{key} must be positive, got {merged[key]}"
     if merged["max_gap"] < 0:
         return f"max_gap must be >= 0, got {merged['max_gap']}"
+    for key in ("detection_prob", "survival_prob"):
+        if not 0 < merged[key] <= 1:
+            return f"{key} must be in (0, 1], got {merged[key]}"
     return None
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def tracker_params(
@@ -169,7 +200,13 @@ def tracker_params(
     uniform = default_phd_params(
         info.im_width, info.im_height, info.frame_rate, config["birth_rate"], clutter_rate
     )
-    params = params._replace(initial_intensity=uniform.initial_intensity)
+    params = params._replace(
+        initial_intensity=uniform.initial_intensity,
+        detection_prob=jnp.asarray(config["detection_prob"], jnp.float32),
+        survival_prob=jnp.asarray(config["survival_prob"], jnp.float32),
+        motion_noise_std=jnp.asarray(config["motion_noise_std"], jnp.float32),
+        measurement_noise_std=jnp.asarray(config["measurement_noise_std"], jnp.float32),
+    )
     if use.learned_birth:
         params = params._replace(birth_intensity=context.birth)
     if use.learned_clutter:

@@ -28,7 +28,6 @@ from jaxtrack.tuning.objectives import ESTIMATORS, make_objective, tuning_filter
 from jaxtrack.tuning.transforms import (
     PARAMETERS,
     get_path,
-    not_in_config,
     parameter_space,
     to_config,
 )
@@ -157,7 +156,6 @@ def tune_sequence(
         "seconds": round(seconds, 1),
         "start": _values(start, space.trainable),
         "tuned": _values(result.params, space.trainable),
-        "not_in_config": list(not_in_config(space)),
         "config": tuned_config,
         "history": {
             "loss": _round(result.history["loss"]),

@@ -65,13 +65,19 @@ PARAMETERS: dict[str, Tunable] = {
         "birth_rate",
         "lambda_s, expected births per frame (also the first frame's initial intensity)",
     ),
-    "detection_prob": Tunable(("detection_prob",), "logit", None, "pD = 1 - pM"),
-    "survival_prob": Tunable(("survival_prob",), "logit", None, "e(x), a constant"),
+    "detection_prob": Tunable(("detection_prob",), "logit", "detection_prob", "pD = 1 - pM"),
+    "survival_prob": Tunable(("survival_prob",), "logit", "survival_prob", "e(x), a constant"),
     "motion_noise_std": Tunable(
-        ("motion_noise_std",), "log", None, "SDV dynamics noise (sigma_n1, sigma_n2, nw, nh)"
+        ("motion_noise_std",),
+        "log",
+        "motion_noise_std",
+        "SDV dynamics noise (sigma_n1, sigma_n2, nw, nh)",
     ),
     "measurement_noise_std": Tunable(
-        ("measurement_noise_std",), "log", None, "SDV likelihood noise (s_1, s_2, s_w, s_h)"
+        ("measurement_noise_std",),
+        "log",
+        "measurement_noise_std",
+        "SDV likelihood noise (s_1, s_2, s_w, s_h)",
     ),
 }
 
@@ -191,18 +197,15 @@ def to_config(params: PHDParams, config: Mapping[str, Any] | None = None) -> dic
         config: configuration overrides to keep (e.g. ``num_particles``); may be None.
 
     Returns:
-        ``config`` with every parameter that has a ``config_key`` (``clutter_rate``,
-        ``birth_rate``) set from ``params``, rounded to 6 significant digits: a JSON object
-        that ``jaxtrack track --config`` accepts.
+        ``config`` with every parameter that has a ``config_key`` (all of
+        :data:`PARAMETERS`: rates, probabilities, noise scales as lists) set from ``params``,
+        rounded to 6 significant digits: a JSON object that ``jaxtrack track --config``
+        accepts.
     """
     result = dict(config or {})
     for spec in PARAMETERS.values():
         if spec.config_key is not None:
-            value = float(np.asarray(get_path(params, spec.paths[0])))
-            result[spec.config_key] = float(f"{value:.6g}")
+            value = np.asarray(get_path(params, spec.paths[0]), np.float64)
+            rounded = [float(f"{v:.6g}") for v in value.ravel()]
+            result[spec.config_key] = rounded[0] if value.ndim == 0 else rounded
     return result
-
-
-def not_in_config(space: ParameterSpace) -> tuple[str, ...]:
-    """Trainable parameters that the tracker configuration cannot carry."""
-    return tuple(name for name in space.trainable if PARAMETERS[name].config_key is None)

@@ -16,7 +16,7 @@ from jaxtrack.filters.phd_tracker import tracker_params
 from jaxtrack.io import SequenceInfo
 from jaxtrack.models.survival import SurvivalMap
 from jaxtrack.tuning import PARAMETERS, parameter_space, to_config
-from jaxtrack.tuning.transforms import forward, inverse, not_in_config
+from jaxtrack.tuning.transforms import forward, inverse
 
 PARAMS = default_phd_params(640.0, 480.0, 25.0, birth_rate=0.3, clutter_rate=2.5)
 
@@ -76,7 +76,15 @@ def test_config_json_is_accepted_by_track_and_rebuilds_the_tuned_magnitudes(tmp_
         PARAMS,
     )
     config = to_config(tuned, {"num_particles": 512})
-    assert config == {"num_particles": 512, "clutter_rate": 3.25, "birth_rate": 0.04}
+    assert config == {
+        "num_particles": 512,
+        "clutter_rate": 3.25,
+        "birth_rate": 0.04,
+        "detection_prob": 0.5,
+        "survival_prob": pytest.approx(float(PARAMS.survival_prob)),
+        "motion_noise_std": pytest.approx(np.asarray(PARAMS.motion_noise_std).tolist()),
+        "measurement_noise_std": pytest.approx(np.asarray(PARAMS.measurement_noise_std).tolist()),
+    }
     path = tmp_path / "tuned.json"
     path.write_text(json.dumps(config))
     loaded = load_config(str(path))
@@ -84,4 +92,5 @@ def test_config_json_is_accepted_by_track_and_rebuilds_the_tuned_magnitudes(tmp_
     assert float(rebuilt.clutter_intensity.magnitude) == pytest.approx(3.25)
     assert float(rebuilt.birth_intensity.magnitude) == pytest.approx(0.04)
     assert float(rebuilt.initial_intensity.magnitude) == pytest.approx(0.04)
-    assert not_in_config(parameter_space()) == ("detection_prob",)
+    assert float(rebuilt.detection_prob) == pytest.approx(0.5)
+    np.testing.assert_allclose(rebuilt.motion_noise_std, PARAMS.motion_noise_std, rtol=1e-5)
