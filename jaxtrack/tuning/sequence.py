@@ -37,8 +37,8 @@ from jaxtrack.tuning.tuner import DEFAULT_LEARNING_RATE, TuneResult, tune
 TUNING_PARTICLES = 512
 #: Birth particles per detection of the tuning filter.
 TUNING_BIRTHS_PER_DETECTION = 16
-#: Parameters that ``jaxtrack tune`` tunes by default: those the tracker configuration
-#: carries.
+#: Parameters that ``jaxtrack tune`` tunes by default: the clutter and birth magnitudes (the
+#: axes of PHD-context's sweeps); ``--tune`` adds others.
 CONFIG_TRAINABLE = ("clutter_rate", "birth_rate")
 
 
