@@ -96,7 +96,7 @@ def run_demo(
     """
     from jaxtrack.datasets.context_truth import load_context_truth
     from jaxtrack.plot.context import save_context_plots
-    from jaxtrack.plot.experiments import save_sweep_figure, save_sweep_heatmaps
+    from jaxtrack.plot.experiments import save_demo_figure, save_sweep_figure, save_sweep_heatmaps
     from jaxtrack.plot.tracks import phd_frame_figure
 
     notify = progress or (lambda _: None)
@@ -212,54 +212,3 @@ def demo_markdown(
         f"{sum(seconds.values()):.0f} s.\n",
     ]
     return "\n".join(lines)
-
-
-def save_demo_figure(path: Path, context: Context, sweep: MagnitudeSweep, rows, info) -> Path:
-    """The demo's overview: learned birth and clutter maps, MOTA against both magnitudes."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import NullFormatter
-
-    from jaxtrack.plot.context import (
-        BIRTH_POSITION_DIMS,
-        CLUTTER_POSITION_DIMS,
-        draw_intensity,
-        position_map,
-    )
-    from jaxtrack.plot.experiments import tick_labels
-
-    width, height = info.im_width, info.im_height
-    figure = Figure(figsize=(12, 7.5), layout="constrained")
-    FigureCanvasAgg(figure)
-    axes = figure.subplots(2, 2)
-    for ax, name, intensity, dims in (
-        (axes[0, 0], "birth", context.birth, BIRTH_POSITION_DIMS),
-        (axes[0, 1], "clutter", context.clutter, CLUTTER_POSITION_DIMS),
-    ):
-        values = position_map(intensity, dims, width, height)
-        image = draw_intensity(ax, values, width, height, float(values.max()))
-        figure.colorbar(image, ax=ax, fraction=0.035, label="events / frame / px²")
-        ax.set_title(f"learned {name} intensity ({float(intensity.magnitude):.3g} / frame)")
-    i_r, i_s = sweep.slice_index()
-    scores = {row["variant"]: row["MOTA"] for row in rows}
-    for ax, rates, index, label in (
-        (axes[1, 0], sweep.clutter_rates, np.s_[:, i_s], "lambda_r (false detections / frame)"),
-        (axes[1, 1], sweep.birth_rates, np.s_[i_r, :], "lambda_s (births / frame)"),
-    ):
-        for variant, grids in sweep.scores.items():
-            ax.plot(rates, grids["MOTA"][index], marker="o", label=f"{variant}")
-        ax.set_xscale("log")
-        ax.set_xticks(rates, tick_labels(rates))
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xlabel(label)
-        ax.set_ylabel("MOTA (%)")
-        ax.grid(alpha=0.3)
-    axes[1, 0].set_title(f"MOTA vs clutter magnitude (lambda_s = {sweep.birth_rates[i_s]:.2g})")
-    axes[1, 1].set_title(f"MOTA vs birth magnitude (lambda_r = {sweep.clutter_rates[i_r]:.2g})")
-    axes[1, 0].legend()
-    figure.suptitle(
-        f"{info.name}: context learned on the first half; test half MOTA UM {scores['UM']:.1f}, "
-        f"GM {scores['GM']:.1f}"
-    )
-    figure.savefig(path, dpi=90)
-    return path

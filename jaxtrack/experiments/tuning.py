@@ -324,36 +324,7 @@ def gradient_tuning_experiment(
     text = markdown_table(summary, SUMMARY_COLUMNS) + "\n" + markdown_table(goals, GOAL_COLUMNS)
     write_csv(out / "goals.csv", goals, GOAL_COLUMNS)
     (out / "summary.md").write_text(text)
+    from jaxtrack.plot.experiments import save_tuning_figure
+
     save_tuning_figure(steps, losses, summary, out / "gradient_tuning.png")
     return {"summary": summary, "steps": steps, "goals": goals}
-
-
-def save_tuning_figure(steps, losses, summary, path: str | Path) -> Path:
-    """Loss and test MOTA against the optimisation step, one column per dataset.
-
-    The grid choice's test MOTA is drawn as a horizontal line, 95% of it dashed.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    names = list(losses)
-    figure, axes = plt.subplots(2, len(names), figsize=(5 * len(names), 6), squeeze=False)
-    for column, name in enumerate(names):
-        loss_axes, mota_axes = axes[0, column], axes[1, column]
-        loss_axes.plot(np.arange(len(losses[name])), losses[name], color="C0")
-        loss_axes.set_title(name)
-        loss_axes.set_ylabel("loss (-log-likelihood / frame)")
-        rows = [r for r in steps if r["dataset"] == name]
-        mota_axes.plot([r["step"] for r in rows], [r["MOTA"] for r in rows], "o-", color="C1")
-        grid = next(r for r in summary if r["dataset"] == name and r["method"].startswith("grid"))
-        mota_axes.axhline(grid["MOTA"], color="k", label=f"grid choice ({grid['MOTA']:.1f})")
-        mota_axes.axhline(0.95 * grid["MOTA"], color="k", linestyle="--", label="95% of it")
-        mota_axes.set_xlabel("adam step")
-        mota_axes.set_ylabel("test MOTA (%)")
-        mota_axes.legend(loc="lower right")
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
-    return Path(path)

@@ -9,6 +9,8 @@ tracker comparison (Fig. 16).
 * :func:`save_sweep_figure` / :func:`save_sweep_heatmaps`: scores against the clutter and
   birth magnitudes, and MOTA over the whole grid, of a
   :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep`.
+* :func:`save_demo_figure`: the overview figure of ``jaxtrack demo``.
+* :func:`save_tuning_figure`: loss and test MOTA against the steps of gradient tuning.
 
 Matplotlib's object-oriented API with the Agg canvas: no display, no pyplot global state.
 """
@@ -215,6 +217,105 @@ def save_sweep_heatmaps(result, path: str | Path, score: str = "MOTA", title: st
             axes.text(j, i, f"{value:.0f}", ha="center", va="center", fontsize=7, color="white")
     figure.colorbar(image, ax=figure.axes, label=f"{score} (%)")
     figure.suptitle(f"{title}: {score} over the magnitude grid".lstrip(": "))
+    path = Path(path)
+    figure.savefig(path, dpi=100)
+    return path
+
+
+def save_demo_figure(path: str | Path, context, sweep, rows, info) -> Path:
+    """The demo's overview: learned birth and clutter maps, MOTA against both magnitudes.
+
+    Args:
+        path: the PNG to write.
+        context: the learned :class:`~jaxtrack.filters.phd_tracker.Context`.
+        sweep: the :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep` of UM and GM.
+        rows: the UM and GM score rows (``variant``, ``MOTA``) on the test span.
+        info: the sequence's :class:`~jaxtrack.io.SequenceInfo` (image size, name).
+
+    Returns:
+        ``path`` as a :class:`~pathlib.Path`.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import NullFormatter
+
+    from jaxtrack.plot.context import (
+        BIRTH_POSITION_DIMS,
+        CLUTTER_POSITION_DIMS,
+        draw_intensity,
+        position_map,
+    )
+    from jaxtrack.plot.experiments import tick_labels
+
+    width, height = info.im_width, info.im_height
+    figure = Figure(figsize=(12, 7.5), layout="constrained")
+    FigureCanvasAgg(figure)
+    axes = figure.subplots(2, 2)
+    for ax, name, intensity, dims in (
+        (axes[0, 0], "birth", context.birth, BIRTH_POSITION_DIMS),
+        (axes[0, 1], "clutter", context.clutter, CLUTTER_POSITION_DIMS),
+    ):
+        values = position_map(intensity, dims, width, height)
+        image = draw_intensity(ax, values, width, height, float(values.max()))
+        figure.colorbar(image, ax=ax, fraction=0.035, label="events / frame / px²")
+        ax.set_title(f"learned {name} intensity ({float(intensity.magnitude):.3g} / frame)")
+    i_r, i_s = sweep.slice_index()
+    scores = {row["variant"]: row["MOTA"] for row in rows}
+    for ax, rates, index, label in (
+        (axes[1, 0], sweep.clutter_rates, np.s_[:, i_s], "lambda_r (false detections / frame)"),
+        (axes[1, 1], sweep.birth_rates, np.s_[i_r, :], "lambda_s (births / frame)"),
+    ):
+        for variant, grids in sweep.scores.items():
+            ax.plot(rates, grids["MOTA"][index], marker="o", label=f"{variant}")
+        ax.set_xscale("log")
+        ax.set_xticks(rates, tick_labels(rates))
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel(label)
+        ax.set_ylabel("MOTA (%)")
+        ax.grid(alpha=0.3)
+    axes[1, 0].set_title(f"MOTA vs clutter magnitude (lambda_s = {sweep.birth_rates[i_s]:.2g})")
+    axes[1, 1].set_title(f"MOTA vs birth magnitude (lambda_r = {sweep.clutter_rates[i_r]:.2g})")
+    axes[1, 0].legend()
+    figure.suptitle(
+        f"{info.name}: context learned on the first half; test half MOTA UM {scores['UM']:.1f}, "
+        f"GM {scores['GM']:.1f}"
+    )
+    path = Path(path)
+    figure.savefig(path, dpi=90)
+    return path
+
+
+def save_tuning_figure(steps, losses, summary, path: str | Path) -> Path:
+    """Loss and test MOTA against the optimisation step, one column per dataset.
+
+    The grid choice's test MOTA is drawn as a horizontal line, 95% of it dashed.
+
+    Args:
+        steps: rows with ``dataset``, ``step`` and ``MOTA`` (test MOTA after that step).
+        losses: ``{dataset: [loss per step]}``.
+        summary: rows with ``dataset``, ``method`` and ``MOTA``; the ``grid...`` row is drawn.
+        path: the PNG to write.
+
+    Returns:
+        ``path`` as a :class:`~pathlib.Path`.
+    """
+    names = list(losses)
+    figure = Figure(figsize=(5 * len(names), 6), layout="constrained")
+    FigureCanvasAgg(figure)
+    axes = figure.subplots(2, len(names), squeeze=False)
+    for column, name in enumerate(names):
+        loss_axes, mota_axes = axes[0, column], axes[1, column]
+        loss_axes.plot(np.arange(len(losses[name])), losses[name], color="C0")
+        loss_axes.set_title(name)
+        loss_axes.set_ylabel("loss (-log-likelihood / frame)")
+        rows = [r for r in steps if r["dataset"] == name]
+        mota_axes.plot([r["step"] for r in rows], [r["MOTA"] for r in rows], "o-", color="C1")
+        grid = next(r for r in summary if r["dataset"] == name and r["method"].startswith("grid"))
+        mota_axes.axhline(grid["MOTA"], color="k", label=f"grid choice ({grid['MOTA']:.1f})")
+        mota_axes.axhline(0.95 * grid["MOTA"], color="k", linestyle="--", label="95% of it")
+        mota_axes.set_xlabel("adam step")
+        mota_axes.set_ylabel("test MOTA (%)")
+        mota_axes.legend(loc="lower right")
     path = Path(path)
     figure.savefig(path, dpi=100)
     return path
