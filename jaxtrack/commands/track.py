@@ -48,6 +48,19 @@ from jaxtrack.filters.phd_tracker import (
 )
 
 
+def add_context_arguments(parser: argparse.ArgumentParser, variants_doc: str) -> None:
+    """Adds ``--context CTX.npz`` and ``--variant`` (``jaxtrack track``, ``track-video``)."""
+    parser.add_argument(
+        "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
+    )
+    parser.add_argument(
+        "--variant",
+        choices=[name for name in VARIANTS if name != "UM"],
+        default="GM",
+        help=f"which parts of the context to use (default GM; {variants_doc})",
+    )
+
+
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "track",
@@ -63,15 +76,7 @@ def register(subparsers) -> None:
     parser.add_argument("--frames", metavar="A:B", help="only frames A..B (1-based, inclusive)")
     parser.add_argument("--config", metavar="FILE", help="JSON file overriding the defaults")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument(
-        "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
-    )
-    parser.add_argument(
-        "--variant",
-        choices=[name for name in VARIANTS if name != "UM"],
-        default="GM",
-        help="which parts of the context to use (default GM; see above)",
-    )
+    add_context_arguments(parser, "see above")
     parser.add_argument(
         "--tracker", choices=TRACKERS, default="phd", help="which tracker (default phd)"
     )

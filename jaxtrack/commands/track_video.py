@@ -42,8 +42,8 @@ DEFAULT_TRAIL = 20
 
 def register(subparsers) -> None:
     """Adds the ``track-video`` parser to the CLI's sub-parsers."""
+    from jaxtrack.commands.track import add_context_arguments
     from jaxtrack.detect.pipeline import METHODS
-    from jaxtrack.filters.phd_tracker import VARIANTS
 
     parser = subparsers.add_parser(
         "track-video",
@@ -69,15 +69,7 @@ def register(subparsers) -> None:
         "--save-detections", metavar="DET.txt", help="also write the detections made"
     )
     parser.add_argument("--config", metavar="FILE", help="JSON tracker configuration overrides")
-    parser.add_argument(
-        "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
-    )
-    parser.add_argument(
-        "--variant",
-        choices=[name for name in VARIANTS if name != "UM"],
-        default="GM",
-        help="parts of the context to use (default GM; see jaxtrack track --help)",
-    )
+    add_context_arguments(parser, "see jaxtrack track --help")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--annotate", metavar="OUT.mp4", help="write the annotated frames")
     parser.add_argument(
