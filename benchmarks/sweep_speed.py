@@ -1,16 +1,17 @@
 """The 9 x 9 UM + GM magnitude sweep on PETS09-S2L1: one sharded, vmapped sweep vs a Python loop.
 
-Learns a context on frames 1:397 (``learn_context(..., birth_from="tracks",
-clutter_from="gt")``), then tracks frames 398:795 for 81 ``(lambda_r, lambda_s)`` points
-(log-spaced, clutter 0.1..10, birth 0.02..2 per frame) with uniform intensities (UM) and with
+Learns a context on frames 1:397 (:func:`jaxtrack.experiments.common.learn_split`: births
+from a UM tracker run, clutter from the ground truth), then tracks frames 398:795 for 81
+``(lambda_r, lambda_s)`` points (log-spaced, clutter 0.1..10, birth 0.02..2 per frame,
+:data:`jaxtrack.experiments.magnitudes.CLUTTER_RATES` / ``BIRTH_RATES``) with uniform
+intensities (UM) and with
 the learned context (GM): 162 tracker runs, each scored (MOTA, MOTP, MODA, MODP, IDF1, HOTA,
 ...). UM's intensities are padded with dead mixture components to GM's size, so both share
 one batch and one compile.
 
 * sweep: :func:`jaxtrack.sweep.sweep` on all devices, compile included. On CPU, JAX has one
-  device that uses every core (``--host-devices N`` forces N CPU devices instead; on this
-  problem size two forced devices on a 2-core machine hang inside XLA's CPU runtime, jaxlib
-  0.10.2, while the same sweep on small problems works; so the default is 1);
+  device that already uses every core, so the default is 1; ``--host-devices N`` forces N
+  CPU devices instead;
 * loop: the same configurations one at a time through one jitted single-configuration run
   (``jit(run)`` on one device) plus the same scoring; ``--loop-configs K`` times the first
   K of every variant's grid and extrapolates to 162 (stated in the JSON).
@@ -43,17 +44,20 @@ import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
 from jaxtrack.association.offline import finalise_tracks  # noqa: E402
-from jaxtrack.context.learn import learn_context  # noqa: E402
+from jaxtrack.experiments.common import learn_split, split_halves  # noqa: E402
+from jaxtrack.experiments.magnitudes import (  # noqa: E402
+    BIRTH_RATES,
+    CLUTTER_RATES,
+    magnitude_batch,
+    variant_params,
+)
 from jaxtrack.filters.base import run  # noqa: E402
-from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, Context, build_filter, tracker_params  # noqa: E402
-from jaxtrack.io import MotTable, load_sequence  # noqa: E402
+from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, Context, build_filter  # noqa: E402
+from jaxtrack.io import MotTable  # noqa: E402
 from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
-from jaxtrack.sweep import batch_params, common_shapes, magnitude_grid, sweep  # noqa: E402
+from jaxtrack.sweep import sweep  # noqa: E402
 
 DEFAULT_SEQUENCE = Path(__file__).resolve().parents[1].parent / "shared/data/mot15/PETS09-S2L1"
-TRAIN, TEST = (1, 397), (398, 795)
-CLUTTER_RATES = np.logspace(-1, 1, 9)
-BIRTH_RATES = np.logspace(np.log10(0.02), np.log10(2.0), 9)
 
 
 def main() -> None:
@@ -66,15 +70,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
-    learned = learn_context(args.sequence, TRAIN, birth_from="tracks", clutter_from="gt")
-    context = Context(learned.birth, learned.clutter, learned.metadata)
-    test = load_sequence(args.sequence, TEST)
-    um = tracker_params(test.info)
-    gm = tracker_params(test.info, context=context, variant="GM")
-    um, gm = common_shapes([um, gm])
-    grid = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
-    batches = [batch_params(p, grid) for p in (um, gm)]
-    batched = jax.tree.map(lambda *leaves: np.concatenate(leaves), *batches)
+    split = split_halves(args.sequence)
+    context = Context.from_learned(learn_split(split, DEFAULT_CONFIG, args.seed))
+    test = split.test
+    params = variant_params(test.info, DEFAULT_CONFIG, context)
+    batched = magnitude_batch(params, CLUTTER_RATES, BIRTH_RATES)
     num_configs = 2 * len(CLUTTER_RATES) * len(BIRTH_RATES)
     filt = build_filter(DEFAULT_CONFIG)
     key = jax.random.PRNGKey(args.seed)
@@ -105,7 +105,8 @@ def main() -> None:
     for b in timed:
         tracks, candidates = single(key, jax.tree.map(lambda x, b=b: x[b], batched))
         rows = finalise_tracks(tracks, candidates, DEFAULT_CONFIG["max_gap"], test.first_frame)
-        scores = evaluate_sequence(test.gt_table, MotTable.from_arrays(*rows), TEST).summary()
+        span = (test.first_frame, test.last_frame)
+        scores = evaluate_sequence(test.gt_table, MotTable.from_arrays(*rows), span).summary()
         loop_mota.append(scores["MOTA"])
     loop_timed_s = time.perf_counter() - start
     loop_s = loop_compile_s + loop_timed_s * num_configs / len(timed)
@@ -117,8 +118,8 @@ def main() -> None:
             {
                 "benchmark": "sweep_speed",
                 "sequence": test.info.name,
-                "train_frames": list(TRAIN),
-                "test_frames": list(TEST),
+                "train_frames": [split.train.first_frame, split.train.last_frame],
+                "test_frames": [test.first_frame, test.last_frame],
                 "grid": "9 lambda_r (0.1..10) x 9 lambda_s (0.02..2), log-spaced; UM + GM",
                 "tracker_runs": num_configs,
                 "num_particles": DEFAULT_CONFIG["num_particles"],

@@ -18,13 +18,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from jaxtrack.context.learn import learn_context
 from jaxtrack.experiments.common import (
     COUNT_KEYS,
     QUICK_TRACKER_CONFIG,
     SCORE_KEYS,
     Split,
     evaluate_rows,
+    learn_split,
     markdown_table,
     output_folder,
     percent_difference,
@@ -103,14 +103,7 @@ def ablation_table(
     contexts = {}
     for source in ("tracks", "gt"):
         notify(f"learning context (births from {source})")
-        learned = learn_context(
-            split.train,
-            birth_from=source,
-            clutter_from="gt",
-            seed=seed,
-            num_particles=config["num_particles"],
-        )
-        contexts[source] = Context(learned.birth, learned.clutter, learned.metadata)
+        contexts[source] = Context.from_learned(learn_split(split, config, seed, source))
     info = split.test.info
     params = common_shapes(
         [

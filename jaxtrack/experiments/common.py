@@ -126,6 +126,41 @@ def split_halves(sequence_dir: str | Path) -> Split:
     return Split(train=train, test=load_sequence(folder, frames=(half + 1, info.seq_length)))
 
 
+def learn_split(
+    split: Split,
+    config: dict,
+    seed: int = 0,
+    birth_from: str = "tracks",
+    progress: Callable[[str], None] | None = None,
+):
+    """Learns context on ``split.train`` as the experiments do: clutter from the ground truth.
+
+    Args:
+        split: the training and test spans.
+        config: a full tracker configuration (its ``num_particles`` sets the particles of the
+            UM run that yields the birth events).
+        seed: seeds the tracker run and the order in which samples are learned.
+        birth_from: ``"tracks"`` (a UM tracker run, the paper's source) or ``"gt"``.
+        progress: called with a short description before each long step.
+
+    Returns:
+        The :class:`~jaxtrack.context.learn.LearnedContext`.
+
+    Raises:
+        InputError: no birth or clutter events on the training span.
+    """
+    from jaxtrack.context.learn import learn_context
+
+    return learn_context(
+        split.train,
+        birth_from=birth_from,
+        clutter_from="gt",
+        seed=seed,
+        num_particles=config["num_particles"],
+        progress=progress,
+    )
+
+
 def evaluate_rows(sequence: MotSequence, rows: TrackRows) -> Evaluation:
     """Scores a tracker's rows against a sequence span's ground truth.
 

@@ -24,7 +24,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from jaxtrack.context.learn import learn_context
 from jaxtrack.errors import InputError
 from jaxtrack.experiments.common import (
     COUNT_KEYS,
@@ -32,6 +31,7 @@ from jaxtrack.experiments.common import (
     SCORE_KEYS,
     Split,
     evaluate_rows,
+    learn_split,
     markdown_table,
     output_folder,
     score_summary,
@@ -140,12 +140,12 @@ def _learn_contexts(
     contexts, notes = [], []
     for split in items:
         try:
-            learned = learn_context(split.train, seed=seed, num_particles=config["num_particles"])
+            learned = learn_split(split, config, seed)
         except InputError as err:
             contexts.append(None)
             notes.append(f"uniform: {err}")
             continue
-        contexts.append(Context(learned.birth, learned.clutter, learned.metadata))
+        contexts.append(Context.from_learned(learned))
         births, clutter = learned.metadata["birth"], learned.metadata["clutter"]
         notes.append(
             f"learned on frames {split.train.first_frame}:{split.train.last_frame} "

@@ -24,12 +24,12 @@ from typing import Any, NamedTuple
 import jax
 import numpy as np
 
-from jaxtrack.context.learn import learn_context
 from jaxtrack.experiments.common import (
     COUNT_KEYS,
     QUICK_TRACKER_CONFIG,
     SCORE_KEYS,
     evaluate_rows,
+    learn_split,
     markdown_table,
     output_folder,
     score_summary,
@@ -37,16 +37,20 @@ from jaxtrack.experiments.common import (
     synthetic_sequence,
     write_csv,
 )
-from jaxtrack.experiments.magnitudes import MagnitudeSweep, magnitude_sweep, sweep_summary
+from jaxtrack.experiments.magnitudes import (
+    MagnitudeSweep,
+    magnitude_sweep,
+    sweep_summary,
+    variant_params,
+    write_sweep_files,
+)
 from jaxtrack.filters.phd_tracker import (
     DEFAULT_CONFIG,
     Context,
     build_filter,
     track_sequences,
-    tracker_params,
 )
 from jaxtrack.io.motchallenge import write_results
-from jaxtrack.sweep import common_shapes
 
 #: The demo's magnitude grid: ``lambda_r`` (false detections / frame) x ``lambda_s``
 #: (births / frame), log-spaced.
@@ -96,7 +100,7 @@ def run_demo(
     """
     from jaxtrack.datasets.context_truth import load_context_truth
     from jaxtrack.plot.context import save_context_plots
-    from jaxtrack.plot.experiments import save_demo_figure, save_sweep_figure, save_sweep_heatmaps
+    from jaxtrack.plot.experiments import save_demo_figure
     from jaxtrack.plot.tracks import phd_frame_figure
 
     notify = progress or (lambda _: None)
@@ -118,22 +122,14 @@ def run_demo(
     lap("simulate")
 
     notify(f"learning context on frames {split.train.first_frame}:{split.train.last_frame}")
-    learned = learn_context(
-        split.train,
-        birth_from="tracks",
-        clutter_from="gt",
-        seed=seed,
-        num_particles=config["num_particles"],
-    )
-    context = Context(learned.birth, learned.clutter, learned.metadata)
+    learned = learn_split(split, config, seed)
+    context = Context.from_learned(learned)
     truth = load_context_truth(scene_dir / "context_truth.npz")
     files = save_context_plots(out, learned, info.im_width, info.im_height, truth)
     lap("learn context")
 
     notify(f"tracking frames {split.test.first_frame}:{split.test.last_frame} with UM and GM")
-    params = common_shapes(
-        [tracker_params(info, config), tracker_params(info, config, context, "GM")]
-    )
+    params = variant_params(info, config, context)
     results = track_sequences([split.test, split.test], config, seed, params)
     rows = []
     for variant, result in zip(("UM", "GM"), results, strict=True):
@@ -147,15 +143,7 @@ def run_demo(
     rates = QUICK_RATES if quick else (DEMO_CLUTTER_RATES, DEMO_BIRTH_RATES)
     notify(f"sweeping {len(rates[0])} x {len(rates[1])} magnitudes for UM and GM")
     sweep = magnitude_sweep(split, context, config, seed, *rates)
-    files.append(
-        write_csv(
-            out / "sweep.csv",
-            sweep.rows,
-            ("variant", "lambda_r", "lambda_s", *SCORE_KEYS, *COUNT_KEYS),
-        )
-    )
-    files.append(save_sweep_figure(sweep, out / "sweep.png", title=info.name))
-    files.append(save_sweep_heatmaps(sweep, out / "sweep_mota.png", title=info.name))
+    files += write_sweep_files(sweep, out, info.name)
     lap("magnitude sweep")
 
     notify("drawing the figures")

@@ -24,12 +24,12 @@ from typing import Any, NamedTuple
 import jax
 import numpy as np
 
-from jaxtrack.context.learn import learn_context
 from jaxtrack.experiments.common import (
     COUNT_KEYS,
     QUICK_TRACKER_CONFIG,
     SCORE_KEYS,
     Split,
+    learn_split,
     markdown_table,
     output_folder,
     split_halves,
@@ -92,19 +92,39 @@ class MagnitudeSweep(NamedTuple):
         }
 
 
-def learn_split_context(
-    split: Split, config: dict[str, Any], seed: int = 0, progress: Callable | None = None
-) -> Context:
-    """Learns the GM context on ``split.train``: births from a UM tracker run, clutter from gt."""
-    learned = learn_context(
-        split.train,
-        birth_from="tracks",
-        clutter_from="gt",
-        seed=seed,
-        num_particles=config["num_particles"],
-        progress=progress,
+def variant_params(info, config: dict[str, Any], context: Context) -> list[Any]:
+    """UM's and GM's tracker parameters for a sequence, padded to one PyTree shape.
+
+    Args:
+        info: the sequence's ``SequenceInfo``.
+        config: a full tracker configuration.
+        context: the learned context (GM).
+
+    Returns:
+        ``[UM, GM]`` :class:`~jaxtrack.filters.phd.PHDParams`, stackable into one batch
+        (:func:`~jaxtrack.sweep.common_shapes`).
+    """
+    return common_shapes(
+        [tracker_params(info, config, None), tracker_params(info, config, context, "GM")]
     )
-    return Context(learned.birth, learned.clutter, learned.metadata)
+
+
+def magnitude_batch(params: list[Any], clutter_rates: np.ndarray, birth_rates: np.ndarray):
+    """One batch of every parameter set of ``params`` at every grid point, set after set.
+
+    Args:
+        params: parameter PyTrees of one shape (e.g. :func:`variant_params`).
+        clutter_rates: ``lambda_r`` values, 1-D, positive.
+        birth_rates: ``lambda_s`` values, 1-D, positive.
+
+    Returns:
+        The batched PyTree, ``len(params) * len(clutter_rates) * len(birth_rates)``
+        configurations (``lambda_r`` slowest within a set).
+    """
+    grid = magnitude_grid(clutter_rates, birth_rates)
+    return jax.tree.map(
+        lambda *leaves: np.concatenate(leaves), *(batch_params(p, grid) for p in params)
+    )
 
 
 def magnitude_sweep(
@@ -121,7 +141,8 @@ def magnitude_sweep(
 
     Args:
         split: the training and test spans (the test span needs ground truth).
-        context: the context learned on ``split.train`` (:func:`learn_split_context`).
+        context: the context learned on ``split.train``
+            (:func:`~jaxtrack.experiments.common.learn_split`).
         config: overrides of :data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG`.
         seed: the tracking key, shared by every configuration.
         clutter_rates: ``lambda_r`` values, 1-D, positive.
@@ -136,17 +157,10 @@ def magnitude_sweep(
         InputError: bad rates or configuration, or a test span without ground truth.
     """
     config = {**DEFAULT_CONFIG, **(config or {})}
-    info = split.test.info
-    params = common_shapes(
-        [tracker_params(info, config, None), tracker_params(info, config, context, "GM")]
-    )
-    grid = magnitude_grid(clutter_rates, birth_rates)
-    batched = jax.tree.map(
-        lambda *leaves: np.concatenate(leaves), *(batch_params(p, grid) for p in params)
-    )
+    params = variant_params(split.test.info, config, context)
     result = sweep(
         build_filter(config),
-        batched,
+        magnitude_batch(params, clutter_rates, birth_rates),
         jax.random.key(seed),
         split.test.detections,
         ground_truth=split.test.gt_table,
@@ -236,8 +250,6 @@ def run_magnitude_sweep(
     Raises:
         InputError: bad data or output folder, or no events to learn from.
     """
-    from jaxtrack.plot.experiments import save_sweep_figure, save_sweep_heatmaps
-
     start = time.perf_counter()
     notify = progress or (lambda _: None)
     out = output_folder(out_dir)
@@ -245,22 +257,39 @@ def run_magnitude_sweep(
         sequence_dir = synthetic_sequence(out / "scene", seed, quick)
     split = split_halves(sequence_dir)
     config = {**DEFAULT_CONFIG, **(QUICK_TRACKER_CONFIG if quick else {})}
-    context = learn_split_context(split, config, seed, progress)
+    context = Context.from_learned(learn_split(split, config, seed, progress=progress))
     rates = (QUICK_CLUTTER_RATES, QUICK_BIRTH_RATES) if quick else (CLUTTER_RATES, BIRTH_RATES)
     notify(
         f"sweeping {len(SWEEP_VARIANTS)} x {len(rates[0])} x {len(rates[1])} configurations "
         f"on frames {split.test.first_frame}:{split.test.last_frame}"
     )
     result = magnitude_sweep(split, context, config, seed, *rates, progress=progress is not None)
-    name = split.test.info.name
-    csv_path = write_csv(out / "sweep.csv", result.rows, SWEEP_COLUMNS)
-    png_path = save_sweep_figure(result, out / "sweep.png", title=name)
-    heat_path = save_sweep_heatmaps(result, out / "sweep_mota.png", title=name)
+    files = write_sweep_files(result, out, split.test.info.name)
     md_path = out / "summary.md"
     md_path.write_text(
         summary_markdown(result, split, seed, quick, config, time.perf_counter() - start)
     )
-    return result, [csv_path, png_path, heat_path, md_path]
+    return result, [*files, md_path]
+
+
+def write_sweep_files(result: MagnitudeSweep, out: Path, name: str) -> list[Path]:
+    """Writes ``sweep.csv`` (every configuration), ``sweep.png`` and ``sweep_mota.png``.
+
+    Args:
+        result: the sweep.
+        out: the output folder.
+        name: the sequence's name (figure titles).
+
+    Returns:
+        The three files.
+    """
+    from jaxtrack.plot.experiments import save_sweep_figure, save_sweep_heatmaps
+
+    return [
+        write_csv(out / "sweep.csv", result.rows, SWEEP_COLUMNS),
+        save_sweep_figure(result, out / "sweep.png", title=name),
+        save_sweep_heatmaps(result, out / "sweep_mota.png", title=name),
+    ]
 
 
 def summary_markdown(

@@ -117,6 +117,11 @@ class Context(NamedTuple):
     clutter: Intensity
     metadata: dict[str, Any]
 
+    @classmethod
+    def from_learned(cls, learned: Any) -> Context:
+        """The context of a :class:`~jaxtrack.context.learn.LearnedContext`."""
+        return cls(learned.birth, learned.clutter, learned.metadata)
+
 
 def check_config(config: dict[str, Any]) -> str | None:
     """Why ``config`` is not a valid tracker configuration, or None when it is."""

@@ -26,9 +26,9 @@ from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, check_config, tracker_p
 from jaxtrack.io import MotSequence
 from jaxtrack.tuning.objectives import ESTIMATORS, make_objective, tuning_filter
 from jaxtrack.tuning.transforms import (
-    PARAMETERS,
-    get_path,
     parameter_space,
+    parameter_values,
+    round_significant,
     to_config,
 )
 from jaxtrack.tuning.tuner import DEFAULT_LEARNING_RATE, TuneResult, tune
@@ -154,30 +154,15 @@ def tune_sequence(
         "stop_reason": result.stop_reason,
         "filter_runs": result.filter_runs,
         "seconds": round(seconds, 1),
-        "start": _values(start, space.trainable),
-        "tuned": _values(result.params, space.trainable),
+        "start": parameter_values(start, space.trainable),
+        "tuned": parameter_values(result.params, space.trainable),
         "config": tuned_config,
         "history": {
-            "loss": _round(result.history["loss"]),
-            **{name: _round(v) for name, v in result.history["values"].items()},
+            "loss": round_significant(result.history["loss"]),
+            **{name: round_significant(v) for name, v in result.history["values"].items()},
         },
     }
     return SequenceTuning(tuned_config, result, report)
-
-
-def _values(params, names) -> dict[str, float | list[float]]:
-    out = {}
-    for name in names:
-        value = np.asarray(get_path(params, PARAMETERS[name].paths[0]), np.float64)
-        out[name] = _round(value)
-    return out
-
-
-def _round(value) -> float | list:
-    array = np.asarray(value, np.float64)
-    if array.ndim:
-        return [_round(v) for v in array]
-    return float(f"{float(array):.6g}")
 
 
 def _span(sequence: MotSequence) -> str:

@@ -40,43 +40,37 @@ class Tunable(NamedTuple):
         paths: dotted leaf paths in :class:`~jaxtrack.filters.phd.PHDParams` that it sets
             (all to the same value).
         transform: ``"log"`` (positive values) or ``"logit"`` (probabilities).
-        config_key: the key of the tracker configuration
-            (:data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG`) that carries it, or None.
         description: what it is, in words.
     """
 
     paths: tuple[str, ...]
     transform: Literal["log", "logit"]
-    config_key: str | None
     description: str
 
 
-#: The tunable parameters, by name.
+#: The tunable parameters, by name; each name is also the key of the tracker configuration
+#: (:data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG`) that carries it.
 PARAMETERS: dict[str, Tunable] = {
     "clutter_rate": Tunable(
         ("clutter_intensity.magnitude",),
         "log",
-        "clutter_rate",
         "lambda_r, expected false detections per frame",
     ),
     "birth_rate": Tunable(
         ("birth_intensity.magnitude", "initial_intensity.magnitude"),
         "log",
-        "birth_rate",
         "lambda_s, expected births per frame (also the first frame's initial intensity)",
     ),
-    "detection_prob": Tunable(("detection_prob",), "logit", "detection_prob", "pD = 1 - pM"),
-    "survival_prob": Tunable(("survival_prob",), "logit", "survival_prob", "e(x), a constant"),
+    "detection_prob": Tunable(("detection_prob",), "logit", "pD = 1 - pM"),
+    "survival_prob": Tunable(("survival_prob",), "logit", "e(x), a constant"),
     "motion_noise_std": Tunable(
         ("motion_noise_std",),
         "log",
-        "motion_noise_std",
         "SDV dynamics noise (sigma_n1, sigma_n2, nw, nh)",
     ),
     "measurement_noise_std": Tunable(
         ("measurement_noise_std",),
         "log",
-        "measurement_noise_std",
         "SDV likelihood noise (s_1, s_2, s_w, s_h)",
     ),
 }
@@ -197,15 +191,21 @@ def to_config(params: PHDParams, config: Mapping[str, Any] | None = None) -> dic
         config: configuration overrides to keep (e.g. ``num_particles``); may be None.
 
     Returns:
-        ``config`` with every parameter that has a ``config_key`` (all of
-        :data:`PARAMETERS`: rates, probabilities, noise scales as lists) set from ``params``,
-        rounded to 6 significant digits: a JSON object that ``jaxtrack track --config``
-        accepts.
+        ``config`` with every parameter of :data:`PARAMETERS` (rates, probabilities, noise
+        scales as lists) set from ``params`` (:func:`parameter_values`): a JSON object that
+        ``jaxtrack track --config`` accepts.
     """
-    result = dict(config or {})
-    for spec in PARAMETERS.values():
-        if spec.config_key is not None:
-            value = np.asarray(get_path(params, spec.paths[0]), np.float64)
-            rounded = [float(f"{v:.6g}") for v in value.ravel()]
-            result[spec.config_key] = rounded[0] if value.ndim == 0 else rounded
-    return result
+    return {**(config or {}), **parameter_values(params, tuple(PARAMETERS))}
+
+
+def parameter_values(params: PHDParams, names: tuple[str, ...]) -> dict[str, float | list]:
+    """The named parameters' values in ``params``, rounded for JSON (:func:`round_significant`)."""
+    return {name: round_significant(get_path(params, PARAMETERS[name].paths[0])) for name in names}
+
+
+def round_significant(value: Any) -> float | list:
+    """A scalar or array as floats (nested lists) rounded to 6 significant digits."""
+    array = np.asarray(value, np.float64)
+    if array.ndim:
+        return [round_significant(v) for v in array]
+    return float(f"{float(array):.6g}")
