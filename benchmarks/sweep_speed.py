@@ -42,6 +42,7 @@ from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
+from jaxtrack.sweep import sweep  # noqa: E402
 
 from jaxtrack.association.offline import finalise_tracks  # noqa: E402
 from jaxtrack.experiments.common import learn_split, split_halves  # noqa: E402
@@ -55,7 +56,6 @@ from jaxtrack.filters.base import run  # noqa: E402
 from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, Context, build_filter  # noqa: E402
 from jaxtrack.io import MotTable  # noqa: E402
 from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
-from jaxtrack.sweep import sweep  # noqa: E402
 
 DEFAULT_SEQUENCE = Path(__file__).resolve().parents[1].parent / "shared/data/mot15/PETS09-S2L1"
 

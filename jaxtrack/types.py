@@ -12,6 +12,7 @@ Dimension names used in annotations: ``num_frames``, ``max_detections``, ``max_o
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 from jaxtyping import Array, Bool, Float, Int
@@ -65,3 +66,22 @@ class Tracks(NamedTuple):
     ids: Int[Array, "num_frames max_objects"]
     scores: Float[Array, "num_frames max_objects"]
     mask: Bool[Array, "num_frames max_objects"]
+
+
+@dataclasses.dataclass(frozen=True)
+class SequenceInfo:
+    """The ``[Sequence]`` section of ``seqinfo.ini``.
+
+    Attributes:
+        name: sequence name.
+        seq_length: number of frames; frames are numbered ``1..seq_length``.
+        im_width: image width in pixels.
+        im_height: image height in pixels.
+        frame_rate: frames per second, or None when not given.
+    """
+
+    name: str
+    seq_length: int
+    im_width: int
+    im_height: int
+    frame_rate: float | None = None

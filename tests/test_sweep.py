@@ -11,14 +11,6 @@ import textwrap
 import jax
 import numpy as np
 import pytest
-
-from jaxtrack.association.offline import finalise_tracks, track_rows
-from jaxtrack.errors import InputError
-from jaxtrack.filters.base import run
-from jaxtrack.filters.phd import phd_filter
-from jaxtrack.filters.phd_tracker import tracker_params
-from jaxtrack.io import MotTable, load_sequence
-from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.sweep import (
     BIRTH_MAGNITUDE,
     CLUTTER_MAGNITUDE,
@@ -29,6 +21,14 @@ from jaxtrack.sweep import (
     product_grid,
     sweep,
 )
+
+from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import run
+from jaxtrack.filters.phd import phd_filter
+from jaxtrack.filters.phd_tracker import tracker_params
+from jaxtrack.io import MotTable, load_sequence
+from jaxtrack.metrics.evaluate import evaluate_sequence
 
 FRAMES = (11, 40)
 CLUTTER_RATES = np.array([0.3, 3.0], np.float32)

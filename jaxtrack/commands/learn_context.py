@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--video {args.video}: not found")
 
     from jaxtrack.context.io import save_context
-    from jaxtrack.context.learn import learn_context
+    from jaxtrack.pipelines.context import learn_context
 
     start = time.perf_counter()
     # steps: loading, (tracking,) collecting events, birth density, clutter density, (plots)

@@ -7,11 +7,15 @@ one compile for all of them)
 
 The default configuration (uniform birth and clutter intensities, UM) is the same for every
 sequence; image size and frame rate come from each ``seqinfo.ini``. ``--config FILE.json``
-overrides it with the keys ``num_particles``, ``births_per_detection``, ``extraction``
-("partition" or "gmm"), ``birth_rate`` and ``clutter_rate`` (the uniform magnitudes, per
-frame), ``output`` ("offline": confirmed tracks over their whole life, gaps of up to
-``max_gap`` frames interpolated; "online": the filter's frame-by-frame output) and
-``max_gap``.
+is a tracker configuration: a JSON object whose keys override the defaults of the chosen
+tracker (``jaxtrack.filters.phd_tracker.PHDConfig``: ``num_particles``,
+``births_per_detection``, ``extraction`` ("partition" or "gmm"), ``birth_rate`` (lambda_s,
+births per frame), ``initial_rate`` (the first frame's uniform birth magnitude),
+``clutter_rate`` (lambda_r), ``detection_prob``, ``survival_prob``, ``motion_noise_std``,
+``measurement_noise_std``, ``output`` ("offline": confirmed tracks over their whole life,
+gaps of up to ``max_gap`` frames interpolated; "online": the filter's frame-by-frame
+output) and ``max_gap``). Unknown keys, wrong types and out-of-range values are errors
+naming the key.
 
 ``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``
 picks the parts (PHD-context Sec. V): GM (default) learned birth and clutter; A1 learned birth
@@ -23,8 +27,8 @@ GM (learn the context with ``--birth-from gt``).
 constant-velocity Kalman filters, gating, optimal assignment, M-of-N confirmation, no clutter
 model; ``jaxtrack.filters.kalman``) with ``--preset default`` (Mahalanobis gate) or
 ``--preset sort`` (SORT's defaults: IoU gate 0.3, 3 hits to confirm, deleted after one missed
-frame). ``--config`` then only takes ``output`` and ``max_gap``; ``--context`` and
-``--figure`` are for the PHD tracker.
+frame). Its configuration (``KalmanConfig``) takes ``preset``, ``output`` and ``max_gap``;
+``--context`` and ``--figure`` are for the PHD tracker.
 
 The configuration used (the tracker included) is written beside the results as
 ``<RES>.config.json``.
@@ -37,15 +41,17 @@ import json
 import time
 from pathlib import Path
 
-from jaxtrack.errors import FileFormatError, InputError
+import jax
+
+from jaxtrack.configs import TrackerConfig, load_config_file
+from jaxtrack.errors import InputError
 from jaxtrack.filters.kalman import KALMAN_PRESETS
-from jaxtrack.filters.phd_tracker import (
-    DEFAULT_CONFIG,
-    KALMAN_CONFIG_KEYS,
-    TRACKERS,
-    VARIANTS,
-    check_config,
-)
+from jaxtrack.filters.phd_tracker import VARIANTS
+from jaxtrack.filters.registry import TRACKERS, build_tracker, tracker_entry
+from jaxtrack.io import load_sequence, write_results
+from jaxtrack.io.video import VideoReader, find_frame_source
+from jaxtrack.pipelines.tracking import load_tracker_context, track_sequences, tracker_description
+from jaxtrack.plot.tracks import phd_frame_figure
 
 
 def add_context_arguments(parser: argparse.ArgumentParser, variants_doc: str) -> None:
@@ -100,66 +106,43 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def load_config(path: str | None) -> dict:
-    """The default configuration updated by the JSON file at ``path`` (if any).
+def load_config(path: str | None, tracker: str = "phd") -> TrackerConfig:
+    """The configuration of ``tracker``: its defaults, or the JSON file at ``path``.
 
     Raises:
-        FileFormatError: the file is missing, not a JSON object, or has an unknown key or a
-            value of the wrong type.
+        InputError: an unknown tracker; FileFormatError: a missing or bad file, an unknown
+            key or a bad value (named).
     """
-    config = dict(DEFAULT_CONFIG)
-    if path is None:
-        return config
-    file = Path(path)
-    if not file.is_file():
-        raise FileFormatError(file, None, "file not found")
-    try:
-        overrides = json.loads(file.read_text())
-    except json.JSONDecodeError as err:
-        raise FileFormatError(file, err.lineno, f"not valid JSON ({err.msg})") from None
-    if not isinstance(overrides, dict):
-        raise FileFormatError(file, None, "must hold a JSON object")
-    reason = check_config(overrides)
-    if reason is not None:
-        raise FileFormatError(file, None, reason)
-    for key, value in overrides.items():
-        config[key] = float(value) if isinstance(DEFAULT_CONFIG[key], float) else value
-    return config
+    config_type = tracker_entry(tracker).config_type
+    return config_type() if path is None else load_config_file(path, config_type)
 
 
 def track_sequence(
     sequence_dir,
     out_path,
-    config: dict,
+    config: TrackerConfig,
     seed: int = 0,
     frames=None,
     context_path: str | None = None,
     variant: str = "GM",
-    tracker: str = "phd",
-    preset: str = "default",
 ) -> int:
     """Tracks one sequence folder and writes MOTChallenge results; returns the row count."""
-    from jaxtrack.filters.phd_tracker import track_sequences, tracker_params
-    from jaxtrack.io import load_sequence
-
     seq = load_sequence(sequence_dir, frames=frames)
-    if tracker == "kalman":
-        (rows,) = track_sequences([seq], config, seed, tracker="kalman", preset=preset)
-        _write(out_path, rows, config, seed, seq, None, None, tracker, preset)
-        return len(rows.frames)
-    context = _load_context(context_path)
-    params = tracker_params(seq.info, config, context, variant)
+    context = load_tracker_context(context_path)
+    _, params = build_tracker(config, seq.info, context, variant)
     (rows,) = track_sequences([seq], config, seed, [params])
-    _write(out_path, rows, config, seed, seq, context_path, variant if context else "UM")
+    if not tracker_entry(config.tracker).takes_context:
+        variant = None
+    elif context is None:
+        variant = "UM"
+    _write(out_path, rows, config, seed, seq, context_path, variant)
     return len(rows.frames)
 
 
 def run(args) -> int:
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
-    config = load_config(args.config)
-    _check_tracker_options(args, config)
-    preset = args.preset or "default"
+    config = _config(args)
     if args.sequence is not None:
         start = time.perf_counter()
         count = track_sequence(
@@ -170,8 +153,6 @@ def run(args) -> int:
             args.frames,
             args.context,
             args.variant,
-            args.tracker,
-            preset,
         )
         print(f"wrote {args.out} ({count} boxes, {time.perf_counter() - start:.1f} s)")
         if args.figure:
@@ -183,31 +164,23 @@ def run(args) -> int:
     return _benchmark(args, config)
 
 
-def _check_tracker_options(args, config: dict) -> None:
-    """Refuses options that do not apply to the chosen tracker."""
-    if args.tracker != "kalman":
-        if args.preset is not None:
+def _config(args) -> TrackerConfig:
+    """The tracker configuration of the options; refuses options the tracker does not take."""
+    config = load_config(args.config, args.tracker)
+    if args.preset is not None:
+        if args.tracker != "kalman":
             raise InputError("--preset applies to --tracker kalman")
-        return
-    for option in ("context", "figure"):
-        if getattr(args, option) is not None:
-            raise InputError(f"--{option} applies to the PHD tracker, not to --tracker kalman")
-    changed = [
-        key
-        for key, value in config.items()
-        if key not in KALMAN_CONFIG_KEYS and value != DEFAULT_CONFIG[key]
-    ]
-    if changed:
-        raise InputError(
-            f"--tracker kalman uses only the configuration keys {', '.join(KALMAN_CONFIG_KEYS)}; "
-            f"{', '.join(changed)} apply to the PHD tracker"
-        )
+        config = config.replace(preset=args.preset)
+    if not tracker_entry(args.tracker).takes_context:
+        for option in ("context", "figure"):
+            if getattr(args, option) is not None:
+                raise InputError(
+                    f"--{option} applies to the PHD tracker, not to --tracker {args.tracker}"
+                )
+    return config
 
 
-def _benchmark(args, config: dict) -> int:
-    from jaxtrack.filters.phd_tracker import track_sequences
-    from jaxtrack.io import load_sequence
-
+def _benchmark(args, config: TrackerConfig) -> int:
     root = Path(args.benchmark)
     folders = (
         sorted(p for p in root.iterdir() if (p / "seqinfo.ini").is_file()) if root.is_dir() else []
@@ -218,11 +191,8 @@ def _benchmark(args, config: dict) -> int:
     out.mkdir(parents=True, exist_ok=True)
     sequences = [load_sequence(folder) for folder in folders]
     start = time.perf_counter()
-    preset = args.preset or "default"
-    results = track_sequences(
-        sequences, config, args.seed, progress=True, tracker=args.tracker, preset=preset
-    )
-    variant = "UM" if args.tracker == "phd" else None
+    results = track_sequences(sequences, config, args.seed, progress=True)
+    variant = "UM" if tracker_entry(config.tracker).takes_context else None
     for seq, rows in zip(sequences, results, strict=True):
         _write(
             out / f"{seq.path.name}.txt",
@@ -232,8 +202,6 @@ def _benchmark(args, config: dict) -> int:
             seq,
             None,
             variant,
-            args.tracker,
-            preset,
         )
     frames = sum(seq.num_frames for seq in sequences)
     print(
@@ -243,23 +211,9 @@ def _benchmark(args, config: dict) -> int:
     return 0
 
 
-def _load_context(path):
-    if path is None:
-        return None
-    from jaxtrack.context.io import load_context
-    from jaxtrack.filters.phd_tracker import Context
-
-    return Context(*load_context(path))
-
-
-def _write(
-    out_path, rows, config, seed, seq, context_path, variant, tracker="phd", preset="default"
-) -> None:
-    from jaxtrack.filters.phd_tracker import tracker_description
-    from jaxtrack.io import write_results
-
+def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
     write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.scores)
-    used = {**tracker_description(config, tracker, preset), "seed": seed}
+    used = {**tracker_description(config), "seed": seed}
     used["sequence"] = str(seq.path)
     if variant is not None:
         used["variant"] = variant
@@ -269,16 +223,8 @@ def _write(
     Path(f"{Path(out_path).with_suffix('')}.config.json").write_text(json.dumps(used, indent=2))
 
 
-def _figure(args, config: dict) -> None:
+def _figure(args, config: TrackerConfig) -> None:
     """Draws ``--figure`` (PHD-context Fig. 3) for the span tracked."""
-    import jax
-
-    from jaxtrack.filters.phd import phd_filter
-    from jaxtrack.filters.phd_tracker import tracker_params
-    from jaxtrack.io import load_sequence
-    from jaxtrack.io.video import VideoReader, find_frame_source
-    from jaxtrack.plot.tracks import phd_frame_figure
-
     seq = load_sequence(args.sequence, frames=args.frames)
     frame = args.figure_frame or (seq.first_frame + seq.last_frame) // 2
     if not seq.first_frame <= frame <= seq.last_frame:
@@ -291,13 +237,7 @@ def _figure(args, config: dict) -> None:
     if source is not None:
         with VideoReader(source) as reader:
             image = reader.read(frame)
-    context = _load_context(args.context)
-    params = tracker_params(seq.info, config, context, args.variant)
-    filt = phd_filter(
-        config["num_particles"],
-        births_per_detection=config["births_per_detection"],
-        extraction=config["extraction"],
-    )
+    filt, params = build_tracker(config, seq.info, load_tracker_context(args.context), args.variant)
     path = phd_frame_figure(
         filt,
         jax.random.PRNGKey(args.seed),

@@ -100,19 +100,24 @@ def run(args: argparse.Namespace) -> int:
     Raises:
         InputError: a bad argument, an unreadable video, detections, context or gt file.
     """
-    from jaxtrack.commands.track import _load_context, load_config
+    from jaxtrack.commands.track import load_config
     from jaxtrack.detect.pipeline import DetectorConfig, detect_video
     from jaxtrack.detect.sequence import video_info, video_sequence
-    from jaxtrack.filters.phd_tracker import track_sequences, tracker_description, tracker_params
+    from jaxtrack.filters.registry import build_tracker
     from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
     from jaxtrack.io.video import VideoReader
+    from jaxtrack.pipelines.tracking import (
+        load_tracker_context,
+        track_sequences,
+        tracker_description,
+    )
 
     if args.trail < 0:
         raise InputError("--trail must be >= 0")
     if args.overlay and not (args.context and args.annotate):
         raise InputError("--overlay needs --context and --annotate")
     config = load_config(args.config)
-    context = _load_context(args.context)
+    context = load_tracker_context(args.context)
     start = time.perf_counter()
     with VideoReader(args.video, fps=args.fps) as reader:
         info = video_info(reader)
@@ -127,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
                 write_mot_file(args.save_detections, detections)
         detect_seconds = time.perf_counter() - start
         sequence = video_sequence(args.video, detections, span, info)
-        params = tracker_params(info, config, context, args.variant)
+        _, params = build_tracker(config, info, context, args.variant)
         (rows,) = track_sequences([sequence], config, args.seed, [params], progress=True)
         elapsed = time.perf_counter() - start
         write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.scores)

@@ -22,13 +22,13 @@ Objectives:
 Parameters are optimised in an unconstrained space (log for rates and noise scales, logit
 for probabilities), adam with the loss averaged over --keys fixed PRNG keys (common random
 numbers); the result averages the last iterates. By default the clutter and birth rates are
-tuned: the ones the tracker configuration carries. --tune can add detection_prob,
-survival_prob, motion_noise_std, measurement_noise_std; their tuned values are reported in
-OUT.tuning.json but the configuration cannot carry them.
+tuned. --tune can add initial_rate, detection_prob, survival_prob, motion_noise_std,
+measurement_noise_std; every tuned value goes into the configuration written. birth_rate is
+lambda_s (births per frame after the first frame), never the first frame's initial_rate.
 
-Writes OUT (the configuration: the --config overrides plus the tuned clutter_rate and
-birth_rate) and OUT.tuning.json beside it (start and tuned values, loss history,
-settings)."""
+Writes OUT (the configuration: the --config values plus the tuned ones, as the keys that
+differ from the defaults) and OUT.tuning.json beside it (start and tuned values, loss
+history, settings)."""
 
 EPILOG = """\
 examples:
@@ -42,13 +42,13 @@ examples:
 
 def register(subparsers) -> None:
     """Adds the ``tune`` parser to the CLI's sub-parsers."""
-    from jaxtrack.tuning.objectives import ESTIMATORS
-    from jaxtrack.tuning.sequence import (
+    from jaxtrack.filters.phd_tracker import TUNABLE
+    from jaxtrack.pipelines.tuning import (
         CONFIG_TRAINABLE,
         TUNING_BIRTHS_PER_DETECTION,
         TUNING_PARTICLES,
     )
-    from jaxtrack.tuning.transforms import PARAMETERS
+    from jaxtrack.tuning.objectives import ESTIMATORS
 
     parser = subparsers.add_parser(
         "tune",
@@ -73,7 +73,7 @@ def register(subparsers) -> None:
         "--tune",
         default=",".join(CONFIG_TRAINABLE),
         metavar="NAMES",
-        help=f"comma-separated parameters to tune, of {', '.join(PARAMETERS)} "
+        help=f"comma-separated parameters to tune, of {', '.join(TUNABLE)} "
         f"(default {','.join(CONFIG_TRAINABLE)})",
     )
     parser.add_argument("--steps", type=int, default=60, help="most adam steps (default 60)")
@@ -111,9 +111,8 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from jaxtrack.commands.track import load_config
-    from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG
     from jaxtrack.io import load_sequence
-    from jaxtrack.tuning.sequence import tune_sequence
+    from jaxtrack.pipelines.tuning import tune_sequence
 
     out = Path(args.out)
     if out.suffix != ".json":
@@ -121,13 +120,12 @@ def run(args) -> int:
     if out.parent and not out.parent.is_dir():
         raise InputError(f"{out.parent}: folder not found")
     base = load_config(args.config)
-    overrides = {key: value for key, value in base.items() if value != DEFAULT_CONFIG[key]}
     names = [name.strip() for name in args.tune.split(",") if name.strip()]
     sequence = load_sequence(args.sequence, frames=args.frames)
     tuning = tune_sequence(
         sequence,
         args.objective,
-        overrides,
+        base,
         names,
         seed=args.seed,
         num_steps=args.steps,
@@ -139,7 +137,7 @@ def run(args) -> int:
         estimator=args.estimator,
         progress=True,
     )
-    out.write_text(json.dumps(tuning.config, indent=2) + "\n")
+    out.write_text(json.dumps(tuning.config.overrides(), indent=2) + "\n")
     report_path = out.with_suffix(".tuning.json")
     report_path.write_text(json.dumps(tuning.report, indent=2) + "\n")
     report = tuning.report

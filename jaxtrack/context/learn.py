@@ -1,9 +1,10 @@
 """Learning a scene's birth and clutter intensities from a training span (PHD-context Sec. IV).
 
-:func:`learn_context` is the whole pipeline behind ``jaxtrack learn-context``:
+The math of ``jaxtrack learn-context`` (the pipeline itself, which runs a tracker and reads
+files, is :func:`jaxtrack.pipelines.context.learn_context`):
 
 1. **Events** (:mod:`jaxtrack.context.samples`): birth events from the trajectories of a
-   tracker run with uniform (UM) intensities (:func:`uniform_tracker_rows`) or from the
+   tracker run with uniform (UM) intensities or from the
    ground truth; clutter events from the ground truth, from the tracker or from a file of
    interactive labels.
 2. **Densities** by recursive MAP-EM (:mod:`jaxtrack.context.map_em`) from the paper's grid
@@ -47,8 +48,6 @@ the samples, plus the final estimate after all passes.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from pathlib import Path
 from typing import NamedTuple
 
 import jax
@@ -63,19 +62,8 @@ from jaxtrack.context.map_em import (
     grid_init_birth,
     grid_init_clutter,
     map_em_learner,
-    to_intensity,
 )
-from jaxtrack.context.samples import (
-    WARMUP_FRAMES,
-    EventSamples,
-    birth_samples_from_gt,
-    birth_samples_from_tracks,
-    clutter_samples_from_gt,
-    clutter_samples_from_labels,
-    clutter_samples_from_tracks,
-)
-from jaxtrack.errors import InputError
-from jaxtrack.io.motchallenge import MotSequence, load_sequence
+from jaxtrack.context.samples import EventSamples
 
 #: Default passes over the birth events.
 BIRTH_EPOCHS = 15
@@ -301,192 +289,3 @@ def volume_mass(intensity: Intensity, key: jax.Array, num_samples: int = 100_000
     inside = jnp.all((draws >= intensity.lower) & (draws <= intensity.upper), axis=-1)
     mixture_mass = max(float(jnp.mean(inside)), 1.0 / num_samples)
     return uniform_weight + (1 - uniform_weight) * mixture_mass
-
-
-def uniform_tracker_rows(
-    sequence: MotSequence, seed: int = 0, num_particles: int = TRACKER_PARTICLES
-):
-    """Trajectories of the PHD tracker with uniform (UM) intensities on a sequence's span.
-
-    Each confirmed track is kept from its first estimate on
-    (:func:`~jaxtrack.association.offline.finalise_tracks`), so that its first state is
-    where the target was first picked up, not where a high-scoring detection confirmed it.
-
-    Args:
-        sequence: the loaded training span.
-        seed: PRNG seed of the run.
-        num_particles: particles of the filter.
-
-    Returns:
-        The :class:`~jaxtrack.association.offline.TrackRows`.
-    """
-    from jaxtrack.association.offline import finalise_tracks
-    from jaxtrack.filters.base import run
-    from jaxtrack.filters.phd import phd_filter
-    from jaxtrack.filters.phd_defaults import default_phd_params
-
-    info = sequence.info
-    params = default_phd_params(info.im_width, info.im_height, info.frame_rate)
-    filt = phd_filter(num_particles)
-    _, outputs = jax.jit(lambda key, p, d: run(filt, key, p, d))(
-        jax.random.PRNGKey(seed), params, sequence.detections
-    )
-    return finalise_tracks(outputs.tracks, outputs.candidates, first_frame=sequence.first_frame)
-
-
-def learn_context(
-    sequence: MotSequence | str | Path,
-    frames: tuple[int, int] | str | None = None,
-    *,
-    birth_from: str = "tracks",
-    clutter_from: str | Path = "gt",
-    seed: int = 0,
-    birth_epochs: int = BIRTH_EPOCHS,
-    clutter_epochs: int = CLUTTER_EPOCHS,
-    warmup_frames: int = WARMUP_FRAMES,
-    num_particles: int = TRACKER_PARTICLES,
-    progress: Callable[[str], None] | None = None,
-) -> LearnedContext:
-    """Learns the birth and clutter intensities of a sequence's training span.
-
-    Args:
-        sequence: a sequence folder (loaded with ``frames``) or a loaded
-            :class:`~jaxtrack.io.MotSequence` (its own span is used; ``frames`` must be None).
-        frames: the training span ``(first, last)`` or ``"A:B"``; default: all frames.
-        birth_from: ``"tracks"`` (a UM tracker run, the paper's source) or ``"gt"``.
-        clutter_from: ``"gt"``, ``"tracks"``, or the path of a clutter labels file
-            (:mod:`jaxtrack.context.clutter_labels`).
-        seed: seeds the tracker run and the order in which samples are learned.
-        birth_epochs: passes over the birth events.
-        clutter_epochs: passes over the clutter events.
-        warmup_frames: trajectories starting in the span's first frames are not births
-            (:func:`~jaxtrack.context.samples.birth_samples`).
-        num_particles: particles of the UM tracker run.
-        progress: called with a short description before each long step.
-
-    Returns:
-        The :class:`LearnedContext`.
-
-    Raises:
-        InputError: an unknown source, ground truth asked for but missing, a span too short
-            for the warm-up, no birth or clutter events, or a bad span or labels file.
-    """
-    notify = progress or (lambda _: None)
-    if birth_from not in ("tracks", "gt"):
-        raise InputError(f"birth source must be 'tracks' or 'gt', got {birth_from!r}")
-    if isinstance(sequence, MotSequence):
-        if frames is not None:
-            raise InputError("give frames only with a sequence folder, not a loaded sequence")
-    else:
-        notify("loading sequence")
-        sequence = load_sequence(sequence, frames=frames)
-    span = (sequence.first_frame, sequence.last_frame)
-    labels_path = None if str(clutter_from) in ("gt", "tracks") else Path(clutter_from)
-    uses_gt = birth_from == "gt" or str(clutter_from) == "gt"
-    if uses_gt and sequence.gt_table is None:
-        raise InputError(
-            f"{sequence.path}: no ground truth (gt/gt.txt) but it was asked for as a source; "
-            "use --birth-from tracks and --clutter-from tracks or a labels file"
-        )
-    if warmup_frames >= sequence.num_frames:
-        raise InputError(
-            f"training span {span[0]}:{span[1]} has {sequence.num_frames} frames, not more "
-            f"than the {warmup_frames} warm-up frames"
-        )
-
-    clutter = None
-    if labels_path is not None:  # read before the tracker runs: fail early on a bad file
-        from jaxtrack.context.clutter_labels import load_clutter_labels
-
-        clutter = clutter_samples_from_labels(
-            load_clutter_labels(labels_path), span, str(labels_path)
-        )
-        if clutter.num_frames == 0:
-            raise InputError(
-                f"{labels_path}: no labelled frame inside the span {span[0]}:{span[1]}"
-            )
-
-    rows = None
-    if birth_from == "tracks" or str(clutter_from) == "tracks":
-        notify(f"tracking frames {span[0]}:{span[1]} with uniform intensities")
-        rows = uniform_tracker_rows(sequence, seed, num_particles)
-
-    notify("collecting events")
-    if birth_from == "gt":
-        births = birth_samples_from_gt(sequence.gt_table, span, warmup_frames=warmup_frames)
-    else:
-        births = birth_samples_from_tracks(rows, span, warmup_frames=warmup_frames)
-    if str(clutter_from) == "gt":
-        clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
-    elif str(clutter_from) == "tracks":
-        clutter = clutter_samples_from_tracks(sequence.det_table, rows, span)
-    for name, events in (("birth", births), ("clutter", clutter)):
-        if events.count == 0:
-            raise InputError(
-                f"no {name} events from {events.source} in frames {span[0]}:{span[1]}; "
-                "use a longer training span or another source"
-            )
-
-    uniform_birth, uniform_clutter = uniform_volumes(
-        sequence.info.im_width, sequence.info.im_height, sequence.info.frame_rate
-    )
-    key_birth, key_clutter = jax.random.split(jax.random.PRNGKey(seed))
-    notify(f"learning birth density ({births.count} events, {birth_epochs} passes)")
-    birth_state, birth_snapshots = learn_density(
-        birth_grid(uniform_birth, _mean_size(births.values[:, 4:6])),
-        births.values,
-        birth_epochs,
-        key_birth,
-    )
-    notify(f"learning clutter density ({clutter.count} events, {clutter_epochs} passes)")
-    clutter_state, clutter_snapshots = learn_density(
-        clutter_grid(uniform_clutter, _mean_size(clutter.values[:, 2:4])),
-        clutter.values,
-        clutter_epochs,
-        key_clutter,
-    )
-    key_birth_mass, key_clutter_mass = jax.random.split(jax.random.fold_in(key_birth, 1))
-    birth_mass = volume_mass(to_intensity(birth_state, 1.0), key_birth_mass)
-    clutter_mass = volume_mass(to_intensity(clutter_state, 1.0), key_clutter_mass)
-    birth = live_components(to_intensity(birth_state, births.magnitude / birth_mass))
-    clutter_intensity = live_components(
-        to_intensity(clutter_state, clutter.magnitude / clutter_mass)
-    )
-    metadata = {
-        "sequence": str(sequence.path),
-        "sequence_name": sequence.info.name,
-        "frames": list(span),
-        "seed": seed,
-        "birth": _summary(births, birth_state, birth_epochs, birth_mass),
-        "clutter": _summary(clutter, clutter_state, clutter_epochs, clutter_mass),
-        "warmup_frames": warmup_frames,
-    }
-    return LearnedContext(
-        birth=birth,
-        clutter=clutter_intensity,
-        metadata=metadata,
-        birth_samples=births,
-        clutter_samples=clutter,
-        birth_snapshots=birth_snapshots,
-        clutter_snapshots=clutter_snapshots,
-    )
-
-
-def _mean_size(sizes: np.ndarray) -> tuple[float, float]:
-    """Mean ``(w, h)`` of the events' boxes."""
-    mean = np.mean(sizes, axis=0)
-    return float(mean[0]), float(mean[1])
-
-
-def _summary(events: EventSamples, state: MixtureState, epochs: int, mass: float) -> dict:
-    """Metadata of one learned density."""
-    return {
-        "source": events.source,
-        "num_events": events.count,
-        "num_frames": events.num_frames,
-        "magnitude": events.magnitude,
-        "volume_mass": mass,
-        "epochs": epochs,
-        "components_alive": int(np.sum(np.asarray(state.alive))),
-        "uniform_weight": float(state.uniform_weight),
-    }

@@ -6,7 +6,7 @@ of a UM tracker run (the paper's source) and, for A6, from the ground truth (the
 manually labelled births); clutter events from the ground truth in both (the toolkit's
 stand-in for the paper's interactive labels). Every variant of
 :data:`~jaxtrack.filters.phd_tracker.VARIANTS` then tracks the test span with the same seed
-(:func:`~jaxtrack.filters.phd_tracker.tracker_params`; A6 = GM with the second context) and
+(:func:`~jaxtrack.filters.phd_tracker.phd_params`; A6 = GM with the second context) and
 is scored; each score's difference with respect to UM is given in percent,
 ``100 (s - s_UM) / |s_UM|`` (:func:`~jaxtrack.experiments.common.percent_difference`).
 """
@@ -33,14 +33,9 @@ from jaxtrack.experiments.common import (
     synthetic_sequence,
     write_csv,
 )
-from jaxtrack.filters.phd_tracker import (
-    DEFAULT_CONFIG,
-    VARIANTS,
-    Context,
-    track_sequences,
-    tracker_params,
-)
-from jaxtrack.sweep import common_shapes
+from jaxtrack.filters.phd_tracker import VARIANTS, Context, PHDConfig, phd_params
+from jaxtrack.pipelines.sweep import common_shapes
+from jaxtrack.pipelines.tracking import track_sequences
 
 #: What each variant uses (PHD-context Sec. V), for tables and summaries.
 VARIANT_DESCRIPTIONS = {
@@ -79,7 +74,7 @@ class AblationResult(NamedTuple):
 
 def ablation_table(
     split: Split,
-    config: dict[str, Any] | None = None,
+    config: PHDConfig | None = None,
     seed: int = 0,
     progress: Callable[[str], None] | None = None,
 ) -> AblationResult:
@@ -87,7 +82,7 @@ def ablation_table(
 
     Args:
         split: the training and test spans of a sequence with ground truth.
-        config: overrides of :data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG` (its
+        config: the tracker configuration (default ``PHDConfig()``) (its
             ``num_particles`` also sets the particles of the UM run that yields birth events).
         seed: seeds the learning (tracker run, sample order) and the tracking.
         progress: called with a short description before each long step.
@@ -99,7 +94,7 @@ def ablation_table(
         InputError: no birth or clutter events on the training span, or a bad configuration.
     """
     notify = progress or (lambda _: None)
-    config = {**DEFAULT_CONFIG, **(config or {})}
+    config = config or PHDConfig()
     contexts = {}
     for source in ("tracks", "gt"):
         notify(f"learning context (births from {source})")
@@ -107,9 +102,9 @@ def ablation_table(
     info = split.test.info
     params = common_shapes(
         [
-            tracker_params(info, config, None)
+            phd_params(config, info)
             if name == "UM"
-            else tracker_params(info, config, contexts["gt" if name == "A6" else "tracks"], name)
+            else phd_params(config, info, contexts["gt" if name == "A6" else "tracks"], name)
             for name in VARIANTS
         ]
     )
@@ -174,7 +169,7 @@ def run_ablation(
     if sequence_dir is None:
         sequence_dir = synthetic_sequence(out / "scene", seed, quick)
     split = split_halves(sequence_dir)
-    config = {**DEFAULT_CONFIG, **(QUICK_TRACKER_CONFIG if quick else {})}
+    config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
     result = ablation_table(split, config, seed, progress)
     name = split.test.info.name
     csv_path = write_csv(out / "ablation.csv", result.rows, ABLATION_COLUMNS)
@@ -186,7 +181,7 @@ def run_ablation(
         f"Sequence `{split.test.path}`: context learned on frames "
         f"{split.train.first_frame}:{split.train.last_frame}, every variant tracks frames "
         f"{split.test.first_frame}:{split.test.last_frame} (seed {seed}"
-        f"{', quick run' if quick else ''}; {config['num_particles']} particles). "
+        f"{', quick run' if quick else ''}; {config.num_particles} particles). "
         "Scores in %, CLEAR MOT MOTA/MOTP, VACE MODA/MODP (pooled), IDF1, HOTA; "
         "`*_diff_pct` = 100 (score - UM) / |UM|.\n",
         markdown_table(result.rows, ABLATION_COLUMNS),

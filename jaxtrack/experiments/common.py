@@ -32,6 +32,7 @@ from jaxtrack.association.offline import TrackRows
 from jaxtrack.context.samples import WARMUP_FRAMES
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.errors import InputError
+from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import MotSequence, MotTable, load_sequence
 from jaxtrack.io.motchallenge import read_seqinfo
 from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
@@ -45,7 +46,7 @@ COUNT_KEYS = ("FP", "FN", "IDSW")
 #: training half still holds birth events.
 QUICK_SCENE = SceneConfig(num_frames=120, burn_in_frames=40, birth_rate=0.15)
 #: Tracker configuration overrides of ``--quick`` runs (few particles).
-QUICK_TRACKER_CONFIG = {"num_particles": 256, "births_per_detection": 8}
+QUICK_TRACKER_CONFIG = PHDConfig(num_particles=256, births_per_detection=8)
 #: The shortest training span: the birth events' warm-up plus as many frames again.
 MIN_TRAIN_FRAMES = 2 * WARMUP_FRAMES
 
@@ -128,7 +129,7 @@ def split_halves(sequence_dir: str | Path) -> Split:
 
 def learn_split(
     split: Split,
-    config: dict,
+    config: PHDConfig,
     seed: int = 0,
     birth_from: str = "tracks",
     progress: Callable[[str], None] | None = None,
@@ -149,14 +150,14 @@ def learn_split(
     Raises:
         InputError: no birth or clutter events on the training span.
     """
-    from jaxtrack.context.learn import learn_context
+    from jaxtrack.pipelines.context import learn_context
 
     return learn_context(
         split.train,
         birth_from=birth_from,
         clutter_from="gt",
         seed=seed,
-        num_particles=config["num_particles"],
+        num_particles=config.num_particles,
         progress=progress,
     )
 

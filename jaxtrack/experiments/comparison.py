@@ -39,14 +39,11 @@ from jaxtrack.experiments.common import (
     synthetic_sequence,
     write_csv,
 )
-from jaxtrack.filters.phd_tracker import (
-    DEFAULT_CONFIG,
-    Context,
-    track_sequences,
-    tracker_params,
-)
+from jaxtrack.filters.kalman_tracker import KalmanConfig
+from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_params
 from jaxtrack.metrics.evaluate import combine_sequences
-from jaxtrack.sweep import common_shapes
+from jaxtrack.pipelines.sweep import common_shapes
+from jaxtrack.pipelines.tracking import track_sequences
 
 #: The compared trackers: name -> (``track_sequences`` tracker, Kalman preset or variant).
 TRACKERS = {
@@ -68,7 +65,7 @@ COMPARISON_COLUMNS = ("sequence", "tracker", *SCORE_KEYS, *COUNT_KEYS, "context"
 
 def comparison_table(
     splits: Sequence[Split],
-    config: dict[str, Any] | None = None,
+    config: PHDConfig | None = None,
     seed: int = 0,
     combined_name: str | None = None,
     progress: bool = False,
@@ -77,7 +74,7 @@ def comparison_table(
 
     Args:
         splits: the sequences' training and test spans (with ground truth).
-        config: overrides of :data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG` (its
+        config: the tracker configuration (default ``PHDConfig()``) (its
             ``num_particles`` also sets the particles of the UM run that yields birth
             events; the Kalman trackers use only its ``output`` and ``max_gap``).
         seed: seeds the learning and every tracker.
@@ -94,12 +91,12 @@ def comparison_table(
     """
     if not splits:
         raise InputError("no sequences to compare trackers on")
-    config = {**DEFAULT_CONFIG, **(config or {})}
+    config = config or PHDConfig()
     contexts, notes = _learn_contexts(splits, config, seed, progress)
     tests = [split.test for split in splits]
-    uniform = [tracker_params(test.info, config) for test in tests]
+    uniform = [phd_params(config, test.info) for test in tests]
     learned = [
-        tracker_params(test.info, config, context, "GM") if context is not None else params
+        phd_params(config, test.info, context, "GM") if context is not None else params
         for test, context, params in zip(tests, contexts, uniform, strict=True)
     ]
     params = common_shapes(learned + uniform)
@@ -107,12 +104,10 @@ def comparison_table(
         "PHD-GM": track_sequences(tests, config, seed, params[: len(tests)], progress),
         "PHD-UM": track_sequences(tests, config, seed, params[len(tests) :], progress),
     }
-    kalman_config = {key: config[key] for key in ("output", "max_gap")}
     for name, (tracker, preset) in TRACKERS.items():
         if tracker == "kalman":
-            results[name] = track_sequences(
-                tests, kalman_config, seed, tracker="kalman", preset=preset, progress=progress
-            )
+            kalman = KalmanConfig(preset=preset, output=config.output, max_gap=config.max_gap)
+            results[name] = track_sequences(tests, kalman, seed, progress=progress)
     rows = []
     evaluations: dict[str, list] = {name: [] for name in TRACKERS}
     for index, test in enumerate(tests):
@@ -129,7 +124,7 @@ def comparison_table(
 
 
 def _learn_contexts(
-    splits: Sequence[Split], config: dict[str, Any], seed: int, progress: bool
+    splits: Sequence[Split], config: PHDConfig, seed: int, progress: bool
 ) -> tuple[list[Context | None], list[str]]:
     """GM contexts of the training halves, None (with the reason) where none can be learned."""
     items = splits
@@ -189,7 +184,7 @@ def run_comparison(
     out = output_folder(out_dir)
     if sequence_dir is None:
         sequence_dir = synthetic_sequence(out / "scene", seed, quick)
-    config = {**DEFAULT_CONFIG, **(QUICK_TRACKER_CONFIG if quick else {})}
+    config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
     rows = comparison_table([split_halves(sequence_dir)], config, seed, progress=True)
     root_note = ""
     if mot_root is not None:
@@ -214,7 +209,7 @@ def run_comparison(
         "# Tracker comparison (PHD-context Fig. 16)\n",
         f"On `{sequence_dir}`{root_note}: context learned on the first half of each sequence, "
         f"every tracker scored on the second half, same detections (seed {seed}"
-        f"{', quick run' if quick else ''}; PHD with {config['num_particles']} particles). "
+        f"{', quick run' if quick else ''}; PHD with {config.num_particles} particles). "
         "Scores in %, CLEAR MOT MOTA/MOTP, VACE MODA/MODP (pooled), IDF1, HOTA.\n",
         markdown_table(rows, COMPARISON_COLUMNS[:-1]),
         "Trackers:\n",

@@ -44,13 +44,9 @@ from jaxtrack.experiments.magnitudes import (
     variant_params,
     write_sweep_files,
 )
-from jaxtrack.filters.phd_tracker import (
-    DEFAULT_CONFIG,
-    Context,
-    build_filter,
-    track_sequences,
-)
+from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of
 from jaxtrack.io.motchallenge import write_results
+from jaxtrack.pipelines.tracking import track_sequences
 
 #: The demo's magnitude grid: ``lambda_r`` (false detections / frame) x ``lambda_s``
 #: (births / frame), log-spaced.
@@ -118,7 +114,7 @@ def run_demo(
     scene_dir = synthetic_sequence(out / "scene", seed, quick)
     split = split_halves(scene_dir)
     info = split.test.info
-    config = {**DEFAULT_CONFIG, **(QUICK_TRACKER_CONFIG if quick else {})}
+    config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
     lap("simulate")
 
     notify(f"learning context on frames {split.train.first_frame}:{split.train.last_frame}")
@@ -150,7 +146,7 @@ def run_demo(
     frame_index = split.test.num_frames // 2
     files.append(
         phd_frame_figure(
-            build_filter(config),
+            phd_filter_of(config),
             jax.random.PRNGKey(seed),
             params[1],
             split.test.detections,
@@ -175,7 +171,7 @@ def demo_markdown(
     split,
     seed: int,
     quick: bool,
-    config: dict[str, Any],
+    config: PHDConfig,
     seconds: dict[str, float],
 ) -> str:
     """The demo's ``summary.md`` (also printed by ``jaxtrack demo``)."""
@@ -189,8 +185,8 @@ def demo_markdown(
         f"clutter detections (lambda_r {meta['clutter']['magnitude']:.3f}/frame, "
         f"{meta['clutter']['components_alive']} Gaussians). Frames "
         f"{split.test.first_frame}:{split.test.last_frame} tracked with "
-        f"{config['num_particles']} particles, configured magnitudes lambda_r "
-        f"{config['clutter_rate']}, lambda_s {config['birth_rate']} (scores in %):\n",
+        f"{config.num_particles} particles, configured magnitudes lambda_r "
+        f"{config.clutter_rate}, lambda_s {config.birth_rate} (scores in %):\n",
         markdown_table(rows, RESULT_COLUMNS),
         f"Magnitude sweep ({len(sweep.clutter_rates)} x {len(sweep.birth_rates)} grid, one "
         f"vmapped call): best MOTA UM {head['best']['UM']['MOTA']:.1f}, GM "

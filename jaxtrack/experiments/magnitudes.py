@@ -36,8 +36,8 @@ from jaxtrack.experiments.common import (
     synthetic_sequence,
     write_csv,
 )
-from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, Context, build_filter, tracker_params
-from jaxtrack.sweep import batch_params, common_shapes, magnitude_grid, sweep
+from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of, phd_params
+from jaxtrack.pipelines.sweep import batch_params, common_shapes, magnitude_grid, sweep
 
 #: Clutter magnitudes ``lambda_r`` of the default grid (false detections per frame).
 CLUTTER_RATES = np.logspace(-1.0, 1.0, 9)
@@ -92,7 +92,7 @@ class MagnitudeSweep(NamedTuple):
         }
 
 
-def variant_params(info, config: dict[str, Any], context: Context) -> list[Any]:
+def variant_params(info, config: PHDConfig, context: Context) -> list[Any]:
     """UM's and GM's tracker parameters for a sequence, padded to one PyTree shape.
 
     Args:
@@ -104,9 +104,7 @@ def variant_params(info, config: dict[str, Any], context: Context) -> list[Any]:
         ``[UM, GM]`` :class:`~jaxtrack.filters.phd.PHDParams`, stackable into one batch
         (:func:`~jaxtrack.sweep.common_shapes`).
     """
-    return common_shapes(
-        [tracker_params(info, config, None), tracker_params(info, config, context, "GM")]
-    )
+    return common_shapes([phd_params(config, info), phd_params(config, info, context, "GM")])
 
 
 def magnitude_batch(params: list[Any], clutter_rates: np.ndarray, birth_rates: np.ndarray):
@@ -130,7 +128,7 @@ def magnitude_batch(params: list[Any], clutter_rates: np.ndarray, birth_rates: n
 def magnitude_sweep(
     split: Split,
     context: Context,
-    config: dict[str, Any] | None = None,
+    config: PHDConfig | None = None,
     seed: int = 0,
     clutter_rates: np.ndarray = CLUTTER_RATES,
     birth_rates: np.ndarray = BIRTH_RATES,
@@ -143,7 +141,7 @@ def magnitude_sweep(
         split: the training and test spans (the test span needs ground truth).
         context: the context learned on ``split.train``
             (:func:`~jaxtrack.experiments.common.learn_split`).
-        config: overrides of :data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG`.
+        config: the tracker configuration (default ``PHDConfig()``).
         seed: the tracking key, shared by every configuration.
         clutter_rates: ``lambda_r`` values, 1-D, positive.
         birth_rates: ``lambda_s`` values, 1-D, positive.
@@ -156,17 +154,17 @@ def magnitude_sweep(
     Raises:
         InputError: bad rates or configuration, or a test span without ground truth.
     """
-    config = {**DEFAULT_CONFIG, **(config or {})}
+    config = config or PHDConfig()
     params = variant_params(split.test.info, config, context)
     result = sweep(
-        build_filter(config),
+        phd_filter_of(config),
         magnitude_batch(params, clutter_rates, birth_rates),
         jax.random.key(seed),
         split.test.detections,
         ground_truth=split.test.gt_table,
         first_frame=split.test.first_frame,
-        output=config["output"],
-        max_gap=config["max_gap"],
+        output=config.output,
+        max_gap=config.max_gap,
         chunk_size=chunk_size,
         progress=progress,
     )
@@ -256,7 +254,7 @@ def run_magnitude_sweep(
     if sequence_dir is None:
         sequence_dir = synthetic_sequence(out / "scene", seed, quick)
     split = split_halves(sequence_dir)
-    config = {**DEFAULT_CONFIG, **(QUICK_TRACKER_CONFIG if quick else {})}
+    config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
     context = Context.from_learned(learn_split(split, config, seed, progress=progress))
     rates = (QUICK_CLUTTER_RATES, QUICK_BIRTH_RATES) if quick else (CLUTTER_RATES, BIRTH_RATES)
     notify(
@@ -297,7 +295,7 @@ def summary_markdown(
     split: Split,
     seed: int,
     quick: bool,
-    config: dict[str, Any],
+    config: PHDConfig,
     seconds: float,
 ) -> str:
     """The experiment's ``summary.md``: protocol, best points, GM vs UM, the figure's slices."""
@@ -319,7 +317,7 @@ def summary_markdown(
         f"{split.test.first_frame}:{split.test.last_frame} tracked for "
         f"{len(result.clutter_rates)} x {len(result.birth_rates)} magnitudes with UM and GM "
         f"in one vmapped sweep (seed {seed}{', quick run' if quick else ''}; "
-        f"{config['num_particles']} particles). Scores in %.\n",
+        f"{config.num_particles} particles). Scores in %.\n",
         "| variant | best MOTA | at lambda_r | at lambda_s | mean MOTA over the grid |",
         "|---|---|---|---|---|",
         *(

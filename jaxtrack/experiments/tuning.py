@@ -6,7 +6,7 @@ Protocol, on one sequence cut into a training and a disjoint test span:
    the training span for every ``(lambda_r, lambda_s)`` of a log-spaced grid
    (:func:`~jaxtrack.sweep.magnitude_grid`) and is scored against the ground truth; the
    configuration of the best training MOTA is kept. Cost: one tracker run per grid point.
-2. **Gradient tuning** (:func:`~jaxtrack.tuning.sequence.tune_sequence`): from mis-specified
+2. **Gradient tuning** (:func:`~jaxtrack.pipelines.tuning.tune_sequence`): from mis-specified
    magnitudes (:attr:`TuningSettings.start_clutter_rate`, ``start_birth_rate``), adam on the
    unsupervised PHD log-likelihood of the training span (no ground truth), one key per step,
    at most a quarter of the grid's number of runs. Cost: one forward and backward filter pass
@@ -41,11 +41,11 @@ from jaxtrack.experiments.common import (
     synthetic_sequence,
     write_csv,
 )
-from jaxtrack.filters.phd import phd_filter
-from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, track_sequences, tracker_params
+from jaxtrack.filters.phd_tracker import PHDConfig, phd_filter_of, phd_params
 from jaxtrack.io import load_sequence
-from jaxtrack.sweep import magnitude_grid, sweep
-from jaxtrack.tuning.sequence import CONFIG_TRAINABLE, tune_sequence
+from jaxtrack.pipelines.sweep import magnitude_grid, sweep
+from jaxtrack.pipelines.tracking import track_sequences
+from jaxtrack.pipelines.tuning import CONFIG_TRAINABLE, tune_sequence
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,7 +61,7 @@ class TuningSettings:
         learning_rate: adam's learning rate (log units).
         average_steps: the result averages the last iterates.
         tuning_particles: particles of the tuning filter.
-        tracker_config: tracker configuration overrides (grid, scores).
+        tracker_config: the tracker configuration (grid, scores).
         eval_every: test MOTA of every ``eval_every``-th iterate for the figure.
     """
 
@@ -73,7 +73,7 @@ class TuningSettings:
     learning_rate: float = 0.4
     average_steps: int = 3
     tuning_particles: int = 512
-    tracker_config: tuple[tuple[str, Any], ...] = ()
+    tracker_config: PHDConfig = dataclasses.field(default_factory=PHDConfig)
     eval_every: int = 2
 
     @property
@@ -87,7 +87,7 @@ QUICK_SETTINGS = TuningSettings(
     birth_rates=(0.01, 0.1, 1.0),
     num_steps=2,
     tuning_particles=64,
-    tracker_config=tuple(QUICK_TRACKER_CONFIG.items()),
+    tracker_config=QUICK_TRACKER_CONFIG,
     average_steps=1,
     eval_every=1,
 )
@@ -141,44 +141,37 @@ def run_tuning_experiment(
         the grid's choice and of the tuned magnitudes, their ratio, the run counts and the
         range of the training MOTA over the grid (how much the magnitudes matter).
     """
-    config = {**DEFAULT_CONFIG, **dict(settings.tracker_config)}
+    config = settings.tracker_config
     key = jax.random.key(seed)
     train, test = split.train, split.test
 
     began = time.perf_counter()
-    filt = phd_filter(
-        config["num_particles"],
-        births_per_detection=config["births_per_detection"],
-        extraction=config["extraction"],
-    )
     grid = sweep(
-        filt,
-        tracker_params(train.info, config),
+        phd_filter_of(config),
+        phd_params(config, train.info),
         key,
         train.detections,
         magnitude_grid(settings.clutter_rates, settings.birth_rates),
         ground_truth=train.gt_table,
         first_frame=train.first_frame,
-        output=config["output"],
-        max_gap=config["max_gap"],
+        output=config.output,
+        max_gap=config.max_gap,
         progress=progress,
     )
     grid_seconds = time.perf_counter() - began
     best = int(np.nanargmax(grid.scores["MOTA"]))
     grid_rates = (
-        float(grid.updates["clutter_intensity.magnitude"][best]),
-        float(grid.updates["birth_intensity.magnitude"][best]),
+        float(grid.updates["clutter_rate"][best]),
+        float(grid.updates["birth_rate"][best]),
     )
 
-    start_overrides = {
-        **dict(settings.tracker_config),
-        "clutter_rate": settings.start_clutter_rate,
-        "birth_rate": settings.start_birth_rate,
-    }
+    start_config = config.replace(
+        clutter_rate=settings.start_clutter_rate, birth_rate=settings.start_birth_rate
+    )
     tuning = tune_sequence(
         train,
         "likelihood",
-        start_overrides,
+        start_config,
         CONFIG_TRAINABLE,
         seed=seed,
         num_steps=settings.num_steps,
@@ -187,14 +180,14 @@ def run_tuning_experiment(
         patience=0,
         average_steps=settings.average_steps,
         num_particles=settings.tuning_particles,
-        births_per_detection=min(16, config["births_per_detection"]),
+        births_per_detection=min(16, config.births_per_detection),
         progress=progress,
     )
-    tuned_rates = (tuning.config["clutter_rate"], tuning.config["birth_rate"])
+    tuned_rates = (tuning.config.clutter_rate, tuning.config.birth_rate)
 
     def test_scores(rates_list):
         params = [
-            tracker_params(test.info, {**config, "clutter_rate": c, "birth_rate": b})
+            phd_params(config.replace(clutter_rate=c, birth_rate=b), test.info)
             for c, b in rates_list
         ]
         rows = track_sequences([test] * len(params), config, seed, params)
@@ -206,7 +199,7 @@ def run_tuning_experiment(
         (float(history["values"]["clutter_rate"][s]), float(history["values"]["birth_rate"][s]))
         for s in evaluated
     ]
-    default_rates = (DEFAULT_CONFIG["clutter_rate"], DEFAULT_CONFIG["birth_rate"])
+    default_rates = (PHDConfig().clutter_rate, PHDConfig().birth_rate)
     start_rates = (settings.start_clutter_rate, settings.start_birth_rate)
     scores = test_scores([default_rates, start_rates, grid_rates, tuned_rates, *step_rates])
     default_s, start_s, grid_s, tuned_s, step_s = (

@@ -1,48 +1,39 @@
-"""The PHD tracker as a tool: one configuration, learned-context variants, runs over sequences.
+"""The PHD tracker's configuration and parameters: what ``jaxtrack track`` runs.
 
-What ``jaxtrack track`` does, as library code for scripts and notebooks:
-
-* :data:`DEFAULT_CONFIG` is the documented pedestrian configuration (the same for every
-  sequence; image size and frame rate come from each ``seqinfo.ini``);
-  :func:`check_config` validates overrides.
-* :func:`tracker_params` builds the :class:`~jaxtrack.filters.phd.PHDParams` of a sequence,
+* :class:`PHDConfig` is the documented pedestrian configuration (the same for every
+  sequence; image size and frame rate come from each ``seqinfo.ini``): a frozen, validated,
+  hashable dataclass (:mod:`jaxtrack.configs`).
+* :func:`phd_params` builds the :class:`~jaxtrack.filters.phd.PHDParams` of a sequence,
   with uniform intensities (UM) or with a learned context (``jaxtrack learn-context``) in one
-  of the paper's variants (:data:`VARIANTS`: GM, A1-A6; PHD-context Sec. V). The first
-  frame's births always use the uniform birth intensity with the configured ``birth_rate``
-  (``PHDParams.initial_intensity``): a learned birth intensity says where targets enter,
-  not where the targets already in view at the start of a span are.
-* :func:`track_sequences` runs the tracker on several sequences with **one compile**: the
-  padded detections of all of them are brought to a common number of detection slots and run
-  in chunks of a fixed number of frames (:func:`~jaxtrack.filters.base.run_chunked`), so the
-  compiled chunk is reused across frames and sequences.
+  of the paper's variants (:data:`VARIANTS`: GM, A1-A6; PHD-context Sec. V).
+* :func:`build_phd` is the tracker's entry of the registry
+  (:mod:`jaxtrack.filters.registry`): ``(config, info, context, variant) -> (Filter, params)``;
+  the filter is cached on the configuration's static settings, so a setting compiles once per
+  process.
+* :func:`phd_properties` is the parameter-properties tree (:mod:`jaxtrack.parameters`) that
+  the sweep and the tuner share.
 
-``tracker="kalman"`` runs the baseline data-association tracker instead
-(:mod:`~jaxtrack.filters.kalman`, a bank of Kalman filters with gating and optimal assignment)
-with one of its presets (:data:`~jaxtrack.filters.kalman.KALMAN_PRESETS`: ``"default"``,
-``"sort"``); of the configuration it uses ``output`` and ``max_gap`` (:data:`KALMAN_CONFIG_KEYS`).
-
-Output: ``"offline"`` (default) keeps every confirmed track over its whole life, the frames
-before its confirmation included, and fills gaps of up to ``max_gap`` frames by linear
-interpolation (:func:`~jaxtrack.association.offline.finalise_tracks`); ``"online"`` writes
-what the filter outputs frame by frame.
+**Birth rate.** ``birth_rate`` is ``lambda_s``, the magnitude of the birth intensity
+``gamma`` (PHD-context eq. 19): expected births per frame from the second frame of a run on.
+The first frame uses ``PHDParams.initial_intensity``, uniform with magnitude
+``initial_rate``: a learned birth intensity says where targets *enter*, not where the
+targets already in view when a span starts are. Configuration, sweep and tuner all mean this
+(``birth_rate`` never changes ``initial_rate``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
-import math
-from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import Filter, run_chunked
-from jaxtrack.filters.kalman import KALMAN_PRESETS, KalmanParams, kalman_filter
+from jaxtrack.filters.base import Filter
 from jaxtrack.filters.phd import PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import (
     DEFAULT_DETECTION_PROB,
@@ -51,31 +42,79 @@ from jaxtrack.filters.phd_defaults import (
     DEFAULT_SURVIVAL_PROB,
     default_phd_params,
 )
-from jaxtrack.io import MotSequence, SequenceInfo
-from jaxtrack.types import PAD_BOX, Detections
+from jaxtrack.models.survival import SurvivalMap
+from jaxtrack.parameters import LOG, LOGIT, ParameterProperties, frozen_properties
+from jaxtrack.types import SequenceInfo
 
-#: The documented default configuration (one for all sequences).
-DEFAULT_CONFIG: dict[str, Any] = {
-    "num_particles": 2048,
-    "births_per_detection": 32,
-    "extraction": "partition",
-    "birth_rate": 0.2,
-    "clutter_rate": 1.0,
-    "detection_prob": DEFAULT_DETECTION_PROB,
-    "survival_prob": DEFAULT_SURVIVAL_PROB,
-    "motion_noise_std": list(DEFAULT_MOTION_NOISE_STD),
-    "measurement_noise_std": list(DEFAULT_MEASUREMENT_NOISE_STD),
-    "output": "offline",
-    "max_gap": 8,
-}
-#: Keys whose values are lists of 4 positive numbers (the SDV noise scales).
-NOISE_KEYS = ("motion_noise_std", "measurement_noise_std")
+#: Largest ``num_particles`` a configuration accepts (memory grows linearly with it).
+MAX_PARTICLES = 1 << 20
+#: Largest ``births_per_detection``.
+MAX_BIRTHS_PER_DETECTION = 1024
+#: Largest birth, initial or clutter rate (per frame).
+MAX_RATE = 1e4
+
+#: The names of the tunable parameters (:func:`phd_properties`), each a configuration key.
+TUNABLE = (
+    "clutter_rate",
+    "birth_rate",
+    "initial_rate",
+    "detection_prob",
+    "survival_prob",
+    "motion_noise_std",
+    "measurement_noise_std",
+)
+
+_RATE = {"kind": float, "lower": 0.0, "upper": MAX_RATE, "lower_open": True}
+_PROBABILITY = {"kind": float, "lower": 0.0, "upper": 1.0, "lower_open": True}
+_NOISE = {"kind": tuple, "length": 4, "lower": 0.0, "upper": 10.0, "lower_open": True}
 
 
-#: Trackers of :func:`track_sequences` (``jaxtrack track --tracker``).
-TRACKERS = ("phd", "kalman")
-#: The keys of the configuration that the Kalman tracker uses (the others are the PHD's).
-KALMAN_CONFIG_KEYS = ("output", "max_gap")
+@dataclasses.dataclass(frozen=True)
+class PHDConfig(TrackerConfig):
+    """The particle PHD tracker's configuration (``jaxtrack track --config FILE.json``)."""
+
+    tracker: ClassVar[str] = "phd"
+
+    num_particles: int = setting(
+        2048, Rule("particles kept after resampling", int, 1, MAX_PARTICLES)
+    )
+    births_per_detection: int = setting(
+        32, Rule("birth particles per detection", int, 1, MAX_BIRTHS_PER_DETECTION)
+    )
+    extraction: str = setting(
+        "partition",
+        Rule(
+            "state extraction: 'partition' (one estimate per detection) or 'gmm' (the paper's "
+            "Gaussian-mixture clustering)",
+            str,
+            choices=("partition", "gmm"),
+        ),
+    )
+    birth_rate: float = setting(
+        0.2, Rule("lambda_s, expected births per frame (birth intensity magnitude)", **_RATE)
+    )
+    initial_rate: float = setting(
+        0.2, Rule("magnitude of the first frame's uniform birth intensity", **_RATE)
+    )
+    clutter_rate: float = setting(
+        1.0, Rule("lambda_r, expected false detections per frame", **_RATE)
+    )
+    detection_prob: float = setting(
+        DEFAULT_DETECTION_PROB, Rule("pD = 1 - pM, probability of detection", **_PROBABILITY)
+    )
+    survival_prob: float = setting(
+        DEFAULT_SURVIVAL_PROB, Rule("e(x), probability of survival per frame", **_PROBABILITY)
+    )
+    motion_noise_std: tuple = setting(
+        DEFAULT_MOTION_NOISE_STD,
+        Rule("SDV dynamics noise (sigma_n1, sigma_n2, nw, nh), relative to box size", **_NOISE),
+    )
+    measurement_noise_std: tuple = setting(
+        DEFAULT_MEASUREMENT_NOISE_STD,
+        Rule("SDV likelihood noise (s_1, s_2, s_w, s_h), relative to box size", **_NOISE),
+    )
+    output: str = setting("offline", OUTPUT)
+    max_gap: int = setting(8, MAX_GAP)
 
 
 class Variant(NamedTuple):
@@ -123,60 +162,17 @@ class Context(NamedTuple):
         return cls(learned.birth, learned.clutter, learned.metadata)
 
 
-def check_config(config: dict[str, Any]) -> str | None:
-    """Why ``config`` is not a valid tracker configuration, or None when it is."""
-    for key in config:
-        if key not in DEFAULT_CONFIG:
-            return f"unknown key {key!r}; known: {', '.join(DEFAULT_CONFIG)}"
-    for key in NOISE_KEYS:
-        value = config.get(key, DEFAULT_CONFIG[key])
-        if (
-            not isinstance(value, list)
-            or len(value) != 4
-            or not all(_is_number(v) and math.isfinite(v) and v > 0 for v in value)
-        ):
-            return f"{key} must be a list of 4 positive numbers, got {value!r}"
-    for key, default in DEFAULT_CONFIG.items():
-        if key in NOISE_KEYS:
-            continue
-        value = config.get(key, default)
-        expected = type(default)
-        ok = isinstance(value, expected) or (
-            expected is float and isinstance(value, int) and not isinstance(value, bool)
-        )
-        if not ok or isinstance(value, bool):
-            return f"{key} must be a {expected.__name__}, got {value!r}"
-    merged = {**DEFAULT_CONFIG, **config}
-    if merged["extraction"] not in ("partition", "gmm"):
-        return "extraction must be 'partition' or 'gmm'"
-    if merged["output"] not in ("offline", "online"):
-        return "output must be 'offline' or 'online'"
-    for key in ("num_particles", "births_per_detection", "birth_rate", "clutter_rate"):
-        if merged[key] <= 0:
-            return f"{key} must be positive, got {merged[key]}"
-    if merged["max_gap"] < 0:
-        return f"max_gap must be >= 0, got {merged['max_gap']}"
-    for key in ("detection_prob", "survival_prob"):
-        if not 0 < merged[key] <= 1:
-            return f"{key} must be in (0, 1], got {merged[key]}"
-    return None
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def tracker_params(
+def phd_params(
+    config: PHDConfig,
     info: SequenceInfo,
-    config: dict[str, Any] | None = None,
     context: Context | None = None,
     variant: str = "GM",
 ) -> PHDParams:
     """The PHD tracker's parameters for a sequence.
 
     Args:
+        config: the configuration.
         info: the sequence's ``seqinfo.ini`` (image size, frame rate).
-        config: overrides of :data:`DEFAULT_CONFIG`.
         context: a learned context; None gives UM (uniform intensities, the configuration's
             magnitudes).
         variant: a key of :data:`VARIANTS` (used only with a context).
@@ -187,11 +183,10 @@ def tracker_params(
     Raises:
         InputError: unknown variant, or a context learned on an image of another size.
     """
-    config = {**DEFAULT_CONFIG, **(config or {})}
     if variant not in VARIANTS:
         raise InputError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
     use = VARIANTS["UM" if context is None else variant]
-    birth_rate, clutter_rate = config["birth_rate"], config["clutter_rate"]
+    birth_rate, clutter_rate = config.birth_rate, config.clutter_rate
     if context is not None:
         _check_context_size(context, info)
         if use.birth_magnitude_from_context:
@@ -201,16 +196,15 @@ def tracker_params(
     params = default_phd_params(
         info.im_width, info.im_height, info.frame_rate, birth_rate, clutter_rate
     )
-    # Targets in view on the first frame are born anywhere, at the configured uniform rate.
-    uniform = default_phd_params(
-        info.im_width, info.im_height, info.frame_rate, config["birth_rate"], clutter_rate
+    initial = default_phd_params(
+        info.im_width, info.im_height, info.frame_rate, config.initial_rate, clutter_rate
     )
     params = params._replace(
-        initial_intensity=uniform.initial_intensity,
-        detection_prob=jnp.asarray(config["detection_prob"], jnp.float32),
-        survival_prob=jnp.asarray(config["survival_prob"], jnp.float32),
-        motion_noise_std=jnp.asarray(config["motion_noise_std"], jnp.float32),
-        measurement_noise_std=jnp.asarray(config["measurement_noise_std"], jnp.float32),
+        initial_intensity=initial.initial_intensity,
+        detection_prob=jnp.asarray(config.detection_prob, jnp.float32),
+        survival_prob=jnp.asarray(config.survival_prob, jnp.float32),
+        motion_noise_std=jnp.asarray(config.motion_noise_std, jnp.float32),
+        measurement_noise_std=jnp.asarray(config.measurement_noise_std, jnp.float32),
     )
     if use.learned_birth:
         params = params._replace(birth_intensity=context.birth)
@@ -219,151 +213,60 @@ def tracker_params(
     return params
 
 
-def track_sequences(
-    sequences: Sequence[MotSequence],
-    config: dict[str, Any] | None = None,
-    seed: int = 0,
-    params: Sequence[PHDParams] | Sequence[KalmanParams] | None = None,
-    progress: bool = False,
-    chunk_frames: int = 128,
-    tracker: str = "phd",
-    preset: str = "default",
-) -> list[TrackRows]:
-    """Tracks several sequences (or spans) with one compiled run.
+def build_phd(
+    config: PHDConfig,
+    info: SequenceInfo,
+    context: Context | None = None,
+    variant: str = "GM",
+) -> tuple[Filter, PHDParams]:
+    """The PHD tracker of a configuration for a sequence: ``(filter, params)``.
 
-    Args:
-        sequences: the loaded sequences.
-        config: overrides of :data:`DEFAULT_CONFIG`.
-        seed: PRNG seed (the same key for every sequence).
-        params: one parameter PyTree per sequence: :class:`~jaxtrack.filters.phd.PHDParams`
-            (default :func:`tracker_params` with uniform intensities) or, with
-            ``tracker="kalman"``, :class:`~jaxtrack.filters.kalman.KalmanParams` (default:
-            the preset's). Parameters of different PyTree shapes (e.g. contexts with
-            different numbers of components) compile once per shape.
-        progress: show a progress bar over the sequences.
-        chunk_frames: frames per compiled call.
-        tracker: one of :data:`TRACKERS`.
-        preset: the Kalman tracker's preset (a key of
-            :data:`~jaxtrack.filters.kalman.KALMAN_PRESETS`; its assignment cost is used
-            with ``params`` too).
-
-    Returns:
-        The result rows of each sequence.
-
-    Raises:
-        InputError: a bad configuration, tracker or preset.
+    The filter depends only on the static settings (``num_particles``,
+    ``births_per_detection``, ``extraction``) and is cached on them: every caller gets the
+    same object for the same setting, so the runner's and the sweep's compiled functions
+    (cached per filter) compile once per process.
     """
-    config = {**DEFAULT_CONFIG, **(config or {})}
-    reason = check_config(config)
-    if reason is not None:
-        raise InputError(f"bad tracker configuration: {reason}")
-    filt = build_filter(config, tracker, preset)
-    if params is None:
-        if tracker == "kalman":
-            params = [KALMAN_PRESETS[preset].params() for _ in sequences]
-        else:
-            params = [tracker_params(seq.info, config) for seq in sequences]
-    capacity = max(seq.detections.mask.shape[1] for seq in sequences)
-    key = jax.random.PRNGKey(seed)
-    results = []
-    items = zip(sequences, params, strict=True)
-    if progress:
-        from tqdm import tqdm
-
-        items = tqdm(items, total=len(sequences), desc="tracking", unit="seq")
-    for seq, seq_params in items:
-        detections = pad_to(seq.detections, seq.num_frames, capacity)
-        _, info = run_chunked(filt, key, seq_params, detections, chunk_frames)
-        if config["output"] == "online":
-            results.append(track_rows(info.tracks, seq.first_frame))
-        else:
-            results.append(
-                finalise_tracks(info.tracks, info.candidates, config["max_gap"], seq.first_frame)
-            )
-    return results
+    return phd_filter_of(config), phd_params(config, info, context, variant)
 
 
-def tracker_description(
-    config: dict[str, Any], tracker: str = "phd", preset: str = "default"
-) -> dict[str, Any]:
-    """What a run used, for the ``.config.json`` beside the results.
+def phd_filter_of(config: PHDConfig) -> Filter:
+    """The (cached) filter of a configuration's static settings."""
+    return _phd_filter(config.num_particles, config.births_per_detection, config.extraction)
 
-    Args:
-        config: the full configuration (:data:`DEFAULT_CONFIG` with overrides).
-        tracker: one of :data:`TRACKERS`.
-        preset: the Kalman preset.
 
-    Returns:
-        ``{"tracker": "phd", **config}``, or for the Kalman tracker its preset, assignment
-        cost, parameters and the configuration keys it uses.
+@functools.lru_cache(maxsize=16)
+def _phd_filter(num_particles: int, births_per_detection: int, extraction: str) -> Filter:
+    return phd_filter(
+        num_particles, births_per_detection=births_per_detection, extraction=extraction
+    )
+
+
+def phd_properties(params: PHDParams) -> PHDParams:
+    """The parameter-properties tree of :class:`~jaxtrack.filters.phd.PHDParams`.
+
+    Named leaves (each name is the :class:`PHDConfig` key that carries it):
+    ``clutter_rate`` (``clutter_intensity.magnitude``, log), ``birth_rate``
+    (``birth_intensity.magnitude``, log), ``initial_rate`` (``initial_intensity.magnitude``,
+    log), ``detection_prob`` and ``survival_prob`` (logit; a survival map is not tunable) and
+    the SDV noise scales ``motion_noise_std`` and ``measurement_noise_std`` (log). All start
+    frozen; :func:`~jaxtrack.parameters.with_trainable` picks the trainable ones.
     """
-    if tracker != "kalman":
-        return {"tracker": tracker, **config}
-    chosen = KALMAN_PRESETS[preset]
-    params = {name: _json_numbers(value) for name, value in chosen.params()._asdict().items()}
-    return {
-        "tracker": "kalman",
-        "preset": preset,
-        "cost": chosen.cost,
-        **{key: config[key] for key in KALMAN_CONFIG_KEYS},
-        "params": params,
-    }
+    props = frozen_properties(params)
 
+    def named(name: str, transform) -> ParameterProperties:
+        return ParameterProperties(trainable=False, transform=transform, name=name)
 
-def _json_numbers(value) -> float | str | list:
-    """Numbers of an array for JSON: rounded to 6 decimals, ``"inf"`` for infinity."""
-    array = np.round(np.asarray(value, np.float64), 6)
-    if array.ndim:
-        return [_json_numbers(item) for item in array]
-    return float(array) if np.isfinite(array) else str(float(array))
-
-
-def build_filter(config: dict[str, Any], tracker: str = "phd", preset: str = "default") -> Filter:
-    """The filter of a tracker configuration (one object per setting: compiles are shared).
-
-    Args:
-        config: a full tracker configuration (:data:`DEFAULT_CONFIG` keys).
-        tracker: ``"phd"`` or ``"kalman"``.
-        preset: the Kalman tracker's preset (:data:`KALMAN_PRESETS`).
-
-    Raises:
-        InputError: an unknown tracker or preset.
-    """
-    if tracker == "phd":
-        return phd_filter(
-            config["num_particles"],
-            births_per_detection=config["births_per_detection"],
-            extraction=config["extraction"],
-        )
-    if tracker != "kalman":
-        raise InputError(f"unknown tracker {tracker!r}; known: {', '.join(TRACKERS)}")
-    if preset not in KALMAN_PRESETS:
-        raise InputError(f"unknown preset {preset!r}; known: {', '.join(KALMAN_PRESETS)}")
-    return _kalman_filter(KALMAN_PRESETS[preset].cost)
-
-
-@functools.lru_cache(maxsize=4)
-def _kalman_filter(cost: str) -> Filter:
-    return kalman_filter(cost=cost)
-
-
-def pad_to(detections: Detections, num_frames: int, capacity: int) -> Detections:
-    """Pads detections ``[T, D]`` with empty frames and empty slots to ``[num_frames, capacity]``.
-
-    Raises:
-        ValueError: the target shape is smaller than the detections.
-    """
-    frames, slots = detections.mask.shape
-    if num_frames < frames or capacity < slots:
-        raise ValueError(f"cannot pad [{frames}, {slots}] detections to [{num_frames}, {capacity}]")
-    extra = ((0, num_frames - frames), (0, capacity - slots))
-    boxes = np.asarray(detections.boxes)
-    padded_boxes = np.tile(np.asarray(PAD_BOX, boxes.dtype), (num_frames, capacity, 1))
-    padded_boxes[:frames, :slots] = boxes
-    return Detections(
-        boxes=padded_boxes,
-        scores=np.pad(np.asarray(detections.scores), extra),
-        mask=np.pad(np.asarray(detections.mask), extra),
+    survival = params.survival_prob
+    return props._replace(
+        clutter_intensity=props.clutter_intensity._replace(magnitude=named("clutter_rate", LOG)),
+        birth_intensity=props.birth_intensity._replace(magnitude=named("birth_rate", LOG)),
+        initial_intensity=props.initial_intensity._replace(magnitude=named("initial_rate", LOG)),
+        detection_prob=named("detection_prob", LOGIT),
+        survival_prob=props.survival_prob
+        if isinstance(survival, SurvivalMap)
+        else named("survival_prob", LOGIT),
+        motion_noise_std=named("motion_noise_std", LOG),
+        measurement_noise_std=named("measurement_noise_std", LOG),
     )
 
 

@@ -20,29 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from jaxtrack.errors import FileFormatError, InputError
-from jaxtrack.types import PAD_BOX, Detections, GroundTruth
+from jaxtrack.types import PAD_BOX, Detections, GroundTruth, SequenceInfo
 
 MIN_COLUMNS = 7
 MAX_COLUMNS = 10
-
-
-@dataclasses.dataclass(frozen=True)
-class SequenceInfo:
-    """The ``[Sequence]`` section of ``seqinfo.ini``.
-
-    Attributes:
-        name: sequence name.
-        seq_length: number of frames; frames are numbered ``1..seq_length``.
-        im_width: image width in pixels.
-        im_height: image height in pixels.
-        frame_rate: frames per second, or None when not given.
-    """
-
-    name: str
-    seq_length: int
-    im_width: int
-    im_height: int
-    frame_rate: float | None = None
 
 
 @dataclasses.dataclass(frozen=True)

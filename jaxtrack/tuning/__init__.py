@@ -20,7 +20,6 @@ from jaxtrack.tuning.objectives import (
 )
 from jaxtrack.tuning.transforms import (
     DEFAULT_TRAINABLE,
-    PARAMETERS,
     ParameterSpace,
     parameter_space,
     to_config,
@@ -30,7 +29,6 @@ from jaxtrack.tuning.tuner import TuneResult, tune
 __all__ = [
     "DEFAULT_TRAINABLE",
     "ESTIMATORS",
-    "PARAMETERS",
     "Objective",
     "ParameterSpace",
     "TuneResult",

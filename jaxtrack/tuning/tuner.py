@@ -114,7 +114,7 @@ def tune(
         raise ValueError("num_steps, num_keys, average_steps must be positive, patience >= 0")
     if objective.needs_ground_truth:
         check_ground_truth(detections, ground_truth)
-    space = space or parameter_space()
+    space = space or parameter_space(params)
     optimizer = optimizer or optax.adam(DEFAULT_LEARNING_RATE)
     detections = Detections(*(jnp.asarray(leaf) for leaf in detections))
     if ground_truth is not None:

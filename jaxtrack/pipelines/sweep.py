@@ -10,14 +10,18 @@ so the same call uses one CPU, several forced host devices
 (``XLA_FLAGS=--xla_force_host_platform_device_count=N``), several GPUs, or several hosts after
 ``jax.distributed.initialize()``. The host scores a chunk while the devices run the next.
 
-Batches are built from a base parameter PyTree and ``updates``, a mapping from dotted leaf
-paths (``"clutter_intensity.magnitude"``) to one value per configuration
-(:func:`batch_params`); :func:`product_grid` and :func:`magnitude_grid` make Cartesian grids.
+Batches are built from a base parameter PyTree and ``updates``, a mapping from parameter
+names to one value per configuration (:func:`batch_params`). The names are those of the
+tracker's parameter-properties tree (:mod:`jaxtrack.parameters`,
+:data:`~jaxtrack.filters.registry.TRACKERS`), the same names the tuner and the tracker
+configuration use (``"clutter_rate"`` is ``lambda_r``, ``"birth_rate"`` is ``lambda_s``);
+:func:`product_grid` and :func:`magnitude_grid` make Cartesian grids.
 
 Example (the lambda_r x lambda_s sweep of PHD-context Fig. 15)::
 
     updates = magnitude_grid(np.logspace(-1, 1, 9), np.logspace(-2, 0, 9))
-    result = sweep(phd_filter(2048), tracker_params(seq.info), jax.random.PRNGKey(0),
+    filt, params = build_tracker(PHDConfig(), seq.info)
+    result = sweep(filt, params, jax.random.PRNGKey(0),
                    seq.detections, updates, ground_truth=seq.gt_table,
                    first_frame=seq.first_frame)
     result.scores["MOTA"].reshape(9, 9)   # [clutter rate, birth rate]
@@ -40,20 +44,22 @@ from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, run
+from jaxtrack.filters.registry import properties_of
 from jaxtrack.io import MotTable
 from jaxtrack.metrics.evaluate import SUMMARY_KEYS, EvalConfig, evaluate_sequence
+from jaxtrack.parameters import leaf_values, replace_leaves
 from jaxtrack.types import Detections
 
-#: Leaf paths of the magnitudes ``lambda_r`` (clutter) and ``lambda_s`` (birth) in PHDParams.
-CLUTTER_MAGNITUDE = "clutter_intensity.magnitude"
-BIRTH_MAGNITUDE = "birth_intensity.magnitude"
+#: Parameter names of the magnitudes ``lambda_r`` (clutter) and ``lambda_s`` (birth).
+CLUTTER_RATE = "clutter_rate"
+BIRTH_RATE = "birth_rate"
 
 
 class SweepResult(NamedTuple):
     """Outputs of :func:`sweep`, one entry per configuration (batch order).
 
     Attributes:
-        updates: the swept values, ``{path: [batch, ...]}`` (empty when a batched PyTree was
+        updates: the swept values, ``{name: [batch, ...]}`` (empty when a batched PyTree was
             given instead of updates).
         scores: ``{name: [batch]}`` for every name of
             :data:`~jaxtrack.metrics.evaluate.SUMMARY_KEYS` (empty without ground truth).
@@ -96,20 +102,21 @@ def magnitude_grid(clutter_rates: ArrayLike, birth_rates: ArrayLike) -> dict[str
     """The ``lambda_r x lambda_s`` grid of PHD-context Fig. 15 (clutter rate slowest).
 
     Scales the clutter and birth intensities (PHD-context eq. 19-20); the densities, and
-    the first frame's ``initial_intensity``, stay as in the base parameters.
+    the first frame's ``initial_intensity`` (``initial_rate``), stay as in the base
+    parameters.
 
     Args:
         clutter_rates: ``lambda_r`` values (false detections per frame), 1-D, > 0.
         birth_rates: ``lambda_s`` values (births per frame), 1-D, > 0.
 
     Returns:
-        Updates for :data:`CLUTTER_MAGNITUDE` and :data:`BIRTH_MAGNITUDE`,
+        Updates for :data:`CLUTTER_RATE` and :data:`BIRTH_RATE`,
         ``len(clutter_rates) * len(birth_rates)`` configurations.
 
     Raises:
         InputError: rates that are not 1-D, empty, or not positive and finite.
     """
-    axes = {CLUTTER_MAGNITUDE: clutter_rates, BIRTH_MAGNITUDE: birth_rates}
+    axes = {CLUTTER_RATE: clutter_rates, BIRTH_RATE: birth_rates}
     for path, rates in axes.items():
         rates = np.asarray(rates, dtype=np.float64)
         if rates.ndim != 1 or rates.size == 0 or not np.all(np.isfinite(rates) & (rates > 0)):
@@ -118,40 +125,43 @@ def magnitude_grid(clutter_rates: ArrayLike, birth_rates: ArrayLike) -> dict[str
 
 
 def batch_params(base_params: Any, updates: Mapping[str, ArrayLike]) -> Any:
-    """A batch of parameter PyTrees: ``base_params`` with the swept leaves replaced.
+    """A batch of parameter PyTrees: ``base_params`` with the named leaves replaced.
 
     Args:
-        base_params: an unbatched parameter PyTree of NamedTuples (e.g.
-            :class:`~jaxtrack.filters.phd.PHDParams`).
-        updates: ``{dotted path: values[batch, *leaf shape]}``, the same ``batch`` for all.
+        base_params: an unbatched parameter PyTree of a registered tracker (e.g.
+            :class:`~jaxtrack.filters.phd.PHDParams`); its properties tree
+            (:func:`~jaxtrack.filters.registry.properties_of`) resolves the names.
+        updates: ``{parameter name: values[batch, *leaf shape]}``, the same ``batch`` for all.
 
     Returns:
         The PyTree with a leading ``batch`` axis on every leaf (NumPy arrays).
 
     Raises:
-        InputError: no updates, an unknown path, a path that is not a leaf, values of the
-            wrong shape, or different batch sizes.
+        InputError: no updates, an unknown name, values of the wrong shape, or different
+            batch sizes.
     """
     if not updates:
         raise InputError("no parameter updates to sweep")
-    values = {path: np.asarray(v) for path, v in updates.items()}
-    sizes = {path: (v.shape[0] if v.ndim else None) for path, v in values.items()}
+    values = {name: np.asarray(v) for name, v in updates.items()}
+    sizes = {name: (v.shape[0] if v.ndim else None) for name, v in values.items()}
     if len(set(sizes.values())) != 1 or None in sizes.values():
         raise InputError(f"all updates need the same leading batch size, got {sizes}")
     (batch,) = set(sizes.values())
     if batch == 0:
         raise InputError("the batch of configurations is empty")
     host = jax.tree.map(np.asarray, base_params)
-    batched = jax.tree.map(lambda leaf: np.broadcast_to(leaf, (batch, *leaf.shape)), host)
-    for path, v in values.items():
-        leaf = _get_path(host, path)
-        if v.shape[1:] != leaf.shape:
+    properties = properties_of(base_params)
+    leaves = leaf_values(host, properties, tuple(values))
+    for name, v in values.items():
+        shape = np.shape(leaves[name])
+        if v.shape[1:] != shape:
             raise InputError(
-                f"{path}: expected values of shape [batch, {', '.join(map(str, leaf.shape))}]"
-                f" = {(batch, *leaf.shape)}, got {v.shape}"
+                f"{name}: expected values of shape [batch, {', '.join(map(str, shape))}]"
+                f" = {(batch, *shape)}, got {v.shape}"
             )
-        batched = _set_path(batched, path, v.astype(leaf.dtype))
-    return batched
+    batched = jax.tree.map(lambda leaf: np.broadcast_to(leaf, (batch, *leaf.shape)), host)
+    replaced = replace_leaves(batched, properties, values)
+    return jax.tree.map(np.asarray, replaced)
 
 
 def pad_components(intensity: Intensity, num_components: int) -> Intensity:
@@ -186,7 +196,7 @@ def common_shapes(params: Sequence[Any]) -> list[Any]:
     Uniform (UM) and learned intensities, or contexts learned on different data, differ in
     their numbers of mixture components and so in their PyTree shapes; padded with dead
     components (:func:`pad_components`) they track identically, can be stacked into one
-    batch, and :func:`~jaxtrack.filters.phd_tracker.track_sequences` or :func:`sweep`
+    batch, and :func:`~jaxtrack.pipelines.tracking.track_sequences` or :func:`sweep`
     compiles once for all of them.
 
     Args:
@@ -232,7 +242,7 @@ def sweep(
         key: one PRNG key shared by all configurations (common random numbers), or one key
             per configuration (``[batch]`` typed keys or ``[batch, 2]`` raw keys).
         detections: padded detections ``[num_frames, max_detections]``.
-        updates: ``{dotted leaf path: values[batch, ...]}`` (see :func:`batch_params`).
+        updates: ``{parameter name: values[batch, ...]}`` (see :func:`batch_params`).
         ground_truth: rows of the ground truth (e.g. ``MotSequence.gt_table``); rows outside
             the span are ignored. None: no scores.
         first_frame: 1-based frame number of time index 0.
@@ -261,7 +271,7 @@ def sweep(
         swept = {}
     else:
         batched = batch_params(params, updates)
-        swept = {path: np.asarray(v) for path, v in updates.items()}
+        swept = {name: np.asarray(v) for name, v in updates.items()}
     batch = _batch_size(batched)
     keys, key_impl = _config_keys(key, batch)
     detections = Detections(*(np.asarray(leaf) for leaf in detections))
@@ -396,23 +406,3 @@ def _config_keys(key: Array, batch: int) -> tuple[np.ndarray, str | None]:
             f"{data.shape}"
         )
     return data, impl
-
-
-def _get_path(tree: Any, path: str) -> Any:
-    node = tree
-    for name in path.split("."):
-        if not hasattr(node, "_fields") or name not in node._fields:
-            known = ", ".join(getattr(node, "_fields", ())) or "none (a leaf)"
-            raise InputError(
-                f"unknown parameter path {path!r}: no field {name!r} (fields: {known})"
-            )
-        node = getattr(node, name)
-    if not isinstance(node, np.ndarray):
-        raise InputError(f"parameter path {path!r} is not a leaf array")
-    return node
-
-
-def _set_path(tree: Any, path: str, value: np.ndarray) -> Any:
-    head, _, rest = path.partition(".")
-    child = getattr(tree, head)
-    return tree._replace(**{head: _set_path(child, rest, value) if rest else value})

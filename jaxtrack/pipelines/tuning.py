@@ -1,7 +1,7 @@
 """Tuning the PHD tracker on a MOTChallenge sequence span: what ``jaxtrack tune`` does.
 
 :func:`tune_sequence` starts from the tracker's configuration
-(:data:`~jaxtrack.filters.phd_tracker.DEFAULT_CONFIG` with overrides, uniform intensities),
+(:class:`~jaxtrack.filters.phd_tracker.PHDConfig`, uniform intensities),
 tunes the chosen parameters with :func:`~jaxtrack.tuning.tuner.tune` on the span's
 detections (and ground truth for the supervised objective), and returns the tuned tracker
 configuration (a JSON object for ``jaxtrack track --config``) with a report of the run.
@@ -14,7 +14,7 @@ gradient step costs a forward and a backward pass per key.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import jax
@@ -22,7 +22,7 @@ import numpy as np
 import optax
 
 from jaxtrack.errors import InputError
-from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, check_config, tracker_params
+from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
 from jaxtrack.io import MotSequence
 from jaxtrack.tuning.objectives import ESTIMATORS, make_objective, tuning_filter
 from jaxtrack.tuning.transforms import (
@@ -46,13 +46,13 @@ class SequenceTuning(NamedTuple):
     """Outcome of :func:`tune_sequence`.
 
     Attributes:
-        config: the tuned tracker configuration overrides (``jaxtrack track --config``).
+        config: the tuned tracker configuration (``jaxtrack track --config``).
         result: the :class:`~jaxtrack.tuning.tuner.TuneResult`.
         report: a JSON-ready summary: sequence, frames, objective, settings, start and tuned
             values of the trainable parameters, the history and the run time.
     """
 
-    config: dict[str, Any]
+    config: PHDConfig
     result: TuneResult
     report: dict[str, Any]
 
@@ -60,7 +60,7 @@ class SequenceTuning(NamedTuple):
 def tune_sequence(
     sequence: MotSequence,
     objective: str = "likelihood",
-    config: Mapping[str, Any] | None = None,
+    config: PHDConfig | None = None,
     trainable: Sequence[str] = CONFIG_TRAINABLE,
     *,
     seed: int = 0,
@@ -79,8 +79,9 @@ def tune_sequence(
     Args:
         sequence: the loaded span (ground truth needed for ``"supervised"``).
         objective: ``"likelihood"`` (no ground truth) or ``"supervised"``.
-        config: tracker configuration overrides to start from (kept in the output).
-        trainable: names of :data:`~jaxtrack.tuning.transforms.PARAMETERS` to tune.
+        config: the tracker configuration to start from (default :class:`PHDConfig`); the
+            tuned one keeps its other keys.
+        trainable: parameter names to tune (:func:`~jaxtrack.tuning.transforms.tunable_names`).
         seed: PRNG seed of the filter runs.
         num_steps: the most adam steps.
         num_keys: keys per step (common random numbers).
@@ -96,7 +97,7 @@ def tune_sequence(
         The :class:`SequenceTuning`.
 
     Raises:
-        InputError: a bad objective, estimator, configuration, setting or parameter name, a
+        InputError: a bad objective, estimator, setting or parameter name, a
             supervised objective without ground truth, or a span without detections.
     """
     if objective not in ("likelihood", "supervised"):
@@ -112,16 +113,13 @@ def tune_sequence(
         raise InputError(f"learning rate must be positive, got {learning_rate}")
     if patience < 0 or average_steps <= 0:
         raise InputError("patience must be >= 0 and average_steps positive")
-    overrides = dict(config or {})
-    reason = check_config(overrides)
-    if reason is not None:
-        raise InputError(f"bad tracker configuration: {reason}")
+    config = config or PHDConfig()
     if objective == "supervised" and sequence.ground_truth is None:
         raise InputError(f"{sequence.path}: the supervised objective needs gt/gt.txt")
     if not np.any(np.asarray(sequence.detections.mask)):
         raise InputError(f"{sequence.path}: no detections in frames {_span(sequence)}")
-    space = parameter_space(trainable)
-    start = tracker_params(sequence.info, {**DEFAULT_CONFIG, **overrides})
+    start = phd_params(config, sequence.info)
+    space = parameter_space(start, trainable)
     filt = tuning_filter(num_particles, births_per_detection, estimator)
     began = time.perf_counter()
     result = tune(
@@ -139,7 +137,7 @@ def tune_sequence(
         progress=progress,
     )
     seconds = time.perf_counter() - began
-    tuned_config = to_config(result.params, overrides)
+    tuned_config = to_config(result.params, config)
     report = {
         "sequence": str(sequence.path),
         "frames": [sequence.first_frame, sequence.last_frame],
@@ -156,7 +154,7 @@ def tune_sequence(
         "seconds": round(seconds, 1),
         "start": parameter_values(start, space.trainable),
         "tuned": parameter_values(result.params, space.trainable),
-        "config": tuned_config,
+        "config": tuned_config.overrides(),
         "history": {
             "loss": round_significant(result.history["loss"]),
             **{name: round_significant(v) for name, v in result.history["values"].items()},

@@ -1,0 +1,81 @@
+"""The tracker registry: every tracker plugs in the same way (``jaxtrack track --tracker NAME``).
+
+A tracker is a :class:`TrackerEntry`: its frozen configuration type
+(:class:`~jaxtrack.configs.TrackerConfig`), one function from (configuration, sequence info,
+optional context, variant) to ``(Filter, params)``, and the parameter-properties tree of its
+params (:mod:`jaxtrack.parameters`). Builders return the same filter object for the same
+static setting, so compiled functions (cached per filter) are shared by every caller.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+from jaxtrack.configs import TrackerConfig
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import Filter
+from jaxtrack.filters.kalman import KalmanParams
+from jaxtrack.filters.kalman_tracker import KalmanConfig, build_kalman, kalman_properties
+from jaxtrack.filters.phd import PHDParams
+from jaxtrack.filters.phd_tracker import PHDConfig, build_phd, phd_properties
+from jaxtrack.types import SequenceInfo
+
+
+class TrackerEntry(NamedTuple):
+    """One registered tracker.
+
+    Attributes:
+        config_type: its configuration dataclass.
+        params_type: its parameter PyTree type.
+        build: ``(config, info, context=None, variant="GM") -> (Filter, params)``.
+        properties: ``params -> properties tree``.
+        takes_context: whether it uses a learned context (``--context``).
+    """
+
+    config_type: type[TrackerConfig]
+    params_type: type
+    build: Callable[..., tuple[Filter, Any]]
+    properties: Callable[[Any], Any]
+    takes_context: bool
+
+
+#: The trackers, by name.
+TRACKERS: dict[str, TrackerEntry] = {
+    "phd": TrackerEntry(PHDConfig, PHDParams, build_phd, phd_properties, True),
+    "kalman": TrackerEntry(KalmanConfig, KalmanParams, build_kalman, kalman_properties, False),
+}
+
+
+def tracker_entry(name: str) -> TrackerEntry:
+    """The registered tracker ``name``.
+
+    Raises:
+        InputError: an unknown name.
+    """
+    if name not in TRACKERS:
+        raise InputError(f"unknown tracker {name!r}; known: {', '.join(TRACKERS)}")
+    return TRACKERS[name]
+
+
+def build_tracker(
+    config: TrackerConfig, info: SequenceInfo, context: Any = None, variant: str = "GM"
+) -> tuple[Filter, Any]:
+    """``(Filter, params)`` of a configuration for a sequence (dispatch on the config type).
+
+    Raises:
+        InputError: a configuration of no registered tracker, a bad variant or context.
+    """
+    return tracker_entry(config.tracker).build(config, info, context, variant)
+
+
+def properties_of(params: Any) -> Any:
+    """The parameter-properties tree of a registered tracker's params (by their type).
+
+    Raises:
+        InputError: params of no registered tracker.
+    """
+    for entry in TRACKERS.values():
+        if isinstance(params, entry.params_type):
+            return entry.properties(params)
+    raise InputError(f"{type(params).__name__} are not the parameters of a registered tracker")

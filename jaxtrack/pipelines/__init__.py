@@ -1,0 +1,1 @@
+"""Host-side orchestration: running trackers over sequences, learning context, tuning, sweeps."""

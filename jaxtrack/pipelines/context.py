@@ -1,0 +1,222 @@
+"""Learning a sequence's context: what ``jaxtrack learn-context`` does, as library code.
+
+:func:`learn_context` collects birth and clutter events from a training span (a UM tracker
+run, the ground truth or a labels file; :mod:`jaxtrack.context.samples`) and learns their
+intensities by recursive MAP-EM (:mod:`jaxtrack.context.learn`, PHD-context Sec. IV).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from jaxtrack.context.clutter_labels import load_clutter_labels
+from jaxtrack.context.learn import (
+    BIRTH_EPOCHS,
+    CLUTTER_EPOCHS,
+    TRACKER_PARTICLES,
+    LearnedContext,
+    birth_grid,
+    clutter_grid,
+    learn_density,
+    live_components,
+    uniform_volumes,
+    volume_mass,
+)
+from jaxtrack.context.map_em import MixtureState, to_intensity
+from jaxtrack.context.samples import (
+    WARMUP_FRAMES,
+    EventSamples,
+    birth_samples_from_gt,
+    birth_samples_from_tracks,
+    clutter_samples_from_gt,
+    clutter_samples_from_labels,
+    clutter_samples_from_tracks,
+)
+from jaxtrack.errors import InputError
+from jaxtrack.filters.phd_tracker import PHDConfig
+from jaxtrack.io.motchallenge import MotSequence, load_sequence
+from jaxtrack.pipelines.tracking import track_sequences
+
+
+def uniform_tracker_rows(
+    sequence: MotSequence, seed: int = 0, num_particles: int = TRACKER_PARTICLES
+):
+    """Trajectories of the PHD tracker with uniform (UM) intensities on a sequence's span.
+
+    The default configuration with ``num_particles`` and no gap filling, run as
+    ``jaxtrack track`` runs it (sharing its compile). Each confirmed track is kept from its
+    first estimate on
+    (:func:`~jaxtrack.association.offline.finalise_tracks`), so that its first state is
+    where the target was first picked up, not where a high-scoring detection confirmed it.
+
+    Args:
+        sequence: the loaded training span.
+        seed: PRNG seed of the run.
+        num_particles: particles of the filter.
+
+    Returns:
+        The :class:`~jaxtrack.association.offline.TrackRows`.
+    """
+    config = PHDConfig(num_particles=num_particles, max_gap=0)
+    (rows,) = track_sequences([sequence], config, seed)
+    return rows
+
+
+def learn_context(
+    sequence: MotSequence | str | Path,
+    frames: tuple[int, int] | str | None = None,
+    *,
+    birth_from: str = "tracks",
+    clutter_from: str | Path = "gt",
+    seed: int = 0,
+    birth_epochs: int = BIRTH_EPOCHS,
+    clutter_epochs: int = CLUTTER_EPOCHS,
+    warmup_frames: int = WARMUP_FRAMES,
+    num_particles: int = TRACKER_PARTICLES,
+    progress: Callable[[str], None] | None = None,
+) -> LearnedContext:
+    """Learns the birth and clutter intensities of a sequence's training span.
+
+    Args:
+        sequence: a sequence folder (loaded with ``frames``) or a loaded
+            :class:`~jaxtrack.io.MotSequence` (its own span is used; ``frames`` must be None).
+        frames: the training span ``(first, last)`` or ``"A:B"``; default: all frames.
+        birth_from: ``"tracks"`` (a UM tracker run, the paper's source) or ``"gt"``.
+        clutter_from: ``"gt"``, ``"tracks"``, or the path of a clutter labels file
+            (:mod:`jaxtrack.context.clutter_labels`).
+        seed: seeds the tracker run and the order in which samples are learned.
+        birth_epochs: passes over the birth events.
+        clutter_epochs: passes over the clutter events.
+        warmup_frames: trajectories starting in the span's first frames are not births
+            (:func:`~jaxtrack.context.samples.birth_samples`).
+        num_particles: particles of the UM tracker run.
+        progress: called with a short description before each long step.
+
+    Returns:
+        The :class:`LearnedContext`.
+
+    Raises:
+        InputError: an unknown source, ground truth asked for but missing, a span too short
+            for the warm-up, no birth or clutter events, or a bad span or labels file.
+    """
+    notify = progress or (lambda _: None)
+    if birth_from not in ("tracks", "gt"):
+        raise InputError(f"birth source must be 'tracks' or 'gt', got {birth_from!r}")
+    if isinstance(sequence, MotSequence):
+        if frames is not None:
+            raise InputError("give frames only with a sequence folder, not a loaded sequence")
+    else:
+        notify("loading sequence")
+        sequence = load_sequence(sequence, frames=frames)
+    span = (sequence.first_frame, sequence.last_frame)
+    labels_path = None if str(clutter_from) in ("gt", "tracks") else Path(clutter_from)
+    uses_gt = birth_from == "gt" or str(clutter_from) == "gt"
+    if uses_gt and sequence.gt_table is None:
+        raise InputError(
+            f"{sequence.path}: no ground truth (gt/gt.txt) but it was asked for as a source; "
+            "use --birth-from tracks and --clutter-from tracks or a labels file"
+        )
+    if warmup_frames >= sequence.num_frames:
+        raise InputError(
+            f"training span {span[0]}:{span[1]} has {sequence.num_frames} frames, not more "
+            f"than the {warmup_frames} warm-up frames"
+        )
+
+    clutter = None
+    if labels_path is not None:  # read before the tracker runs: fail early on a bad file
+        clutter = clutter_samples_from_labels(
+            load_clutter_labels(labels_path), span, str(labels_path)
+        )
+        if clutter.num_frames == 0:
+            raise InputError(
+                f"{labels_path}: no labelled frame inside the span {span[0]}:{span[1]}"
+            )
+
+    rows = None
+    if birth_from == "tracks" or str(clutter_from) == "tracks":
+        notify(f"tracking frames {span[0]}:{span[1]} with uniform intensities")
+        rows = uniform_tracker_rows(sequence, seed, num_particles)
+
+    notify("collecting events")
+    if birth_from == "gt":
+        births = birth_samples_from_gt(sequence.gt_table, span, warmup_frames=warmup_frames)
+    else:
+        births = birth_samples_from_tracks(rows, span, warmup_frames=warmup_frames)
+    if str(clutter_from) == "gt":
+        clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
+    elif str(clutter_from) == "tracks":
+        clutter = clutter_samples_from_tracks(sequence.det_table, rows, span)
+    for name, events in (("birth", births), ("clutter", clutter)):
+        if events.count == 0:
+            raise InputError(
+                f"no {name} events from {events.source} in frames {span[0]}:{span[1]}; "
+                "use a longer training span or another source"
+            )
+
+    uniform_birth, uniform_clutter = uniform_volumes(
+        sequence.info.im_width, sequence.info.im_height, sequence.info.frame_rate
+    )
+    key_birth, key_clutter = jax.random.split(jax.random.PRNGKey(seed))
+    notify(f"learning birth density ({births.count} events, {birth_epochs} passes)")
+    birth_state, birth_snapshots = learn_density(
+        birth_grid(uniform_birth, _mean_size(births.values[:, 4:6])),
+        births.values,
+        birth_epochs,
+        key_birth,
+    )
+    notify(f"learning clutter density ({clutter.count} events, {clutter_epochs} passes)")
+    clutter_state, clutter_snapshots = learn_density(
+        clutter_grid(uniform_clutter, _mean_size(clutter.values[:, 2:4])),
+        clutter.values,
+        clutter_epochs,
+        key_clutter,
+    )
+    key_birth_mass, key_clutter_mass = jax.random.split(jax.random.fold_in(key_birth, 1))
+    birth_mass = volume_mass(to_intensity(birth_state, 1.0), key_birth_mass)
+    clutter_mass = volume_mass(to_intensity(clutter_state, 1.0), key_clutter_mass)
+    birth = live_components(to_intensity(birth_state, births.magnitude / birth_mass))
+    clutter_intensity = live_components(
+        to_intensity(clutter_state, clutter.magnitude / clutter_mass)
+    )
+    metadata = {
+        "sequence": str(sequence.path),
+        "sequence_name": sequence.info.name,
+        "frames": list(span),
+        "seed": seed,
+        "birth": _summary(births, birth_state, birth_epochs, birth_mass),
+        "clutter": _summary(clutter, clutter_state, clutter_epochs, clutter_mass),
+        "warmup_frames": warmup_frames,
+    }
+    return LearnedContext(
+        birth=birth,
+        clutter=clutter_intensity,
+        metadata=metadata,
+        birth_samples=births,
+        clutter_samples=clutter,
+        birth_snapshots=birth_snapshots,
+        clutter_snapshots=clutter_snapshots,
+    )
+
+
+def _mean_size(sizes: np.ndarray) -> tuple[float, float]:
+    """Mean ``(w, h)`` of the events' boxes."""
+    mean = np.mean(sizes, axis=0)
+    return float(mean[0]), float(mean[1])
+
+
+def _summary(events: EventSamples, state: MixtureState, epochs: int, mass: float) -> dict:
+    """Metadata of one learned density."""
+    return {
+        "source": events.source,
+        "num_events": events.count,
+        "num_frames": events.num_frames,
+        "magnitude": events.magnitude,
+        "volume_mass": mass,
+        "epochs": epochs,
+        "components_alive": int(np.sum(np.asarray(state.alive))),
+        "uniform_weight": float(state.uniform_weight),
+    }

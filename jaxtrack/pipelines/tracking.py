@@ -1,0 +1,124 @@
+"""Running a tracker over sequences: what ``jaxtrack track`` does, as library code.
+
+:func:`track_sequences` runs any registered tracker (:mod:`jaxtrack.filters.registry`) on
+several sequences with **one compile**: the tracker's filter is cached on its configuration's
+static setting, the padded detections of all sequences are brought to a common number of
+detection slots and run in chunks of a fixed number of frames
+(:func:`~jaxtrack.filters.base.run_chunked`), so the compiled chunk is reused across frames,
+sequences and calls.
+
+Output (the configuration's ``output``): ``"offline"`` keeps every confirmed track over its
+whole life, the frames before its confirmation included, and fills gaps of up to ``max_gap``
+frames by linear interpolation (:func:`~jaxtrack.association.offline.finalise_tracks`);
+``"online"`` writes what the filter outputs frame by frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import jax
+import numpy as np
+from tqdm import tqdm
+
+from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.configs import TrackerConfig
+from jaxtrack.context.io import load_context
+from jaxtrack.filters.base import run_chunked
+from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
+from jaxtrack.filters.phd_tracker import Context
+from jaxtrack.filters.registry import build_tracker
+from jaxtrack.io import MotSequence
+from jaxtrack.types import PAD_BOX, Detections
+
+
+def track_sequences(
+    sequences: Sequence[MotSequence],
+    config: TrackerConfig,
+    seed: int = 0,
+    params: Sequence[Any] | None = None,
+    progress: bool = False,
+    chunk_frames: int = 128,
+) -> list[TrackRows]:
+    """Tracks several sequences (or spans) with one compiled run.
+
+    Args:
+        sequences: the loaded sequences.
+        config: the tracker's configuration (its type selects the tracker).
+        seed: PRNG seed (the same key for every sequence).
+        params: one parameter PyTree per sequence (default: the registry's, e.g. uniform
+            intensities for the PHD tracker). Parameters of different PyTree shapes (e.g.
+            contexts with different numbers of components) compile once per shape.
+        progress: show a progress bar over the sequences.
+        chunk_frames: frames per compiled call.
+
+    Returns:
+        The result rows of each sequence.
+
+    Raises:
+        InputError: a configuration of no registered tracker.
+    """
+    built = [build_tracker(config, seq.info) for seq in sequences]
+    filt = built[0][0]
+    if params is None:
+        params = [seq_params for _, seq_params in built]
+    capacity = max(seq.detections.mask.shape[1] for seq in sequences)
+    key = jax.random.PRNGKey(seed)
+    results = []
+    items = zip(sequences, params, strict=True)
+    for seq, seq_params in tqdm(
+        items, total=len(sequences), desc="tracking", unit="seq", disable=not progress
+    ):
+        detections = pad_to(seq.detections, seq.num_frames, capacity)
+        _, info = run_chunked(filt, key, seq_params, detections, chunk_frames)
+        results.append(output_rows(info, config, seq.first_frame))
+    return results
+
+
+def load_tracker_context(path: str | None) -> Context | None:
+    """The learned context in the file at ``path`` (``jaxtrack learn-context``), or None.
+
+    Raises:
+        FileFormatError: a missing or malformed context file.
+    """
+    return None if path is None else Context(*load_context(path))
+
+
+def output_rows(info: Any, config: TrackerConfig, first_frame: int) -> TrackRows:
+    """The result rows of a run's per-frame infos, as the configuration's ``output`` says."""
+    if config.output == "online":
+        return track_rows(info.tracks, first_frame)
+    return finalise_tracks(info.tracks, info.candidates, config.max_gap, first_frame)
+
+
+def tracker_description(config: TrackerConfig) -> dict[str, Any]:
+    """What a run used, for the ``.config.json`` beside the results.
+
+    ``{"tracker": NAME, **config}``; for the Kalman tracker also its preset's assignment cost
+    and parameters.
+    """
+    described = {"tracker": config.tracker, **config.to_dict()}
+    if isinstance(config, KalmanConfig):
+        described.update(kalman_description(config))
+    return described
+
+
+def pad_to(detections: Detections, num_frames: int, capacity: int) -> Detections:
+    """Pads detections ``[T, D]`` with empty frames and empty slots to ``[num_frames, capacity]``.
+
+    Raises:
+        ValueError: the target shape is smaller than the detections.
+    """
+    frames, slots = detections.mask.shape
+    if num_frames < frames or capacity < slots:
+        raise ValueError(f"cannot pad [{frames}, {slots}] detections to [{num_frames}, {capacity}]")
+    extra = ((0, num_frames - frames), (0, capacity - slots))
+    boxes = np.asarray(detections.boxes)
+    padded_boxes = np.tile(np.asarray(PAD_BOX, boxes.dtype), (num_frames, capacity, 1))
+    padded_boxes[:frames, :slots] = boxes
+    return Detections(
+        boxes=padded_boxes,
+        scores=np.pad(np.asarray(detections.scores), extra),
+        mask=np.pad(np.asarray(detections.mask), extra),
+    )
