@@ -9,7 +9,7 @@ the learned context (GM): 162 tracker runs, each scored (MOTA, MOTP, MODA, MODP,
 ...). UM's intensities are padded with dead mixture components to GM's size, so both share
 one batch and one compile.
 
-* sweep: :func:`jaxtrack.sweep.sweep` on all devices, compile included. On CPU, JAX has one
+* sweep: :func:`jaxtrack.sweep` on all devices, compile included. On CPU, JAX has one
   device that already uses every core, so the default is 1; ``--host-devices N`` forces N
   CPU devices instead;
 * loop: the same configurations one at a time through one jitted single-configuration run
@@ -42,7 +42,6 @@ from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
-from jaxtrack.sweep import sweep  # noqa: E402
 
 from jaxtrack.association.offline import finalise_tracks  # noqa: E402
 from jaxtrack.experiments.common import learn_split, split_halves  # noqa: E402
@@ -53,9 +52,12 @@ from jaxtrack.experiments.magnitudes import (  # noqa: E402
     variant_params,
 )
 from jaxtrack.filters.base import run  # noqa: E402
-from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, Context, build_filter  # noqa: E402
+from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of  # noqa: E402
 from jaxtrack.io import MotTable  # noqa: E402
 from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
+from jaxtrack.pipelines.sweep import sweep  # noqa: E402
+
+CONFIG = PHDConfig()
 
 DEFAULT_SEQUENCE = Path(__file__).resolve().parents[1].parent / "shared/data/mot15/PETS09-S2L1"
 
@@ -71,12 +73,12 @@ def main() -> None:
     args = parser.parse_args()
 
     split = split_halves(args.sequence)
-    context = Context.from_learned(learn_split(split, DEFAULT_CONFIG, args.seed))
+    context = Context.from_learned(learn_split(split, CONFIG, args.seed))
     test = split.test
-    params = variant_params(test.info, DEFAULT_CONFIG, context)
+    params = variant_params(test.info, CONFIG, context)
     batched = magnitude_batch(params, CLUTTER_RATES, BIRTH_RATES)
     num_configs = 2 * len(CLUTTER_RATES) * len(BIRTH_RATES)
-    filt = build_filter(DEFAULT_CONFIG)
+    filt = phd_filter_of(CONFIG)
     key = jax.random.PRNGKey(args.seed)
 
     start = time.perf_counter()
@@ -88,7 +90,7 @@ def main() -> None:
         ground_truth=test.gt_table,
         first_frame=test.first_frame,
         chunk_size=args.chunk_size,
-        max_gap=DEFAULT_CONFIG["max_gap"],
+        max_gap=CONFIG.max_gap,
         progress=True,
     )
     sweep_s = time.perf_counter() - start
@@ -104,7 +106,7 @@ def main() -> None:
     start = time.perf_counter()
     for b in timed:
         tracks, candidates = single(key, jax.tree.map(lambda x, b=b: x[b], batched))
-        rows = finalise_tracks(tracks, candidates, DEFAULT_CONFIG["max_gap"], test.first_frame)
+        rows = finalise_tracks(tracks, candidates, CONFIG.max_gap, test.first_frame)
         span = (test.first_frame, test.last_frame)
         scores = evaluate_sequence(test.gt_table, MotTable.from_arrays(*rows), span).summary()
         loop_mota.append(scores["MOTA"])
@@ -122,8 +124,8 @@ def main() -> None:
                 "test_frames": [test.first_frame, test.last_frame],
                 "grid": "9 lambda_r (0.1..10) x 9 lambda_s (0.02..2), log-spaced; UM + GM",
                 "tracker_runs": num_configs,
-                "num_particles": DEFAULT_CONFIG["num_particles"],
-                "births_per_detection": DEFAULT_CONFIG["births_per_detection"],
+                "num_particles": CONFIG.num_particles,
+                "births_per_detection": CONFIG.births_per_detection,
                 "devices": len(jax.devices()),
                 "chunk_size": args.chunk_size,
                 "sweep_s": sweep_s,

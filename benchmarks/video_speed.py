@@ -25,9 +25,10 @@ import cv2
 
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_info, video_sequence
-from jaxtrack.filters.phd_tracker import track_sequences, tracker_params
+from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
 from jaxtrack.io import parse_frame_span
 from jaxtrack.io.video import VideoReader
+from jaxtrack.pipelines.tracking import track_sequences
 
 DEFAULT_VIDEO = (
     Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "video" / "vtest.avi"
@@ -84,11 +85,11 @@ def main() -> None:
     found = detect_video(args.video, span, DetectorConfig(method=args.method))
     detect_seconds = time.perf_counter() - start
     sequence = video_sequence(args.video, found.table, span, info)
-    params = tracker_params(info)
+    params = phd_params(PHDConfig(), info)
     track_times = []
     for _ in range(1 + args.repeats):  # the first run compiles
         start = time.perf_counter()
-        track_sequences([sequence], None, 0, [params])
+        track_sequences([sequence], PHDConfig(), 0, [params])
         track_times.append(time.perf_counter() - start)
     result = {
         "video": str(args.video),

@@ -8,10 +8,10 @@ import jax.numpy as jnp
 import pytest
 
 from jaxtrack.cli import main
-from jaxtrack.commands.track import DEFAULT_CONFIG, load_config
+from jaxtrack.commands.track import load_config
 from jaxtrack.context.io import save_context
 from jaxtrack.errors import FileFormatError
-from jaxtrack.filters.phd_tracker import tracker_params
+from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
 from jaxtrack.io import read_mot_file, read_seqinfo
 from jaxtrack.metrics.evaluate import evaluate_sequence
 
@@ -27,7 +27,7 @@ def test_track_writes_results_and_config(mot15_root, tmp_path, capsys):
     result = read_mot_file(out, "res", seq_length=71)
     assert len(result) > 0 and result.ids.min() >= 1
     used = json.loads((tmp_path / "campus.config.json").read_text())
-    assert used["num_particles"] == 512 and used["clutter_rate"] == DEFAULT_CONFIG["clutter_rate"]
+    assert used["num_particles"] == 512 and used["clutter_rate"] == PHDConfig().clutter_rate
     gt = read_mot_file(mot15_root / "TUD-Campus" / "gt" / "gt.txt", "gt")
     scores = evaluate_sequence(gt, result, frames=(1, 71)).summary()
     assert scores["MOTA"] > 0.3  # a working tracker on an easy sequence, not a perfect one
@@ -47,13 +47,13 @@ def test_track_frame_span(mot15_root, tmp_path):
     [
         ("{", "not valid JSON"),
         ("[1]", "JSON object"),
-        ('{"particles": 3}', "unknown key 'particles'"),
-        ('{"num_particles": "many"}', "num_particles must be a int"),
-        ('{"clutter_rate": -1}', "clutter_rate must be positive"),
+        ('{"particles": 3}', r"unknown phd configuration key\(s\) 'particles'"),
+        ('{"num_particles": "many"}', "num_particles must be an integer"),
+        ('{"clutter_rate": -1}', r"clutter_rate must lie in \(0, 10000\]"),
         ('{"extraction": "kmeans"}', "extraction must be"),
         ('{"output": "batch"}', "output must be"),
-        ('{"max_gap": -1}', "max_gap must be >= 0"),
-        ('{"max_gap": 2.5}', "max_gap must be a int"),
+        ('{"max_gap": -1}', r"max_gap must lie in \[0, 1000\]"),
+        ('{"max_gap": 2.5}', "max_gap must be an integer"),
     ],
 )
 def test_bad_config(tmp_path, text, message):
@@ -72,7 +72,7 @@ def test_bad_arguments_exit_2(mot15_root, tmp_path, capsys):
 
 def test_track_with_context_variant_and_figure(mot15_root, tmp_path, capsys):
     info = read_seqinfo(mot15_root / "TUD-Campus" / "seqinfo.ini")
-    uniform = tracker_params(info)
+    uniform = phd_params(PHDConfig(), info)
     birth = uniform.birth_intensity._replace(
         weights=jnp.ones(1),
         means=jnp.array([[300.0, 0.0, 300.0, 0.0, 60.0, 150.0]]),
@@ -99,7 +99,7 @@ def test_track_with_context_variant_and_figure(mot15_root, tmp_path, capsys):
 
 
 def test_context_from_another_image_size_is_refused(mot15_root, tmp_path, capsys):
-    params = tracker_params(read_seqinfo(mot15_root / "PETS09-S2L1" / "seqinfo.ini"))
+    params = phd_params(PHDConfig(), read_seqinfo(mot15_root / "PETS09-S2L1" / "seqinfo.ini"))
     context = tmp_path / "pets.npz"
     save_context(context, params.birth_intensity, params.clutter_intensity)
     args = ["track", str(mot15_root / "TUD-Campus"), "--out", str(tmp_path / "x.txt")]
@@ -147,7 +147,7 @@ def test_track_kalman_refuses_phd_options(mot15_root, tmp_path, capsys):
     config = tmp_path / "phd.json"
     config.write_text(json.dumps({"num_particles": 512}))
     assert main([*kalman, "--config", str(config)]) == 2
-    assert "num_particles apply to the PHD tracker" in capsys.readouterr().err
+    assert "unknown kalman configuration key(s) 'num_particles'" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_info:
         main([*kalman, "--preset", "fast"])
     assert exit_info.value.code == 2 and "invalid choice: 'fast'" in capsys.readouterr().err

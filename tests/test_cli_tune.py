@@ -9,7 +9,7 @@ import pytest
 
 from jaxtrack.cli import main
 from jaxtrack.commands.track import load_config
-from jaxtrack.filters.phd_tracker import check_config
+from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import read_mot_file
 
 SMALL = ["--steps", "3", "--keys", "1", "--particles", "64", "--births-per-detection", "4"]
@@ -31,7 +31,7 @@ def test_tune_writes_a_config_that_track_uses(mot15_root, tmp_path, capsys):
     assert config["num_particles"] == 128 and config["births_per_detection"] == 4
     assert config["clutter_rate"] > 0 and config["birth_rate"] > 0
     assert config["clutter_rate"] != 1.0  # three adam steps of 0.1 moved it
-    assert load_config(str(out))["clutter_rate"] == config["clutter_rate"]
+    assert load_config(str(out)).clutter_rate == config["clutter_rate"]
     report = json.loads((tmp_path / "tuned.tuning.json").read_text())
     assert report["objective"] == "likelihood" and report["frames"] == [1, 30]
     assert len(report["history"]["loss"]) == 3 and report["filter_runs"] == 3
@@ -57,7 +57,7 @@ def test_tune_supervised_and_extra_parameters_note(mot15_root, tmp_path, capsys)
     # The tuned detection probability travels in the config that `jaxtrack track` reads.
     config = json.loads(out.read_text())
     assert config["detection_prob"] == pytest.approx(report["tuned"]["detection_prob"], rel=1e-5)
-    assert check_config(config) is None
+    assert PHDConfig.from_dict(config).detection_prob == config["detection_prob"]
 
 
 @pytest.mark.parametrize(

@@ -114,7 +114,8 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
         QUICK_CLUTTER_RATES,
         SWEEP_COLUMNS,
     )
-    from jaxtrack.filters.phd_tracker import DEFAULT_CONFIG, track_sequences
+    from jaxtrack.filters.phd_tracker import PHDConfig
+    from jaxtrack.pipelines.tracking import track_sequences
 
     out = tmp_path / "sweep"
     assert _script("sweep_magnitudes").main(["--out", str(out), "--quick", "--seed", "0"]) == 0
@@ -131,7 +132,7 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
     split = split_halves(out / "scene")
     (single,) = track_sequences([split.test], QUICK_TRACKER_CONFIG, seed=0)
     expected = score_summary(evaluate_rows(split.test, single))
-    assert (DEFAULT_CONFIG["clutter_rate"], DEFAULT_CONFIG["birth_rate"]) == (1.0, 0.2)
+    assert (PHDConfig().clutter_rate, PHDConfig().birth_rate) == (1.0, 0.2)
     (point,) = [
         row
         for row in rows

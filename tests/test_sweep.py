@@ -11,9 +11,17 @@ import textwrap
 import jax
 import numpy as np
 import pytest
-from jaxtrack.sweep import (
-    BIRTH_MAGNITUDE,
-    CLUTTER_MAGNITUDE,
+
+from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import run
+from jaxtrack.filters.phd import phd_filter
+from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
+from jaxtrack.io import MotTable, load_sequence
+from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.pipelines.sweep import (
+    BIRTH_RATE,
+    CLUTTER_RATE,
     _config_keys,
     batch_params,
     magnitude_grid,
@@ -21,14 +29,6 @@ from jaxtrack.sweep import (
     product_grid,
     sweep,
 )
-
-from jaxtrack.association.offline import finalise_tracks, track_rows
-from jaxtrack.errors import InputError
-from jaxtrack.filters.base import run
-from jaxtrack.filters.phd import phd_filter
-from jaxtrack.filters.phd_tracker import tracker_params
-from jaxtrack.io import MotTable, load_sequence
-from jaxtrack.metrics.evaluate import evaluate_sequence
 
 FRAMES = (11, 40)
 CLUTTER_RATES = np.array([0.3, 3.0], np.float32)
@@ -53,9 +53,9 @@ def single_run(campus, small_filter):
 
 def test_magnitude_grid_is_a_c_order_product():
     grid = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
-    assert set(grid) == {CLUTTER_MAGNITUDE, BIRTH_MAGNITUDE}
-    np.testing.assert_array_equal(grid[CLUTTER_MAGNITUDE], np.repeat(CLUTTER_RATES, 3))
-    np.testing.assert_array_equal(grid[BIRTH_MAGNITUDE], np.tile(BIRTH_RATES, 2))
+    assert set(grid) == {CLUTTER_RATE, BIRTH_RATE}
+    np.testing.assert_array_equal(grid[CLUTTER_RATE], np.repeat(CLUTTER_RATES, 3))
+    np.testing.assert_array_equal(grid[BIRTH_RATE], np.tile(BIRTH_RATES, 2))
     both = product_grid({"a": [1, 2], "b": [3, 4, 5], "c": [6]})
     assert [(a, b, c) for a, b, c in zip(*both.values(), strict=True)] == [
         (1, 3, 6), (1, 4, 6), (1, 5, 6), (2, 3, 6), (2, 4, 6), (2, 5, 6)
@@ -63,7 +63,7 @@ def test_magnitude_grid_is_a_c_order_product():
 
 
 def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_run):
-    params = tracker_params(campus.info)
+    params = phd_params(PHDConfig(), campus.info)
     updates = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
     key = jax.random.PRNGKey(3)
     # chunk_size 4: two chunks, the second padded with a repeated configuration.
@@ -98,9 +98,9 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_r
 
 
 def test_sweep_online_output_and_per_configuration_keys(campus, small_filter, single_run):
-    params = tracker_params(campus.info)
+    params = phd_params(PHDConfig(), campus.info)
     keys = jax.random.split(jax.random.PRNGKey(1), 2)
-    updates = {CLUTTER_MAGNITUDE: np.array([1.0, 1.0], np.float32)}
+    updates = {CLUTTER_RATE: np.array([1.0, 1.0], np.float32)}
     result = sweep(
         small_filter, params, keys, campus.detections, updates, output="online", chunk_size=4
     )
@@ -125,7 +125,7 @@ def test_typed_keys_are_passed_as_key_data():
 
 
 def test_pad_components_leaves_the_intensity_unchanged(campus):
-    params = tracker_params(campus.info)
+    params = phd_params(PHDConfig(), campus.info)
     from jaxtrack.context.intensity import log_intensity
 
     clutter = params.clutter_intensity._replace(uniform_weight=np.float32(0.5))
@@ -139,19 +139,19 @@ def test_pad_components_leaves_the_intensity_unchanged(campus):
 
 
 def test_sweep_input_errors(campus, small_filter):
-    params = tracker_params(campus.info)
+    params = phd_params(PHDConfig(), campus.info)
     key = jax.random.PRNGKey(0)
     detections = campus.detections
     with pytest.raises(InputError, match="same leading batch size"):
-        batch_params(params, {CLUTTER_MAGNITUDE: np.ones(3), BIRTH_MAGNITUDE: np.ones(2)})
-    with pytest.raises(InputError, match="no field 'clutter_rate'"):
-        batch_params(params, {"clutter_rate": np.ones(3)})
-    with pytest.raises(InputError, match="not a leaf"):
-        batch_params(params, {"clutter_intensity": np.ones(3)})
+        batch_params(params, {CLUTTER_RATE: np.ones(3), BIRTH_RATE: np.ones(2)})
+    with pytest.raises(InputError, match=r"unknown parameter.*clutter_intensity\.magnitude"):
+        batch_params(params, {"clutter_intensity.magnitude": np.ones(3)})
+    with pytest.raises(InputError, match=r"unknown parameter.*mass_threshold"):
+        batch_params(params, {"mass_threshold": np.ones(3)})
     with pytest.raises(InputError, match=r"shape \[batch, 4\]"):
         batch_params(params, {"motion_noise_std": np.ones(3)})
     with pytest.raises(InputError, match="empty"):
-        batch_params(params, {CLUTTER_MAGNITUDE: np.ones(0)})
+        batch_params(params, {CLUTTER_RATE: np.ones(0)})
     with pytest.raises(InputError, match="positive"):
         magnitude_grid([1.0, -1.0], [0.1])
     with pytest.raises(InputError, match="one key or one per configuration"):
@@ -175,14 +175,14 @@ _SHARD_SCRIPT = textwrap.dedent(
     import json, sys
     import jax, numpy as np
     from jaxtrack.filters.phd import phd_filter
-    from jaxtrack.filters.phd_tracker import tracker_params
+    from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
     from jaxtrack.io import load_sequence
-    from jaxtrack.sweep import magnitude_grid, sweep
+    from jaxtrack.pipelines.sweep import magnitude_grid, sweep
 
     assert jax.device_count() == 4, jax.devices()
     seq = load_sequence(sys.argv[1], frames=(11, 40))
     filt = phd_filter(128, births_per_detection=8)
-    args = (filt, tracker_params(seq.info), jax.random.PRNGKey(5), seq.detections,
+    args = (filt, phd_params(PHDConfig(), seq.info), jax.random.PRNGKey(5), seq.detections,
             magnitude_grid([0.3, 3.0], [0.05, 0.2, 0.8]))
     kwargs = dict(ground_truth=seq.gt_table, first_frame=seq.first_frame, chunk_size=3)
     sharded = sweep(*args, **kwargs)

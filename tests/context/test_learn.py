@@ -19,7 +19,6 @@ from jaxtrack.context.learn import (
     BIRTH_EPOCHS,
     CLUTTER_EPOCHS,
     SNAPSHOT_FRACTIONS,
-    learn_context,
     marginal,
     uniform_volumes,
 )
@@ -27,6 +26,7 @@ from jaxtrack.datasets import SceneConfig, generate_scene
 from jaxtrack.datasets.synthetic import write_scene
 from jaxtrack.errors import InputError
 from jaxtrack.io import load_sequence
+from jaxtrack.pipelines.context import learn_context
 
 FRAMES = 400
 

@@ -13,14 +13,9 @@ from phd_scenes import walking_scene
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import phd_filter
-from jaxtrack.filters.phd_tracker import (
-    VARIANTS,
-    Context,
-    pad_to,
-    track_sequences,
-    tracker_params,
-)
+from jaxtrack.filters.phd_tracker import VARIANTS, Context, PHDConfig, phd_params
 from jaxtrack.io import SequenceInfo, load_sequence
+from jaxtrack.pipelines.tracking import pad_to, track_sequences
 
 
 @pytest.fixture(scope="module")
@@ -36,9 +31,9 @@ def _context(params):
 
 @pytest.mark.parametrize("variant", sorted(VARIANTS))
 def test_variants_take_the_parts_they_name(campus, variant):
-    uniform = tracker_params(campus.info, {"birth_rate": 0.3, "clutter_rate": 2.0})
+    uniform = phd_params(PHDConfig(birth_rate=0.3, clutter_rate=2.0), campus.info)
     context = _context(uniform)
-    params = tracker_params(campus.info, {"birth_rate": 0.3, "clutter_rate": 2.0}, context, variant)
+    params = phd_params(PHDConfig(birth_rate=0.3, clutter_rate=2.0), campus.info, context, variant)
     use = VARIANTS[variant]
     expected_birth = (
         0.123 if use.learned_birth else (0.05 if use.birth_magnitude_from_context else 0.3)
@@ -51,12 +46,12 @@ def test_variants_take_the_parts_they_name(campus, variant):
 
 
 def test_unknown_variant_and_wrong_image_size(campus):
-    context = _context(tracker_params(campus.info))
+    context = _context(phd_params(PHDConfig(), campus.info))
     with pytest.raises(InputError, match="unknown variant"):
-        tracker_params(campus.info, None, context, "A7")
+        phd_params(PHDConfig(), campus.info, context, "A7")
     wide = context.clutter._replace(upper=context.clutter.upper.at[0].set(1920.0))
     with pytest.raises(InputError, match="learned on 1920x480"):
-        tracker_params(campus.info, None, context._replace(clutter=wide), "GM")
+        phd_params(PHDConfig(), campus.info, context._replace(clutter=wide), "GM")
 
 
 def test_pad_to_adds_empty_frames_and_slots(campus):
@@ -74,7 +69,7 @@ def test_a_span_tracked_with_a_longer_one_gives_the_prefix_of_its_result(mot15_r
     full = load_sequence(mot15_root / "TUD-Campus")
     capacity = full.detections.mask.shape[1]
     short = dataclasses.replace(short, detections=pad_to(short.detections, 30, capacity))
-    config = {"num_particles": 256, "births_per_detection": 8, "output": "online"}
+    config = PHDConfig(num_particles=256, births_per_detection=8, output="online")
     rows_short, rows_full = track_sequences([short, full], config, seed=3)
     assert len(rows_short.frames) > 20
     prefix = rows_full.frames <= 30
@@ -94,7 +89,7 @@ def test_first_frame_births_use_the_initial_intensity():
         capacity=4,
     )
     info = SequenceInfo(name="walk", im_width=640, im_height=480, frame_rate=25.0, seq_length=10)
-    uniform = tracker_params(info)
+    uniform = phd_params(PHDConfig(), info)
     far_birth = uniform.birth_intensity._replace(
         uniform_weight=jnp.asarray(1e-3),
         weights=jnp.ones(1),
@@ -102,7 +97,7 @@ def test_first_frame_births_use_the_initial_intensity():
         covs=jnp.diag(jnp.array([10.0, 1.0, 10.0, 1.0, 5.0, 10.0]) ** 2)[None],
     )
     context = Context(far_birth, uniform.clutter_intensity, {})
-    params = tracker_params(info, None, context, "A1")
+    params = phd_params(PHDConfig(), info, context, "A1")
     filt = phd_filter(512, births_per_detection=16)
     _, out = run(filt, jax.random.PRNGKey(0), params, detections)
     centres = truth[:, :, 0] + 20.0  # true centre x of each target

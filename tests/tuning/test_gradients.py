@@ -19,8 +19,8 @@ import pytest
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.datasets.synthetic import generate_scene
 from jaxtrack.filters.phd_defaults import default_phd_params
+from jaxtrack.filters.phd_tracker import TUNABLE
 from jaxtrack.tuning import (
-    PARAMETERS,
     likelihood_objective,
     parameter_space,
     supervised_objective,
@@ -30,7 +30,8 @@ from jaxtrack.tuning import (
 SCENE = generate_scene(
     5, SceneConfig(num_frames=10, burn_in_frames=60, birth_rate=0.2, uniform_clutter_rate=1.0)
 )
-SPACE = parameter_space(PARAMETERS)  # every tunable parameter
+# Every tunable parameter (the properties tree depends only on the params' structure).
+SPACE = parameter_space(default_phd_params(640.0, 480.0), TUNABLE)
 STEP = 1e-6
 
 

@@ -45,7 +45,7 @@ def test_likelihood_tuning_recovers_clutter_rate_and_detection_prob():
         start,
         scene.detections,
         jax.random.key(0),
-        space=parameter_space(["clutter_rate", "birth_rate", "detection_prob"]),
+        space=parameter_space(start, ["clutter_rate", "birth_rate", "detection_prob"]),
         num_steps=60,
         num_keys=2,
         patience=0,
