@@ -24,8 +24,9 @@ from jaxtrack.parameters import ParameterProperties
 from jaxtrack.pipelines.context import learn_context
 from jaxtrack.pipelines.sweep import batch_params, magnitude_grid, product_grid, sweep
 from jaxtrack.pipelines.tracking import track_sequences
+from jaxtrack.pipelines.tuner import tune
 from jaxtrack.pipelines.tuning import tune_sequence
-from jaxtrack.tuning import likelihood_objective, parameter_space, supervised_objective, tune
+from jaxtrack.tuning import likelihood_objective, parameter_space, supervised_objective
 from jaxtrack.types import Detections, GroundTruth, Tracks
 
 __version__ = "0.1.0"

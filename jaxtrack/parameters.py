@@ -65,7 +65,7 @@ class ParameterProperties:
     """How one leaf of a parameter PyTree is treated (a leaf of the properties tree).
 
     Attributes:
-        trainable: tuned by :func:`~jaxtrack.tuning.tuner.tune` (and sweepable); frozen
+        trainable: tuned by :func:`~jaxtrack.pipelines.tuner.tune` (and sweepable); frozen
             leaves keep their values.
         transform: the bijection it is optimised through.
         name: display name (the configuration key carrying it); empty for internal leaves.

@@ -118,9 +118,11 @@ def run(args: argparse.Namespace) -> int:
     config = dataclasses.replace(config, name=name)
 
     from jaxtrack.datasets.synthetic import generate_scene, write_scene
+    from jaxtrack.plot.scene import save_scene_preview
 
     scene = generate_scene(args.seed, config)
-    out = write_scene(scene, args.out, args.preview_frame)
+    out = write_scene(scene, args.out)
+    save_scene_preview(scene, out / "preview.png", args.preview_frame)
     stats = scene.summary()
     by_source = ", ".join(f"{k} {v:.2f}" for k, v in stats["clutter_per_frame_by_source"].items())
     print(f"wrote {out} ({config.num_frames} frames, seed {args.seed}, name {name})")

@@ -50,7 +50,12 @@ from jaxtrack.filters.phd_tracker import VARIANTS
 from jaxtrack.filters.registry import TRACKERS, build_tracker, tracker_entry
 from jaxtrack.io import load_sequence, write_results
 from jaxtrack.io.video import VideoReader, find_frame_source
-from jaxtrack.pipelines.tracking import load_tracker_context, track_sequences, tracker_description
+from jaxtrack.pipelines.tracking import (
+    load_tracker_context,
+    phd_frame_snapshot,
+    track_sequences,
+    tracker_description,
+)
 from jaxtrack.plot.tracks import phd_frame_figure
 
 
@@ -238,12 +243,11 @@ def _figure(args, config: TrackerConfig) -> None:
         with VideoReader(source) as reader:
             image = reader.read(frame)
     filt, params = build_tracker(config, seq.info, load_tracker_context(args.context), args.variant)
+    snapshot = phd_frame_snapshot(
+        filt, jax.random.PRNGKey(args.seed), params, seq.detections, frame - seq.first_frame
+    )
     path = phd_frame_figure(
-        filt,
-        jax.random.PRNGKey(args.seed),
-        params,
-        seq.detections,
-        frame - seq.first_frame,
+        snapshot,
         args.figure,
         image=image,
         first_frame=seq.first_frame,

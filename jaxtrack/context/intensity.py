@@ -141,3 +141,51 @@ def _logsumexp_or_neg_inf(values):
     any_finite = jnp.any(finite, axis=-1)
     safe_total = jnp.where(any_finite, total, 1.0)
     return jnp.where(any_finite, jnp.log(safe_total) + top[..., 0], -jnp.inf)
+
+
+#: Frame rate assumed when a sequence does not give one.
+DEFAULT_FRAME_RATE = 25.0
+
+
+def uniform_birth_intensity(
+    birth_rate: float, im_width: float, im_height: float, max_speed: float
+) -> Intensity:
+    """UM birth intensity: ``birth_rate`` births per frame, uniform over the state volume.
+
+    Args:
+        birth_rate: ``lambda_s``, expected births per frame, > 0.
+        im_width: image width, pixels.
+        im_height: image height, pixels.
+        max_speed: largest centre speed per axis, pixels per frame.
+
+    Returns:
+        A 6-D :class:`~jaxtrack.context.intensity.Intensity` over
+        ``[0, W] x [-v, v] x [0, H] x [-v, v] x [1, W] x [1, H]``.
+    """
+    lower = [0.0, -max_speed, 0.0, -max_speed, 1.0, 1.0]
+    upper = [im_width, max_speed, im_height, max_speed, im_width, im_height]
+    return uniform_intensity(birth_rate, lower, upper)
+
+
+def uniform_clutter_intensity(clutter_rate: float, im_width: float, im_height: float) -> Intensity:
+    """UM clutter intensity: ``clutter_rate`` false detections per frame, uniform.
+
+    Args:
+        clutter_rate: ``lambda_r``, expected false detections per frame, > 0.
+        im_width: image width, pixels.
+        im_height: image height, pixels.
+
+    Returns:
+        A 4-D :class:`~jaxtrack.context.intensity.Intensity` over
+        ``[0, W] x [0, H] x [1, W] x [1, H]``.
+    """
+    return uniform_intensity(
+        clutter_rate, [0.0, 0.0, 1.0, 1.0], [im_width, im_height, im_width, im_height]
+    )
+
+
+def birth_speed_limit(im_height: float, frame_rate: float | None = None) -> float:
+    """The birth intensity's largest centre speed per axis: ``0.4 * im_height / frame_rate``
+    pixels per frame (``frame_rate`` default :data:`DEFAULT_FRAME_RATE`)."""
+    frame_rate = DEFAULT_FRAME_RATE if frame_rate is None else frame_rate
+    return 0.4 * im_height / frame_rate

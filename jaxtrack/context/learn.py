@@ -54,7 +54,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.context.intensity import Intensity, sample
+from jaxtrack.context.intensity import (
+    Intensity,
+    birth_speed_limit,
+    sample,
+    uniform_birth_intensity,
+    uniform_clutter_intensity,
+)
 from jaxtrack.context.map_em import (
     MapEMLearner,
     MixtureState,
@@ -133,13 +139,14 @@ def uniform_volumes(
         frame_rate: frames per second (None: the tracker's default).
 
     Returns:
-        ``(birth, clutter)`` uniform intensities of
-        :func:`~jaxtrack.filters.phd_defaults.default_phd_params`.
+        ``(birth, clutter)`` uniform intensities with the volumes of
+        :func:`~jaxtrack.filters.phd_defaults.default_phd_params` (unit magnitudes).
     """
-    from jaxtrack.filters.phd_defaults import default_phd_params
-
-    params = default_phd_params(im_width, im_height, frame_rate)
-    return params.birth_intensity, params.clutter_intensity
+    max_speed = birth_speed_limit(im_height, frame_rate)
+    return (
+        uniform_birth_intensity(1.0, im_width, im_height, max_speed),
+        uniform_clutter_intensity(1.0, im_width, im_height),
+    )
 
 
 def birth_grid(uniform: Intensity, mean_size: tuple[float, float]) -> MixtureState:

@@ -302,26 +302,20 @@ def generate_scene(seed: int, config: SceneConfig | None = None) -> SyntheticSce
     return simulator.scene(seed)
 
 
-def write_scene(
-    scene: SyntheticScene, out_dir: str | Path, preview_frame: int | None = None
-) -> Path:
+def write_scene(scene: SyntheticScene, out_dir: str | Path) -> Path:
     """Writes a scene as a MOTChallenge folder with its true context.
 
-    Files: ``seqinfo.ini``, ``det/det.txt``, ``gt/gt.txt``, ``context_truth.npz`` (true
-    intensities and metadata, see :mod:`jaxtrack.datasets.context_truth`) and ``preview.png``
-    (one frame with boxes, clutter sources and entry zones).
+    Files: ``seqinfo.ini``, ``det/det.txt``, ``gt/gt.txt`` and ``context_truth.npz`` (true
+    intensities and metadata, see :mod:`jaxtrack.datasets.context_truth`). ``jaxtrack
+    simulate`` adds ``preview.png`` (:func:`jaxtrack.plot.scene.save_scene_preview`).
 
     Args:
         scene: the generated scene.
         out_dir: the sequence folder (created if needed; these files are overwritten).
-        preview_frame: frame drawn in the preview; default: the first frame with the most
-            targets.
 
     Returns:
         The folder as a :class:`~pathlib.Path`.
     """
-    from jaxtrack.plot.scene import save_scene_preview
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_seqinfo(out / "seqinfo.ini", scene.info)
@@ -333,7 +327,6 @@ def write_scene(
         scene.clutter_intensity,
         _metadata(scene),
     )
-    save_scene_preview(scene, out / "preview.png", preview_frame)
     return out
 
 

@@ -91,11 +91,14 @@ def synthetic_sequence(out_dir: str | Path, seed: int, quick: bool = False) -> P
         InputError: a negative seed.
     """
     from jaxtrack.datasets.synthetic import generate_scene, write_scene
+    from jaxtrack.plot.scene import save_scene_preview
 
     if seed < 0:
         raise InputError(f"seed must be >= 0, got {seed}")
     scene = generate_scene(seed, QUICK_SCENE if quick else None)
-    return write_scene(scene, out_dir)
+    out = write_scene(scene, out_dir)
+    save_scene_preview(scene, out / "preview.png")
+    return out
 
 
 def split_halves(sequence_dir: str | Path) -> Split:

@@ -46,7 +46,7 @@ from jaxtrack.experiments.magnitudes import (
 )
 from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of
 from jaxtrack.io.motchallenge import write_results
-from jaxtrack.pipelines.tracking import track_sequences
+from jaxtrack.pipelines.tracking import phd_frame_snapshot, track_sequences
 
 #: The demo's magnitude grid: ``lambda_r`` (false detections / frame) x ``lambda_s``
 #: (births / frame), log-spaced.
@@ -146,11 +146,13 @@ def run_demo(
     frame_index = split.test.num_frames // 2
     files.append(
         phd_frame_figure(
-            phd_filter_of(config),
-            jax.random.PRNGKey(seed),
-            params[1],
-            split.test.detections,
-            frame_index,
+            phd_frame_snapshot(
+                phd_filter_of(config),
+                jax.random.PRNGKey(seed),
+                params[1],
+                split.test.detections,
+                frame_index,
+            ),
             out / "tracks.png",
             first_frame=split.test.first_frame,
             image_size=(info.im_width, info.im_height),

@@ -10,7 +10,7 @@ Protocol, on one sequence cut into a training and a disjoint test span:
    magnitudes (:attr:`TuningSettings.start_clutter_rate`, ``start_birth_rate``), adam on the
    unsupervised PHD log-likelihood of the training span (no ground truth), one key per step,
    at most a quarter of the grid's number of runs. Cost: one forward and backward filter pass
-   per step and key (:attr:`~jaxtrack.tuning.tuner.TuneResult.filter_runs`).
+   per step and key (:attr:`~jaxtrack.pipelines.tuner.TuneResult.filter_runs`).
 3. **Scores** on the test span for the default configuration, the mis-specified start, the
    grid's choice and the tuned magnitudes (the tracker with the configuration's particle
    count in all four), and the test MOTA of the iterates along the optimisation (for the

@@ -2,8 +2,8 @@
 
 The defaults are scale-free: noise is relative to the box size (SDV), intensities are uniform
 over volumes derived from the image size, and the velocity range of the birth intensity from
-the image height and the frame rate, so that one configuration serves 640x480 to 1920x1080
-images at 7 to 30 frames per second.
+the image height and the frame rate (:mod:`jaxtrack.context.intensity`), so that one
+configuration serves 640x480 to 1920x1080 images at 7 to 30 frames per second.
 """
 
 from __future__ import annotations
@@ -11,49 +11,12 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from jaxtrack.association.labelling import LabelParams
-from jaxtrack.context.intensity import Intensity, uniform_intensity
+from jaxtrack.context.intensity import (
+    birth_speed_limit,
+    uniform_birth_intensity,
+    uniform_clutter_intensity,
+)
 from jaxtrack.filters.phd import PHDParams
-
-#: Frame rate assumed when a sequence does not give one.
-DEFAULT_FRAME_RATE = 25.0
-
-
-def uniform_birth_intensity(
-    birth_rate: float, im_width: float, im_height: float, max_speed: float
-) -> Intensity:
-    """UM birth intensity: ``birth_rate`` births per frame, uniform over the state volume.
-
-    Args:
-        birth_rate: ``lambda_s``, expected births per frame, > 0.
-        im_width: image width, pixels.
-        im_height: image height, pixels.
-        max_speed: largest centre speed per axis, pixels per frame.
-
-    Returns:
-        A 6-D :class:`~jaxtrack.context.intensity.Intensity` over
-        ``[0, W] x [-v, v] x [0, H] x [-v, v] x [1, W] x [1, H]``.
-    """
-    lower = [0.0, -max_speed, 0.0, -max_speed, 1.0, 1.0]
-    upper = [im_width, max_speed, im_height, max_speed, im_width, im_height]
-    return uniform_intensity(birth_rate, lower, upper)
-
-
-def uniform_clutter_intensity(clutter_rate: float, im_width: float, im_height: float) -> Intensity:
-    """UM clutter intensity: ``clutter_rate`` false detections per frame, uniform.
-
-    Args:
-        clutter_rate: ``lambda_r``, expected false detections per frame, > 0.
-        im_width: image width, pixels.
-        im_height: image height, pixels.
-
-    Returns:
-        A 4-D :class:`~jaxtrack.context.intensity.Intensity` over
-        ``[0, W] x [0, H] x [1, W] x [1, H]``.
-    """
-    return uniform_intensity(
-        clutter_rate, [0.0, 0.0, 1.0, 1.0], [im_width, im_height, im_width, im_height]
-    )
-
 
 #: SDV motion noise ``(sigma_n1, sigma_n2, sigma_nw, sigma_nh)``, relative to the box size.
 DEFAULT_MOTION_NOISE_STD = (0.05, 0.02, 0.05, 0.05)
@@ -86,15 +49,15 @@ def default_phd_params(
     Args:
         im_width: image width, pixels.
         im_height: image height, pixels.
-        frame_rate: frames per second (default :data:`DEFAULT_FRAME_RATE`).
+        frame_rate: frames per second (default
+            :data:`~jaxtrack.context.intensity.DEFAULT_FRAME_RATE`).
         birth_rate: ``lambda_s``, expected births per frame.
         clutter_rate: ``lambda_r``, expected false detections per frame.
 
     Returns:
         The parameters.
     """
-    frame_rate = DEFAULT_FRAME_RATE if frame_rate is None else frame_rate
-    max_speed = 0.4 * im_height / frame_rate
+    max_speed = birth_speed_limit(im_height, frame_rate)
     return PHDParams(
         motion_noise_std=jnp.array(DEFAULT_MOTION_NOISE_STD),
         measurement_noise_std=jnp.array(DEFAULT_MEASUREMENT_NOISE_STD),

@@ -16,21 +16,27 @@ frames by linear interpolation (:func:`~jaxtrack.association.offline.finalise_tr
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import numpy as np
 from tqdm import tqdm
 
+from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
-from jaxtrack.filters.base import run_chunked
+from jaxtrack.filters.base import Filter, run, run_chunked
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
 from jaxtrack.filters.phd_tracker import Context
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import MotSequence
-from jaxtrack.types import PAD_BOX, Detections
+from jaxtrack.types import PAD_BOX, Detections, Tracks
+
+#: Default number of previous frames in a track's trail (:func:`phd_frame_snapshot`).
+DEFAULT_TRAIL = 30
+#: :func:`~jaxtrack.filters.base.run` compiled once per filter and shapes.
+_run = jax.jit(run, static_argnums=0)
 
 
 def track_sequences(
@@ -121,4 +127,75 @@ def pad_to(detections: Detections, num_frames: int, capacity: int) -> Detections
         boxes=padded_boxes,
         scores=np.pad(np.asarray(detections.scores), extra),
         mask=np.pad(np.asarray(detections.mask), extra),
+    )
+
+
+class FrameSnapshot(NamedTuple):
+    """A PHD tracker on one frame of a run (for :func:`jaxtrack.plot.tracks.phd_frame_figure`).
+
+    Attributes:
+        particles: the particle cloud after the frame's update and resampling.
+        log_weights: their log-weights.
+        mass: the PHD mass.
+        estimates: the frame's extracted states.
+        tracks: the tracks of the trail's frames, the last row being the frame.
+        frame_index: 0-based index of the frame in the run.
+    """
+
+    particles: np.ndarray
+    log_weights: np.ndarray
+    mass: float
+    estimates: Estimates
+    tracks: Tracks
+    frame_index: int
+
+
+def phd_frame_snapshot(
+    filt: Filter,
+    key: jax.Array,
+    params: Any,
+    detections: Detections,
+    frame_index: int,
+    trail: int = DEFAULT_TRAIL,
+) -> FrameSnapshot:
+    """Runs a PHD tracker up to a frame and returns its state there (PHD-context Fig. 3).
+
+    The tracker runs (:func:`~jaxtrack.filters.base.run`) over the detections of frames
+    ``0..frame_index`` (the padded arrays sliced along time); its final state is the particle
+    cloud after that frame's update and resampling. The per-frame keys of ``run`` do not
+    depend on the number of frames (``jax.random.split`` is prefix-stable with the default
+    partitionable Threefry), so the snapshot shows the same run as a run over the whole
+    sequence with the same key.
+
+    Args:
+        filt: a PHD tracker (:func:`~jaxtrack.filters.phd.phd_filter`), whose infos carry
+            ``estimates`` and ``tracks``.
+        key: the run's PRNG key.
+        params: the tracker's parameters.
+        detections: padded detections ``[num_frames, max_detections]``.
+        frame_index: 0-based index of the frame in ``detections``.
+        trail: previous frames of the tracks kept (0: none).
+
+    Raises:
+        ValueError: ``frame_index`` outside the detections' frames, or a negative ``trail``.
+    """
+    num_frames = int(np.shape(detections.mask)[0])
+    if not 0 <= frame_index < num_frames:
+        raise ValueError(
+            f"frame_index {frame_index} is outside 0..{num_frames - 1}: the detections hold "
+            f"{num_frames} frames"
+        )
+    if trail < 0:
+        raise ValueError(f"trail must be >= 0, got {trail}")
+    sliced = jax.tree.map(lambda x: x[: frame_index + 1], detections)
+    state, infos = _run(filt, key, params, sliced)
+    return FrameSnapshot(
+        particles=np.asarray(state.particles),
+        log_weights=np.asarray(state.log_weights),
+        mass=float(state.mass),
+        estimates=jax.tree.map(lambda x: np.asarray(x[frame_index]), infos.estimates),
+        tracks=jax.tree.map(
+            lambda x: np.asarray(x[max(0, frame_index - trail) : frame_index + 1]), infos.tracks
+        ),
+        frame_index=frame_index,
     )

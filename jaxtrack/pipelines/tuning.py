@@ -2,7 +2,7 @@
 
 :func:`tune_sequence` starts from the tracker's configuration
 (:class:`~jaxtrack.filters.phd_tracker.PHDConfig`, uniform intensities),
-tunes the chosen parameters with :func:`~jaxtrack.tuning.tuner.tune` on the span's
+tunes the chosen parameters with :func:`~jaxtrack.pipelines.tuner.tune` on the span's
 detections (and ground truth for the supervised objective), and returns the tuned tracker
 configuration (a JSON object for ``jaxtrack track --config``) with a report of the run.
 
@@ -24,6 +24,7 @@ import optax
 from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
 from jaxtrack.io import MotSequence
+from jaxtrack.pipelines.tuner import DEFAULT_LEARNING_RATE, TuneResult, tune
 from jaxtrack.tuning.objectives import ESTIMATORS, make_objective, tuning_filter
 from jaxtrack.tuning.transforms import (
     parameter_space,
@@ -31,7 +32,6 @@ from jaxtrack.tuning.transforms import (
     round_significant,
     to_config,
 )
-from jaxtrack.tuning.tuner import DEFAULT_LEARNING_RATE, TuneResult, tune
 
 #: Particles of the tuning filter (the tracker itself runs with the configuration's count).
 TUNING_PARTICLES = 512
@@ -47,7 +47,7 @@ class SequenceTuning(NamedTuple):
 
     Attributes:
         config: the tuned tracker configuration (``jaxtrack track --config``).
-        result: the :class:`~jaxtrack.tuning.tuner.TuneResult`.
+        result: the :class:`~jaxtrack.pipelines.tuner.TuneResult`.
         report: a JSON-ready summary: sequence, frames, objective, settings, start and tuned
             values of the trainable parameters, the history and the run time.
     """

@@ -10,8 +10,9 @@ Drawn over the video frame when one is given, else over a blank canvas of the im
 * the labelled tracks of the frame as solid boxes coloured by identity, each with the trail
   of its box centres over the previous frames (``trail`` frames, 30 by default).
 
-:func:`draw_phd_frame` draws on given axes; :func:`phd_frame_figure` runs the tracker up to a
-frame and writes the PNG. Matplotlib's object-oriented API with the Agg canvas: no display,
+:func:`draw_phd_frame` draws on given axes; :func:`phd_frame_figure` writes the PNG of a
+frame of a run (:func:`jaxtrack.pipelines.tracking.phd_frame_snapshot` runs the tracker up to
+it). Matplotlib's object-oriented API with the Agg canvas: no display,
 no pyplot global state.
 """
 
@@ -20,7 +21,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import jax
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -29,8 +29,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from jaxtrack.association.estimates import Estimates
-from jaxtrack.filters.base import Filter, run
-from jaxtrack.types import Detections, Tracks
+from jaxtrack.types import Tracks
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -145,41 +144,25 @@ def draw_phd_frame(
 
 
 def phd_frame_figure(
-    filt: Filter,
-    key: jax.Array,
-    params: Any,
-    detections: Detections,
-    frame_index: int,
+    snapshot: Any,
     out_path: str | Path,
     image: np.ndarray | None = None,
-    trail: int = DEFAULT_TRAIL,
     first_frame: int = 1,
     image_size: tuple[float, float] | None = None,
     dpi: int = 100,
 ) -> Path:
-    """Runs the PHD tracker up to a frame and saves the frame's figure as a PNG.
-
-    The tracker runs (:func:`~jaxtrack.filters.base.run`) over the detections of frames
-    ``0..frame_index`` (the padded arrays sliced along time); its final state is the particle
-    cloud after that frame's update and resampling. The per-frame keys of ``run`` do not
-    depend on the number of frames (``jax.random.split`` is prefix-stable with the default
-    partitionable Threefry), so the figure shows the same run as a run over the whole
-    sequence with the same key.
+    """Saves the figure of one frame of a PHD tracker run as a PNG.
 
     Args:
-        filt: a PHD tracker (:func:`~jaxtrack.filters.phd.phd_filter`), whose infos carry
-            ``estimates`` and ``tracks``.
-        key: the run's PRNG key.
-        params: the tracker's parameters.
-        detections: padded detections ``[num_frames, max_detections]``.
-        frame_index: 0-based index of the frame to draw in ``detections``.
+        snapshot: the tracker on that frame
+            (:func:`jaxtrack.pipelines.tracking.phd_frame_snapshot`): ``particles``,
+            ``log_weights``, ``mass`` after the frame's update and resampling, the frame's
+            ``estimates``, the ``tracks`` of the frame and of its trail (the last row is the
+            frame), and its 0-based ``frame_index``.
         out_path: the PNG to write (parent folders are created).
-        image: the video frame of ``frame_index``, ``[height, width, 3]`` uint8 (RGB).
-        trail: previous frames in the tracks' trails (0: none).
-        first_frame: MOT frame number of ``detections[0]`` (for the title).
-        image_size: ``(width, height)`` of the blank canvas when there is no image; default:
-            the position extent of the clutter intensity's volume, ``params.clutter_intensity
-            .upper[:2]`` (the image size for the default uniform intensities).
+        image: the video frame, ``[height, width, 3]`` uint8 (RGB).
+        first_frame: MOT frame number of frame index 0 (for the title).
+        image_size: ``(width, height)`` of the blank canvas when there is no image.
         dpi: resolution; the figure is sized so that one image pixel is about one PNG pixel
             at 100 dpi.
 
@@ -187,45 +170,26 @@ def phd_frame_figure(
         The path of the PNG.
 
     Raises:
-        ValueError: ``frame_index`` outside the detections' frames, a negative ``trail``, or a
-            bad image.
+        ValueError: a bad image, or neither an image nor an image size.
     """
-    num_frames = int(np.shape(detections.mask)[0])
-    if not 0 <= frame_index < num_frames:
-        raise ValueError(
-            f"frame_index {frame_index} is outside 0..{num_frames - 1}: the detections hold "
-            f"{num_frames} frames (MOT frames {first_frame}..{first_frame + num_frames - 1})"
-        )
-    if trail < 0:
-        raise ValueError(f"trail must be >= 0, got {trail}")
-    if image is None and image_size is None:
-        upper = np.asarray(params.clutter_intensity.upper)
-        image_size = (float(upper[0]), float(upper[1]))
     width, height = _canvas_size(image, image_size)
-
-    sliced = jax.tree.map(lambda x: x[: frame_index + 1], detections)
-    state, infos = jax.jit(lambda k, p, d: run(filt, k, p, d))(key, params, sliced)
-    estimates = jax.tree.map(lambda x: np.asarray(x[frame_index]), infos.estimates)
-    tracks = jax.tree.map(
-        lambda x: np.asarray(x[max(0, frame_index - trail) : frame_index + 1]), infos.tracks
-    )
-    num_tracks = int(np.sum(tracks.mask[-1]))
-    num_estimates = int(np.sum(estimates.mask))
-
+    num_tracks = int(np.sum(np.asarray(snapshot.tracks.mask)[-1]))
+    num_estimates = int(np.sum(np.asarray(snapshot.estimates.mask)))
     figure = Figure(figsize=(width / 100 + 0.4, height / 100 + 0.6))
     FigureCanvasAgg(figure)
     ax = figure.add_subplot()
     draw_phd_frame(
         ax,
-        state.particles,
-        state.log_weights,
-        estimates,
-        tracks,
+        snapshot.particles,
+        snapshot.log_weights,
+        snapshot.estimates,
+        snapshot.tracks,
         image=image,
         image_size=(width, height),
         title=(
-            f"frame {first_frame + frame_index}: {state.particles.shape[0]} particles, "
-            f"PHD mass {float(state.mass):.2f}, {num_estimates} estimates, {num_tracks} tracks"
+            f"frame {first_frame + snapshot.frame_index}: {snapshot.particles.shape[0]} "
+            f"particles, PHD mass {float(snapshot.mass):.2f}, {num_estimates} estimates, "
+            f"{num_tracks} tracks"
         ),
     )
     figure.tight_layout()

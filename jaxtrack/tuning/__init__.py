@@ -4,8 +4,8 @@
   trainable / frozen flags, and the tracker configuration they map to.
 * :mod:`~jaxtrack.tuning.objectives`: the unsupervised PHD log-likelihood and the supervised
   relaxed-GOSPA objectives over a sequence, with a choice of resampling gradient estimator.
-* :mod:`~jaxtrack.tuning.tuner`: :func:`tune`, optax optimisation with common random numbers,
-  early stopping and a history.
+The host loop that drives them, :func:`jaxtrack.pipelines.tuner.tune` (optax optimisation with
+common random numbers, early stopping and a history), is in the pipelines layer.
 """
 
 from jaxtrack.tuning.objectives import (
@@ -24,14 +24,12 @@ from jaxtrack.tuning.transforms import (
     parameter_space,
     to_config,
 )
-from jaxtrack.tuning.tuner import TuneResult, tune
 
 __all__ = [
     "DEFAULT_TRAINABLE",
     "ESTIMATORS",
     "Objective",
     "ParameterSpace",
-    "TuneResult",
     "likelihood_objective",
     "make_objective",
     "parameter_space",
@@ -39,6 +37,5 @@ __all__ = [
     "scan_filter",
     "supervised_objective",
     "to_config",
-    "tune",
     "tuning_filter",
 ]

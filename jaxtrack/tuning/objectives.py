@@ -16,7 +16,7 @@ through the carries, not the ``[detections, particles]`` arrays of the update.
   (:func:`relaxed_gospa`).
 
 An objective is called as ``objective.loss(params, key, detections, ground_truth)`` and
-returns ``(loss, metrics)``; :func:`~jaxtrack.tuning.tuner.tune` averages it over several
+returns ``(loss, metrics)``; :func:`~jaxtrack.pipelines.tuner.tune` averages it over several
 keys (common random numbers).
 """
 

@@ -17,7 +17,8 @@ import pytest
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.datasets.synthetic import generate_scene
 from jaxtrack.filters.phd_defaults import default_phd_params
-from jaxtrack.tuning import likelihood_objective, parameter_space, tune, tuning_filter
+from jaxtrack.pipelines.tuner import tune
+from jaxtrack.tuning import likelihood_objective, parameter_space, tuning_filter
 
 TRUE_CLUTTER_RATE = 2.0
 TRUE_DETECTION_PROB = 0.9
