@@ -77,8 +77,6 @@ BIRTH_EPOCHS = 15
 CLUTTER_EPOCHS = 5
 #: Fractions of the samples after which the first pass is snapshotted.
 SNAPSHOT_FRACTIONS = (0.0, 0.05, 0.2, 0.5, 1.0)
-#: Default particles of the UM tracker run that provides birth (and tracker clutter) events.
-TRACKER_PARTICLES = 2048
 #: The default learner: ``1/n`` learning rates, one pseudo-sample per grid component.
 DEFAULT_LEARNER = map_em_learner()
 #: :func:`~jaxtrack.context.map_em.fit` compiled once per learner, shape and pass count.

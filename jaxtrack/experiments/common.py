@@ -141,7 +141,7 @@ def learn_split(
 
     Args:
         split: the training and test spans.
-        config: a full tracker configuration (its ``num_particles`` sets the particles of the
+        config: the tracker configuration (also the configuration of the
             UM run that yields the birth events).
         seed: seeds the tracker run and the order in which samples are learned.
         birth_from: ``"tracks"`` (a UM tracker run, the paper's source) or ``"gt"``.
@@ -160,7 +160,7 @@ def learn_split(
         birth_from=birth_from,
         clutter_from="gt",
         seed=seed,
-        num_particles=config.num_particles,
+        tracker_config=config,
         progress=progress,
     )
 

@@ -17,7 +17,6 @@ from jaxtrack.context.clutter_labels import load_clutter_labels
 from jaxtrack.context.learn import (
     BIRTH_EPOCHS,
     CLUTTER_EPOCHS,
-    TRACKER_PARTICLES,
     LearnedContext,
     birth_grid,
     clutter_grid,
@@ -42,13 +41,11 @@ from jaxtrack.io.motchallenge import MotSequence, load_sequence
 from jaxtrack.pipelines.tracking import track_sequences
 
 
-def uniform_tracker_rows(
-    sequence: MotSequence, seed: int = 0, num_particles: int = TRACKER_PARTICLES
-):
+def uniform_tracker_rows(sequence: MotSequence, seed: int = 0, config: PHDConfig | None = None):
     """Trajectories of the PHD tracker with uniform (UM) intensities on a sequence's span.
 
-    The default configuration with ``num_particles`` and no gap filling, run as
-    ``jaxtrack track`` runs it (sharing its compile). Each confirmed track is kept from its
+    The tracker configuration (default :class:`PHDConfig`) with uniform intensities and no
+    gap filling, run as ``jaxtrack track`` runs it (sharing its compile). Each confirmed track is kept from its
     first estimate on
     (:func:`~jaxtrack.association.offline.finalise_tracks`), so that its first state is
     where the target was first picked up, not where a high-scoring detection confirmed it.
@@ -56,13 +53,12 @@ def uniform_tracker_rows(
     Args:
         sequence: the loaded training span.
         seed: PRNG seed of the run.
-        num_particles: particles of the filter.
+        config: the tracker's configuration (its ``max_gap`` is ignored: gaps stay open).
 
     Returns:
         The :class:`~jaxtrack.association.offline.TrackRows`.
     """
-    config = PHDConfig(num_particles=num_particles, max_gap=0)
-    (rows,) = track_sequences([sequence], config, seed)
+    (rows,) = track_sequences([sequence], (config or PHDConfig()).replace(max_gap=0), seed)
     return rows
 
 
@@ -76,7 +72,7 @@ def learn_context(
     birth_epochs: int = BIRTH_EPOCHS,
     clutter_epochs: int = CLUTTER_EPOCHS,
     warmup_frames: int = WARMUP_FRAMES,
-    num_particles: int = TRACKER_PARTICLES,
+    tracker_config: PHDConfig | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> LearnedContext:
     """Learns the birth and clutter intensities of a sequence's training span.
@@ -93,7 +89,7 @@ def learn_context(
         clutter_epochs: passes over the clutter events.
         warmup_frames: trajectories starting in the span's first frames are not births
             (:func:`~jaxtrack.context.samples.birth_samples`).
-        num_particles: particles of the UM tracker run.
+        tracker_config: configuration of the UM tracker run (default :class:`PHDConfig`).
         progress: called with a short description before each long step.
 
     Returns:
@@ -139,7 +135,7 @@ def learn_context(
     rows = None
     if birth_from == "tracks" or str(clutter_from) == "tracks":
         notify(f"tracking frames {span[0]}:{span[1]} with uniform intensities")
-        rows = uniform_tracker_rows(sequence, seed, num_particles)
+        rows = uniform_tracker_rows(sequence, seed, tracker_config)
 
     notify("collecting events")
     if birth_from == "gt":
