@@ -9,7 +9,7 @@ import pytest
 
 from jaxtrack.cli import main
 from jaxtrack.io import read_mot_file
-from tests.test_cli_detect import NUM_FRAMES, person_box, write_synthetic_folder
+from tests.synthetic_video import NUM_FRAMES, person_box, write_synthetic_folder
 
 
 @pytest.fixture(scope="module")
