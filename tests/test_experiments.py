@@ -176,15 +176,13 @@ def test_demo_quick(tmp_path, capsys):
     _, rows = _read_csv(out / "results.csv")
     assert [row["variant"] for row in rows] == ["UM", "GM"]
     # The written results score as the table says.
-    from jaxtrack.association.offline import TrackRows
     from jaxtrack.experiments.common import evaluate_rows, score_summary, split_halves
     from jaxtrack.io.motchallenge import read_mot_file
 
     split = split_halves(out / "scene")
     for row in rows:
         table = read_mot_file(out / f"{row['variant']}.txt", kind="res")
-        rows_read = TrackRows(table.frames, table.ids, table.boxes, table.confs)
-        rescored = score_summary(evaluate_rows(split.test, rows_read))
+        rescored = score_summary(evaluate_rows(split.test, table))
         assert rescored["MOTA"] == pytest.approx(float(row["MOTA"]), abs=0.01)
     _, sweep_rows = _read_csv(out / "sweep.csv")
     assert len(sweep_rows) == 8

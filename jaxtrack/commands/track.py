@@ -258,7 +258,7 @@ def _write(
     from jaxtrack.filters.phd_tracker import tracker_description
     from jaxtrack.io import write_results
 
-    write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.scores)
+    write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.confs)
     used = {**tracker_description(config, tracker, preset), "seed": seed}
     used["sequence"] = str(seq.path)
     if variant is not None:

@@ -318,7 +318,7 @@ def uniform_tracker_rows(
         num_particles: particles of the filter.
 
     Returns:
-        The :class:`~jaxtrack.association.offline.TrackRows`.
+        The rows (a :class:`~jaxtrack.types.MotTable`).
     """
     from jaxtrack.association.offline import finalise_tracks
     from jaxtrack.filters.base import run

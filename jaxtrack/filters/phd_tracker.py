@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, run_chunked
@@ -52,7 +52,7 @@ from jaxtrack.filters.phd_defaults import (
     default_phd_params,
 )
 from jaxtrack.io import MotSequence, SequenceInfo
-from jaxtrack.types import PAD_BOX, Detections
+from jaxtrack.types import PAD_BOX, Detections, MotTable
 
 #: The documented default configuration (one for all sequences).
 DEFAULT_CONFIG: dict[str, Any] = {
@@ -228,7 +228,7 @@ def track_sequences(
     chunk_frames: int = 128,
     tracker: str = "phd",
     preset: str = "default",
-) -> list[TrackRows]:
+) -> list[MotTable]:
     """Tracks several sequences (or spans) with one compiled run.
 
     Args:
