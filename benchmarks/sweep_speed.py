@@ -53,7 +53,6 @@ from jaxtrack.experiments.magnitudes import (  # noqa: E402
 )
 from jaxtrack.filters.base import run  # noqa: E402
 from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of  # noqa: E402
-from jaxtrack.io import MotTable  # noqa: E402
 from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
 from jaxtrack.pipelines.sweep import sweep  # noqa: E402
 
@@ -108,7 +107,7 @@ def main() -> None:
         tracks, candidates = single(key, jax.tree.map(lambda x, b=b: x[b], batched))
         rows = finalise_tracks(tracks, candidates, CONFIG.max_gap, test.first_frame)
         span = (test.first_frame, test.last_frame)
-        scores = evaluate_sequence(test.gt_table, MotTable.from_arrays(*rows), span).summary()
+        scores = evaluate_sequence(test.gt_table, rows, span).summary()
         loop_mota.append(scores["MOTA"])
     loop_timed_s = time.perf_counter() - start
     loop_s = loop_compile_s + loop_timed_s * num_configs / len(timed)

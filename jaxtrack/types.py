@@ -1,4 +1,4 @@
-"""Shared PyTree types.
+"""Shared PyTree types, and the one host-side row table.
 
 Boxes are stored as MOTChallenge ``(x, y, w, h)``: top-left corner, width and height, in
 pixels. Variable-size sets per frame are padded to a fixed capacity with a boolean mask so
@@ -8,6 +8,10 @@ finite before masking.
 
 Dimension names used in annotations: ``num_frames``, ``max_detections``, ``max_objects``,
 ``num_particles``, ``state_dim``, ``meas_dim``, ``num_components``.
+
+:class:`MotTable` holds rows (one box each) host-side in NumPy: MOTChallenge files as read,
+and tracker output (:func:`jaxtrack.association.offline.track_rows` /
+:func:`~jaxtrack.association.offline.finalise_tracks`) as written.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 #: Value written into padded box slots: a 1x1 box at the origin (positive size, finite logs).
@@ -85,3 +90,77 @@ class SequenceInfo:
     im_width: int
     im_height: int
     frame_rate: float | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class MotTable:
+    """Rows of a MOTChallenge file (float64, exact, as read) or of a tracker's output, host-side.
+
+    Attributes:
+        frames: 1-based frame number of each row, ``[num_rows]``.
+        ids: object id of each row (-1 for detections), ``[num_rows]``.
+        boxes: ``(x, y, w, h)``, ``[num_rows, 4]``.
+        confs: column 7 (detector or tracker score; in gt 0 means "ignore"), ``[num_rows]``.
+        extra: columns 8.. as read (``-1`` for tracker output), ``[num_rows, num_columns - 7]``.
+        lines: 1-based line number each row came from (0 for rows not read from a file).
+        path: the file the rows came from, if any.
+    """
+
+    frames: np.ndarray
+    ids: np.ndarray
+    boxes: np.ndarray
+    confs: np.ndarray
+    extra: np.ndarray
+    lines: np.ndarray
+    path: str | None = None
+
+    def __len__(self) -> int:
+        return int(self.frames.shape[0])
+
+    @classmethod
+    def from_arrays(
+        cls,
+        frames,
+        ids,
+        boxes,
+        confs=None,
+        extra=None,
+        path: str | None = None,
+    ) -> MotTable:
+        """Builds a table from arrays (e.g. a tracker's output); ``confs`` default to 1."""
+        frames = np.asarray(frames, dtype=np.int64).reshape(-1)
+        n = frames.shape[0]
+        confs = np.ones(n) if confs is None else np.asarray(confs, dtype=np.float64).reshape(n)
+        extra = np.full((n, 3), -1.0) if extra is None else np.asarray(extra, dtype=np.float64)
+        if extra.ndim != 2 or extra.shape[0] != n:
+            raise ValueError(f"extra must have shape (num_rows, k), got {extra.shape}")
+        return cls(
+            frames=frames,
+            ids=np.asarray(ids, dtype=np.int64).reshape(n),
+            boxes=np.asarray(boxes, dtype=np.float64).reshape(n, 4),
+            confs=confs,
+            extra=extra,
+            lines=np.zeros(n, dtype=np.int64),
+            path=path,
+        )
+
+    def select(self, keep: np.ndarray) -> MotTable:
+        """Returns the rows where the boolean (or index) array ``keep`` selects."""
+        return dataclasses.replace(
+            self,
+            frames=self.frames[keep],
+            ids=self.ids[keep],
+            boxes=self.boxes[keep],
+            confs=self.confs[keep],
+            extra=self.extra[keep],
+            lines=self.lines[keep],
+        )
+
+    def frame_span(self, start: int, end: int) -> MotTable:
+        """Rows with ``start <= frame <= end`` (1-based, inclusive)."""
+        return self.select((self.frames >= start) & (self.frames <= end))
+
+    @property
+    def ignored(self) -> np.ndarray:
+        """Ground-truth convention: rows with ``conf == 0`` are to be ignored."""
+        return self.confs == 0

@@ -1,4 +1,10 @@
-"""Shared fixtures: the data in ../shared/data (always present in CI, never copied here)."""
+"""Shared fixtures: the data in ../shared/data (always present in CI, never copied here).
+
+Test helpers are imported one way only, as package modules from the repository root
+(``from tests.<package>.<module> import name``, e.g. ``from tests.data import MOT15_ROOT``);
+never relative imports, ``sys.path`` changes, or imports from a ``conftest.py`` or a test
+module; fixtures live in ``conftest.py`` files.
+"""
 
 from __future__ import annotations
 
@@ -6,18 +12,7 @@ from pathlib import Path
 
 import pytest
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-DATA_ROOT = REPO_ROOT.parent / "shared" / "data"
-MOT15_ROOT = DATA_ROOT / "mot15"
-MOT15_SEQUENCES = (
-    sorted(p.name for p in MOT15_ROOT.iterdir() if p.is_dir()) if MOT15_ROOT.is_dir() else []
-)
-
-
-def require_data() -> None:
-    """Fails loudly (never skips) when the shared data folder is missing."""
-    if not MOT15_ROOT.is_dir():
-        pytest.fail(f"shared data not found at {MOT15_ROOT}; clone the repo beside ../shared")
+from tests.data import DATA_ROOT, MOT15_ROOT, require_data
 
 
 @pytest.fixture(scope="session")

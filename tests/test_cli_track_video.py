@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 
 from jaxtrack.cli import main
 from jaxtrack.io import read_mot_file
-from tests.test_cli_detect import NUM_FRAMES, person_box, write_synthetic_folder
+from jaxtrack.io.video import id_colour
+from tests.synthetic_video import NUM_FRAMES, person_box, write_synthetic_folder
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +39,16 @@ def test_video_to_one_track_with_annotated_frames(synthetic_folder, tmp_path, ca
         result.boxes[:, 0] + result.boxes[:, 2] / 2 - truth[:, 0] - truth[:, 2] / 2
     )
     assert np.median(centre_error) < 3.0
-    assert len(list(frames_dir.glob("*.png"))) == NUM_FRAMES
+    assert sorted(p.name for p in frames_dir.iterdir()) == [
+        f"{k:06d}.png" for k in range(1, NUM_FRAMES + 1)
+    ]
+    # the last frame shows the track's box in its id colour (left edge, mid-height)
+    last = result.select(result.frames == result.frames.max())
+    image = cv2.cvtColor(
+        cv2.imread(str(frames_dir / f"{last.frames[0]:06d}.png")), cv2.COLOR_BGR2RGB
+    )
+    x, y, _, h = last.boxes[0]
+    assert tuple(image[round(y + h / 2), round(x)]) == id_colour(int(last.ids[0]))
     used = json.loads((tmp_path / "res.config.json").read_text())
     assert used["detector"] == "horprasert" and used["fps"] == 7.0 and used["variant"] == "UM"
     assert "1 tracks" in capsys.readouterr().out

@@ -7,12 +7,15 @@ import importlib.util
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
+from matplotlib.image import imread
 
 from jaxtrack.experiments.ablation import ABLATION_COLUMNS, add_differences
 from jaxtrack.experiments.common import markdown_table, percent_difference
 from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, TRACKERS
 from jaxtrack.filters.phd_tracker import VARIANTS
+from jaxtrack.io.motchallenge import read_mot_file
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "experiments"
 
@@ -29,6 +32,17 @@ def _read_csv(path: Path) -> tuple[list[str], list[dict]]:
     with path.open(newline="") as file:
         reader = csv.DictReader(file)
         return list(reader.fieldnames), list(reader)
+
+
+def _assert_figure_png(path: Path, size: tuple[int, int] | None = None) -> None:
+    """The PNG is more than a blank canvas and, when given, ``(width, height)`` pixels big.
+
+    What the figures draw is tested against their inputs in tests/plot/test_experiment_plots.py.
+    """
+    pixels = imread(path)[..., :3]
+    if size is not None:
+        assert pixels.shape[1::-1] == size, path.name
+    assert np.unique(pixels.reshape(-1, 3), axis=0).shape[0] > 20, path.name
 
 
 def test_percent_difference_against_hand_numbers():
@@ -79,10 +93,10 @@ def test_context_ablation_quick(tmp_path):
         expected = percent_difference(float(row["MOTA"]), float(um["MOTA"]))
         assert float(row["MOTA_diff_pct"]) == pytest.approx(expected, abs=0.01)
         assert 0 < float(row["MOTP"]) <= 100
-    assert (out / "ablation.png").stat().st_size > 10_000
+    _assert_figure_png(out / "ablation.png", (800, 450))
     summary = (out / "summary.md").read_text()
     assert all(f"| {name} |" in summary for name in VARIANTS)
-    assert (out / "scene" / "gt" / "gt.txt").is_file()
+    assert len(read_mot_file(out / "scene" / "gt" / "gt.txt", kind="gt")) > 0
 
 
 @pytest.mark.slow
@@ -96,7 +110,7 @@ def test_compare_trackers_quick(tmp_path):
     assert rows[0]["context"].startswith("learned on frames 1:60")
     # Different trackers give different results on the same detections.
     assert len({(row["FP"], row["FN"]) for row in rows}) == len(rows)
-    assert (out / "comparison.png").stat().st_size > 10_000
+    _assert_figure_png(out / "comparison.png", (800, 640))  # 2 x 2 panels, one sequence
     summary = (out / "summary.md").read_text()
     assert all(f"| {name} |" in summary for name in TRACKERS)
 
@@ -146,8 +160,8 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
     assert float(point["MOTA"]) == pytest.approx(expected["MOTA"], abs=0.01)
     # Different magnitudes change the result.
     assert len({(row["FP"], row["FN"]) for row in rows}) > len(rows) // 2
-    assert (out / "sweep.png").stat().st_size > 10_000
-    assert (out / "sweep_mota.png").stat().st_size > 10_000
+    _assert_figure_png(out / "sweep.png", (1280, 600))  # 2 x 4 panels
+    _assert_figure_png(out / "sweep_mota.png", (1100, 450))  # UM and GM heat maps
     summary = (out / "summary.md").read_text()
     assert "| UM |" in summary and "| GM |" in summary and "best MOTA" in summary
 
@@ -160,32 +174,22 @@ def test_demo_quick(tmp_path, capsys):
     assert main(["demo", "--quick", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "| UM |" in printed and "| GM |" in printed
-    for name in (
-        "demo.png",
-        "intensities.png",
-        "sweep.png",
-        "sweep_mota.png",
-        "tracks.png",
-        "results.csv",
-        "sweep.csv",
-        "UM.txt",
-        "GM.txt",
-        "summary.md",
-    ):
-        assert (out / name).stat().st_size > 0, name
-    assert (out / "demo.png").stat().st_size > 20_000
+    _assert_figure_png(out / "demo.png", (1080, 675))  # 12 x 7.5 inches at 90 dpi
+    _assert_figure_png(out / "sweep.png", (1280, 600))
+    _assert_figure_png(out / "sweep_mota.png", (1100, 450))
+    for name in ("intensities.png", "tracks.png"):
+        _assert_figure_png(out / name)
     _, rows = _read_csv(out / "results.csv")
     assert [row["variant"] for row in rows] == ["UM", "GM"]
+    summary = (out / "summary.md").read_text()
+    assert "| UM |" in summary and "| GM |" in summary
     # The written results score as the table says.
-    from jaxtrack.association.offline import TrackRows
     from jaxtrack.experiments.common import evaluate_rows, score_summary, split_halves
-    from jaxtrack.io.motchallenge import read_mot_file
 
     split = split_halves(out / "scene")
     for row in rows:
         table = read_mot_file(out / f"{row['variant']}.txt", kind="res")
-        rows_read = TrackRows(table.frames, table.ids, table.boxes, table.confs)
-        rescored = score_summary(evaluate_rows(split.test, rows_read))
+        rescored = score_summary(evaluate_rows(split.test, table))
         assert rescored["MOTA"] == pytest.approx(float(row["MOTA"]), abs=0.01)
     _, sweep_rows = _read_csv(out / "sweep.csv")
     assert len(sweep_rows) == 8

@@ -17,7 +17,7 @@ from jaxtrack.errors import InputError
 from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
-from jaxtrack.io import MotTable, load_sequence
+from jaxtrack.io import load_sequence
 from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.pipelines.sweep import (
     BIRTH_RATE,
@@ -87,9 +87,7 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_r
         np.testing.assert_array_equal(got.ids, expected.ids)
         np.testing.assert_allclose(got.boxes, expected.boxes, rtol=1e-5, atol=1e-3)
         np.testing.assert_allclose(result.log_likelihood[b], np.sum(info.log_likelihood), rtol=1e-5)
-        scores = evaluate_sequence(
-            campus.gt_table, MotTable.from_arrays(*expected), FRAMES
-        ).summary()
+        scores = evaluate_sequence(campus.gt_table, expected, FRAMES).summary()
         for name in ("MOTA", "MOTP", "MODA", "MODP", "IDF1", "HOTA"):
             np.testing.assert_allclose(result.scores[name][b], scores[name], atol=1e-6)
     # The grid matters: the magnitudes change the output.

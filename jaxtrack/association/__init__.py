@@ -9,14 +9,13 @@ from jaxtrack.association.labelling import (
     init_labels,
     label_step,
 )
-from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.association.offline import finalise_tracks, track_rows
 
 __all__ = [
     "Estimates",
     "LabelParams",
     "LabelState",
     "Labels",
-    "TrackRows",
     "finalise_tracks",
     "gated_assignment",
     "init_labels",

@@ -217,7 +217,7 @@ def _benchmark(args, config: TrackerConfig) -> int:
 
 
 def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
-    write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.scores)
+    write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.confs)
     used = {**tracker_description(config), "seed": seed}
     used["sequence"] = str(seq.path)
     if variant is not None:

@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         _, params = build_tracker(config, info, context, args.variant)
         (rows,) = track_sequences([sequence], config, args.seed, [params], progress=True)
         elapsed = time.perf_counter() - start
-        write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.scores)
+        write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
         used = {
             **tracker_description(config),
             "seed": args.seed,
@@ -170,12 +170,11 @@ def run(args: argparse.Namespace) -> int:
 
 def print_tracking_scores(gt_path: str, rows, span: tuple[int, int], num_frames: int) -> dict:
     """Prints (and returns) MOTA, MOTP, MODA, MODP and IDF1 of ``rows`` on ``span``."""
-    from jaxtrack.io import MotTable, read_mot_file
+    from jaxtrack.io import read_mot_file
     from jaxtrack.metrics.evaluate import evaluate_sequence
 
     gt = read_mot_file(gt_path, "gt", num_frames).frame_span(*span)
-    result = MotTable.from_arrays(rows.frames, rows.ids, rows.boxes, rows.scores)
-    summary = evaluate_sequence(gt, result, span).summary()
+    summary = evaluate_sequence(gt, rows, span).summary()
     scores = {key: summary[key] for key in ("MOTA", "MOTP", "MODA", "MODP", "IDF1")}
     print("  " + ", ".join(f"{key} {value:.4f}" for key, value in scores.items()))
     return scores

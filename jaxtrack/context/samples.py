@@ -35,10 +35,9 @@ import numpy as np
 
 from jaxtrack.boxes import iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.map_em import estimate_magnitude
-from jaxtrack.io.motchallenge import MotTable
+from jaxtrack.types import MotTable
 
 if TYPE_CHECKING:
-    from jaxtrack.association.offline import TrackRows
     from jaxtrack.context.clutter_labels import ClutterLabels
 
 #: Default number of first boxes whose centres give a birth event's velocity.
@@ -196,7 +195,7 @@ def birth_samples_from_gt(gt_table: MotTable, span: tuple[int, int], **options) 
     return birth_samples(kept.frames, kept.ids, kept.boxes, span, "gt", **options)
 
 
-def birth_samples_from_tracks(rows: TrackRows, span: tuple[int, int], **options) -> EventSamples:
+def birth_samples_from_tracks(rows: MotTable, span: tuple[int, int], **options) -> EventSamples:
     """Birth events from a tracker's output trajectories.
 
     Args:
@@ -249,7 +248,7 @@ def clutter_samples_from_gt(
 
 def clutter_samples_from_tracks(
     det_table: MotTable,
-    rows: TrackRows,
+    rows: MotTable,
     span: tuple[int, int],
     iou_threshold: float = IOU_THRESHOLD,
 ) -> EventSamples:

@@ -28,7 +28,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
-from jaxtrack.association.offline import TrackRows
 from jaxtrack.context.samples import WARMUP_FRAMES
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.errors import InputError
@@ -165,7 +164,7 @@ def learn_split(
     )
 
 
-def evaluate_rows(sequence: MotSequence, rows: TrackRows) -> Evaluation:
+def evaluate_rows(sequence: MotSequence, rows: MotTable) -> Evaluation:
     """Scores a tracker's rows against a sequence span's ground truth.
 
     Raises:
@@ -173,9 +172,8 @@ def evaluate_rows(sequence: MotSequence, rows: TrackRows) -> Evaluation:
     """
     if sequence.gt_table is None:
         raise InputError(f"{sequence.path}: no ground truth (gt/gt.txt) to score against")
-    result = MotTable.from_arrays(rows.frames, rows.ids, rows.boxes, rows.scores)
     return evaluate_sequence(
-        sequence.gt_table, result, frames=(sequence.first_frame, sequence.last_frame)
+        sequence.gt_table, rows, frames=(sequence.first_frame, sequence.last_frame)
     )
 
 

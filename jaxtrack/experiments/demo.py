@@ -130,7 +130,7 @@ def run_demo(
     rows = []
     for variant, result in zip(("UM", "GM"), results, strict=True):
         path = out / f"{variant}.txt"
-        write_results(path, *result)
+        write_results(path, result.frames, result.ids, result.boxes, result.confs)
         files.append(path)
         rows.append({"variant": variant, **score_summary(evaluate_rows(split.test, result))})
     files.append(write_csv(out / "results.csv", rows, RESULT_COLUMNS))

@@ -6,9 +6,9 @@ A MOTChallenge file has one object per line, comma-separated:
 ``conf == 0`` marks a row to be ignored by evaluation; this module keeps such rows and flags
 them, the evaluation decides.
 
-Host-side tables (:class:`MotTable`, NumPy, float64 exactly as read) feed evaluation and file
-writing; :func:`pad_detections` / :func:`pad_ground_truth` turn them into the fixed-capacity
-PyTrees of :mod:`jaxtrack.types` that a ``lax.scan`` consumes.
+Host-side tables (:class:`~jaxtrack.types.MotTable`, NumPy, float64 exactly as read) feed
+evaluation and file writing; :func:`pad_detections` / :func:`pad_ground_truth` turn them
+into the fixed-capacity PyTrees of :mod:`jaxtrack.types` that a ``lax.scan`` consumes.
 """
 
 from __future__ import annotations
@@ -20,84 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from jaxtrack.errors import FileFormatError, InputError
-from jaxtrack.types import PAD_BOX, Detections, GroundTruth, SequenceInfo
+from jaxtrack.types import PAD_BOX, Detections, GroundTruth, MotTable, SequenceInfo
 
 MIN_COLUMNS = 7
 MAX_COLUMNS = 10
-
-
-@dataclasses.dataclass(frozen=True)
-class MotTable:
-    """Rows of one MOTChallenge file, host-side, as read (float64, exact).
-
-    Attributes:
-        frames: 1-based frame number of each row, ``[num_rows]``.
-        ids: object id of each row (-1 for detections), ``[num_rows]``.
-        boxes: ``(x, y, w, h)``, ``[num_rows, 4]``.
-        confs: column 7 (detector score; in gt 0 means "ignore"), ``[num_rows]``.
-        extra: columns 8.. as read, ``[num_rows, num_columns - 7]``.
-        lines: 1-based line number each row came from (0 for rows not read from a file).
-        path: the file the rows came from, if any.
-    """
-
-    frames: np.ndarray
-    ids: np.ndarray
-    boxes: np.ndarray
-    confs: np.ndarray
-    extra: np.ndarray
-    lines: np.ndarray
-    path: str | None = None
-
-    def __len__(self) -> int:
-        return int(self.frames.shape[0])
-
-    @classmethod
-    def from_arrays(
-        cls,
-        frames,
-        ids,
-        boxes,
-        confs=None,
-        extra=None,
-        path: str | None = None,
-    ) -> MotTable:
-        """Builds a table from arrays (e.g. a tracker's output); ``confs`` default to 1."""
-        frames = np.asarray(frames, dtype=np.int64).reshape(-1)
-        n = frames.shape[0]
-        confs = np.ones(n) if confs is None else np.asarray(confs, dtype=np.float64).reshape(n)
-        extra = np.full((n, 3), -1.0) if extra is None else np.asarray(extra, dtype=np.float64)
-        if extra.ndim != 2 or extra.shape[0] != n:
-            raise ValueError(f"extra must have shape (num_rows, k), got {extra.shape}")
-        return cls(
-            frames=frames,
-            ids=np.asarray(ids, dtype=np.int64).reshape(n),
-            boxes=np.asarray(boxes, dtype=np.float64).reshape(n, 4),
-            confs=confs,
-            extra=extra,
-            lines=np.zeros(n, dtype=np.int64),
-            path=path,
-        )
-
-    def select(self, keep: np.ndarray) -> MotTable:
-        """Returns the rows where the boolean (or index) array ``keep`` selects."""
-        return dataclasses.replace(
-            self,
-            frames=self.frames[keep],
-            ids=self.ids[keep],
-            boxes=self.boxes[keep],
-            confs=self.confs[keep],
-            extra=self.extra[keep],
-            lines=self.lines[keep],
-        )
-
-    def frame_span(self, start: int, end: int) -> MotTable:
-        """Rows with ``start <= frame <= end`` (1-based, inclusive)."""
-        return self.select((self.frames >= start) & (self.frames <= end))
-
-    @property
-    def ignored(self) -> np.ndarray:
-        """Ground-truth convention: rows with ``conf == 0`` are to be ignored."""
-        return self.confs == 0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxtrack.io import MotTable
 from jaxtrack.metrics.preprocess import prepare_sequence
 from jaxtrack.metrics.vace import detection_mapping
+from jaxtrack.types import MotTable
 
 
 def detection_precision_recall(

@@ -142,8 +142,8 @@ def evaluate_sequence(gt, result, frames: tuple[int, int] | None = None, config=
     """Scores a tracker's output on one sequence with every metric.
 
     Args:
-        gt: ground truth (:class:`jaxtrack.io.MotTable`, all rows; conventions applied here).
-        result: tracker output (:class:`jaxtrack.io.MotTable`).
+        gt: ground truth (:class:`jaxtrack.types.MotTable`, all rows; conventions applied here).
+        result: tracker output (:class:`jaxtrack.types.MotTable`).
         frames: ``(first, last)`` 1-based inclusive span scored (``(1, seqLength)`` for a
             whole sequence); default ``(1, last frame present in gt or result)``. Only the
             set distances depend on it (they average over its frames). Rows outside it are

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxtrack.io import MotTable
 from jaxtrack.metrics.evaluate import EvalConfig, Evaluation, evaluate_sequence
-from jaxtrack.types import Tracks
+from jaxtrack.types import MotTable, Tracks
 
 
 def table_from_tracks(tracks: Tracks, first_frame: int = 1) -> MotTable:

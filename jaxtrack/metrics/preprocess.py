@@ -89,8 +89,8 @@ def prepare_sequence(
     """Applies the ground-truth conventions and pairs up same-frame boxes.
 
     Args:
-        gt: ground truth (:class:`jaxtrack.io.MotTable`, all rows as read).
-        result: tracker output (:class:`jaxtrack.io.MotTable`).
+        gt: ground truth (:class:`jaxtrack.types.MotTable`, all rows as read).
+        result: tracker output (:class:`jaxtrack.types.MotTable`).
         frames: ``(first, last)``, the 1-based inclusive span being scored; every row of
             both tables must lie in it.
         centre_threshold: None to compare boxes by IoU, else the centre distance (pixels)

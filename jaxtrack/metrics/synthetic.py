@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from jaxtrack.io import MotTable
+from jaxtrack.types import MotTable
 
 
 @dataclasses.dataclass(frozen=True)

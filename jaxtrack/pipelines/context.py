@@ -45,8 +45,8 @@ def uniform_tracker_rows(sequence: MotSequence, seed: int = 0, config: PHDConfig
     """Trajectories of the PHD tracker with uniform (UM) intensities on a sequence's span.
 
     The tracker configuration (default :class:`PHDConfig`) with uniform intensities and no
-    gap filling, run as ``jaxtrack track`` runs it (sharing its compile). Each confirmed track is kept from its
-    first estimate on
+    gap filling, run as ``jaxtrack track`` runs it (sharing its compile). Each confirmed
+    track is kept from its first estimate on
     (:func:`~jaxtrack.association.offline.finalise_tracks`), so that its first state is
     where the target was first picked up, not where a high-scoring detection confirmed it.
 
@@ -56,7 +56,7 @@ def uniform_tracker_rows(sequence: MotSequence, seed: int = 0, config: PHDConfig
         config: the tracker's configuration (its ``max_gap`` is ignored: gaps stay open).
 
     Returns:
-        The :class:`~jaxtrack.association.offline.TrackRows`.
+        The rows (:class:`~jaxtrack.types.MotTable`).
     """
     (rows,) = track_sequences([sequence], (config or PHDConfig()).replace(max_gap=0), seed)
     return rows

@@ -40,7 +40,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jaxtyping import Array, ArrayLike
 
-from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, run
@@ -71,7 +71,7 @@ class SweepResult(NamedTuple):
     updates: dict[str, np.ndarray]
     scores: dict[str, np.ndarray]
     log_likelihood: np.ndarray
-    rows: list[TrackRows]
+    rows: list[MotTable]
 
 
 def product_grid(axes: Mapping[str, ArrayLike]) -> dict[str, np.ndarray]:
@@ -320,8 +320,7 @@ def sweep(
             rows.append(config_rows)
             log_likelihood.append(chunk_log_likelihood[b])
             if gt is not None:
-                table = MotTable.from_arrays(*config_rows)
-                scores.append(evaluate_sequence(gt, table, span, eval_config).summary())
+                scores.append(evaluate_sequence(gt, config_rows, span, eval_config).summary())
     score_arrays = {name: np.asarray([s[name] for s in scores]) for name in SUMMARY_KEYS}
     return SweepResult(
         updates=swept,

@@ -23,7 +23,7 @@ import numpy as np
 from tqdm import tqdm
 
 from jaxtrack.association.estimates import Estimates
-from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
+from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
 from jaxtrack.filters.base import Filter, run, run_chunked
@@ -31,7 +31,7 @@ from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
 from jaxtrack.filters.phd_tracker import Context
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import MotSequence
-from jaxtrack.types import PAD_BOX, Detections, Tracks
+from jaxtrack.types import PAD_BOX, Detections, MotTable, Tracks
 
 #: Default number of previous frames in a track's trail (:func:`phd_frame_snapshot`).
 DEFAULT_TRAIL = 30
@@ -46,7 +46,7 @@ def track_sequences(
     params: Sequence[Any] | None = None,
     progress: bool = False,
     chunk_frames: int = 128,
-) -> list[TrackRows]:
+) -> list[MotTable]:
     """Tracks several sequences (or spans) with one compiled run.
 
     Args:
@@ -91,7 +91,7 @@ def load_tracker_context(path: str | None) -> Context | None:
     return None if path is None else Context(*load_context(path))
 
 
-def output_rows(info: Any, config: TrackerConfig, first_frame: int) -> TrackRows:
+def output_rows(info: Any, config: TrackerConfig, first_frame: int) -> MotTable:
     """The result rows of a run's per-frame infos, as the configuration's ``output`` says."""
     if config.output == "online":
         return track_rows(info.tracks, first_frame)

@@ -1,6 +1,9 @@
 """Figures of the experiments: magnitude sweep (PHD-context Fig. 15), context ablation (Fig. 14),
 tracker comparison (Fig. 16).
 
+Each ``save_<name>`` writes the PNG of the Figure built by ``<name>`` (kept apart so that
+tests assert on the drawn data).
+
 * :func:`save_ablation_figure`: for each variant but the reference (UM), one group of bars,
   the % difference of each score with respect to UM (the ``<score>_diff_pct`` columns of
   :func:`jaxtrack.experiments.ablation.ablation_table`).
@@ -27,6 +30,13 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
 
+def _save(figure: Figure, path: str | Path, dpi: int = 100) -> Path:
+    """Writes ``figure`` as a PNG; returns ``path`` as a :class:`~pathlib.Path`."""
+    path = Path(path)
+    figure.savefig(path, dpi=dpi)
+    return path
+
+
 def _grouped_bars(axes, groups: Sequence[str], series: dict[str, Sequence[float]]) -> None:
     """Draws one group of bars per entry of ``groups``, one bar per ``series`` in each."""
     width = 0.8 / max(1, len(series))
@@ -40,24 +50,27 @@ def _grouped_bars(axes, groups: Sequence[str], series: dict[str, Sequence[float]
     axes.grid(axis="y", alpha=0.3)
 
 
-def save_ablation_figure(
+def save_ablation_figure(rows: Sequence[dict], path: str | Path, *args, **kwargs) -> Path:
+    """Writes :func:`ablation_figure` (and its other arguments) to ``path``."""
+    return _save(ablation_figure(rows, *args, **kwargs), path)
+
+
+def ablation_figure(
     rows: Sequence[dict],
-    path: str | Path,
     scores: Sequence[str] = ("MOTA", "MOTP", "MODA", "MODP"),
     reference: str = "UM",
     title: str = "",
-) -> Path:
+) -> Figure:
     """Bars of each variant's score % difference w.r.t. the reference (PHD-context Fig. 14).
 
     Args:
         rows: table rows with ``variant`` and ``<score>_diff_pct`` for each score.
-        path: the PNG to write.
         scores: the scores drawn (one bar each per variant).
         reference: the variant the differences are taken against (not drawn).
         title: the figure's title.
 
     Returns:
-        ``path`` as a :class:`~pathlib.Path`.
+        The figure (one axes; the bars of each score are one container, NaN drawn as 0).
     """
     shown = [row for row in rows if row["variant"] != reference]
     figure = Figure(figsize=(8, 4.5), layout="constrained")
@@ -71,27 +84,28 @@ def save_ablation_figure(
     axes.set_ylabel(f"% difference w.r.t. {reference}")
     axes.legend()
     axes.set_title(title or f"Score difference of the context variants w.r.t. {reference}")
-    path = Path(path)
-    figure.savefig(path, dpi=100)
-    return path
+    return figure
 
 
-def save_comparison_figure(
+def save_comparison_figure(rows: Sequence[dict], path: str | Path, *args, **kwargs) -> Path:
+    """Writes :func:`comparison_figure` (and its other arguments) to ``path``."""
+    return _save(comparison_figure(rows, *args, **kwargs), path)
+
+
+def comparison_figure(
     rows: Sequence[dict],
-    path: str | Path,
     scores: Sequence[str] = ("MOTA", "MOTP", "MODA", "MODP"),
     title: str = "",
-) -> Path:
+) -> Figure:
     """One panel per score, bars per sequence and tracker (PHD-context Fig. 16).
 
     Args:
         rows: table rows with ``sequence``, ``tracker`` and the scores (in percent).
-        path: the PNG to write.
         scores: the scores drawn, one panel each.
         title: the figure's title.
 
     Returns:
-        ``path`` as a :class:`~pathlib.Path`.
+        The figure, one axes per score in order; a missing (sequence, tracker) is drawn as 0.
     """
     sequences = list(dict.fromkeys(row["sequence"] for row in rows))
     trackers = list(dict.fromkeys(row["tracker"] for row in rows))
@@ -120,9 +134,7 @@ def save_comparison_figure(
         if index == 0:
             axes.legend(fontsize="small")
     figure.suptitle(title or "Trackers on the same detections")
-    path = Path(path)
-    figure.savefig(path, dpi=100)
-    return path
+    return figure
 
 
 def tick_labels(values: Sequence[float], most: int = 5) -> list[str]:
@@ -131,12 +143,16 @@ def tick_labels(values: Sequence[float], most: int = 5) -> list[str]:
     return [f"{v:.2g}" if k % every == 0 else "" for k, v in enumerate(values)]
 
 
-def save_sweep_figure(
+def save_sweep_figure(result, path: str | Path, *args, **kwargs) -> Path:
+    """Writes :func:`sweep_figure` (and its other arguments) to ``path``."""
+    return _save(sweep_figure(result, *args, **kwargs), path)
+
+
+def sweep_figure(
     result,
-    path: str | Path,
     scores: Sequence[str] = ("MOTA", "MOTP", "MODA", "MODP"),
     title: str = "",
-) -> Path:
+) -> Figure:
     """Scores against ``lambda_r`` and against ``lambda_s``, one line per variant (Fig. 15).
 
     Top row: each score against the clutter magnitude ``lambda_r`` with ``lambda_s`` at the
@@ -145,12 +161,11 @@ def save_sweep_figure(
 
     Args:
         result: a :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep`.
-        path: the PNG to write.
         scores: the scores drawn, one column each.
         title: the figure's title (e.g. the sequence name).
 
     Returns:
-        ``path`` as a :class:`~pathlib.Path`.
+        The figure: ``2 x len(scores)`` axes, row by row, one line per variant in each.
     """
     i_r, i_s = result.slice_index()
     figure = Figure(figsize=(3.2 * len(scores), 6), layout="constrained")
@@ -178,22 +193,25 @@ def save_sweep_figure(
             if row == 0 and column == 0:
                 axes.legend()
     figure.suptitle(f"{title}: scores against the clutter and birth magnitudes".lstrip(": "))
-    path = Path(path)
-    figure.savefig(path, dpi=100)
-    return path
+    return figure
 
 
-def save_sweep_heatmaps(result, path: str | Path, score: str = "MOTA", title: str = "") -> Path:
+def save_sweep_heatmaps(result, path: str | Path, *args, **kwargs) -> Path:
+    """Writes :func:`sweep_heatmaps` (and its other arguments) to ``path``."""
+    return _save(sweep_heatmaps(result, *args, **kwargs), path)
+
+
+def sweep_heatmaps(result, score: str = "MOTA", title: str = "") -> Figure:
     """One heat map of a score over the ``lambda_r x lambda_s`` grid per variant.
 
     Args:
         result: a :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep`.
-        path: the PNG to write.
         score: the score drawn (one shared colour scale).
         title: the figure's title.
 
     Returns:
-        ``path`` as a :class:`~pathlib.Path`.
+        The figure: one axes per variant (its grid as the image, the best point starred),
+        then the colour bar.
     """
     grids = {variant: values[score] for variant, values in result.scores.items()}
     low = min(float(np.min(g)) for g in grids.values())
@@ -217,23 +235,26 @@ def save_sweep_heatmaps(result, path: str | Path, score: str = "MOTA", title: st
             axes.text(j, i, f"{value:.0f}", ha="center", va="center", fontsize=7, color="white")
     figure.colorbar(image, ax=figure.axes, label=f"{score} (%)")
     figure.suptitle(f"{title}: {score} over the magnitude grid".lstrip(": "))
-    path = Path(path)
-    figure.savefig(path, dpi=100)
-    return path
+    return figure
 
 
 def save_demo_figure(path: str | Path, context, sweep, rows, info) -> Path:
+    """Writes :func:`demo_figure` to the PNG ``path``."""
+    return _save(demo_figure(context, sweep, rows, info), path, dpi=90)
+
+
+def demo_figure(context, sweep, rows, info) -> Figure:
     """The demo's overview: learned birth and clutter maps, MOTA against both magnitudes.
 
     Args:
-        path: the PNG to write.
         context: the learned :class:`~jaxtrack.filters.phd_tracker.Context`.
         sweep: the :class:`~jaxtrack.experiments.magnitudes.MagnitudeSweep` of UM and GM.
         rows: the UM and GM score rows (``variant``, ``MOTA``) on the test span.
         info: the sequence's :class:`~jaxtrack.io.SequenceInfo` (image size, name).
 
     Returns:
-        ``path`` as a :class:`~pathlib.Path`.
+        The figure: birth map, clutter map, MOTA against ``lambda_r``, against ``lambda_s``
+        (then the two colour bars).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -280,12 +301,15 @@ def save_demo_figure(path: str | Path, context, sweep, rows, info) -> Path:
         f"{info.name}: context learned on the first half; test half MOTA UM {scores['UM']:.1f}, "
         f"GM {scores['GM']:.1f}"
     )
-    path = Path(path)
-    figure.savefig(path, dpi=90)
-    return path
+    return figure
 
 
 def save_tuning_figure(steps, losses, summary, path: str | Path) -> Path:
+    """Writes :func:`tuning_figure` to the PNG ``path``."""
+    return _save(tuning_figure(steps, losses, summary), path)
+
+
+def tuning_figure(steps, losses, summary) -> Figure:
     """Loss and test MOTA against the optimisation step, one column per dataset.
 
     The grid choice's test MOTA is drawn as a horizontal line, 95% of it dashed.
@@ -294,10 +318,9 @@ def save_tuning_figure(steps, losses, summary, path: str | Path) -> Path:
         steps: rows with ``dataset``, ``step`` and ``MOTA`` (test MOTA after that step).
         losses: ``{dataset: [loss per step]}``.
         summary: rows with ``dataset``, ``method`` and ``MOTA``; the ``grid...`` row is drawn.
-        path: the PNG to write.
 
     Returns:
-        ``path`` as a :class:`~pathlib.Path`.
+        The figure: loss axes of each dataset, then their MOTA axes.
     """
     names = list(losses)
     figure = Figure(figsize=(5 * len(names), 6), layout="constrained")
@@ -316,6 +339,4 @@ def save_tuning_figure(steps, losses, summary, path: str | Path) -> Path:
         mota_axes.set_xlabel("adam step")
         mota_axes.set_ylabel("test MOTA (%)")
         mota_axes.legend(loc="lower right")
-    path = Path(path)
-    figure.savefig(path, dpi=100)
-    return path
+    return figure

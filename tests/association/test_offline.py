@@ -40,7 +40,7 @@ def test_finalise_backfills_confirmed_tracks_and_interpolates_short_gaps():
     id1 = rows.ids == 1
     np.testing.assert_array_equal(rows.frames[id1], np.arange(1, 9))
     np.testing.assert_allclose(rows.boxes[id1, 0], 10.0 * np.arange(8))
-    np.testing.assert_allclose(rows.scores[id1][4:6], 0.53)
+    np.testing.assert_allclose(rows.confs[id1][4:6], 0.53)
     assert not np.any(rows.ids == 2)
     np.testing.assert_array_equal(rows.frames[rows.ids == 3], [1, 5])
     assert np.all(np.diff(rows.frames) >= 0)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxtrack.association.offline import TrackRows
 from jaxtrack.context.clutter_labels import ClutterLabels, load_clutter_labels, save_clutter_labels
 from jaxtrack.context.samples import (
     EventSamples,
@@ -100,7 +99,7 @@ def test_birth_samples_from_gt_ignore_zero_confidence_rows():
 
 def test_birth_samples_from_tracks():
     frames, boxes = _track(8, (20.0, 30.0, 6.0, 12.0), (-1.0, 0.5), 3)
-    rows = TrackRows(frames, np.full(3, 2), boxes, np.ones(3))
+    rows = MotTable.from_arrays(frames, np.full(3, 2), boxes, np.ones(3))
     events = birth_samples_from_tracks(rows, (1, 10), warmup_frames=2)
     assert events.source == "tracks" and events.num_frames == 8
     np.testing.assert_allclose(events.values, [[23.0, -1.0, 36.0, 0.5, 6.0, 12.0]])
@@ -150,7 +149,7 @@ def test_clutter_samples_from_gt_one_to_one_at_iou_half():
 def test_clutter_samples_from_tracks_by_best_iou():
     det, _ = _clutter_scene()
     # track boxes: frame 1 on the gt object, frame 2 on the weaker detection; none later
-    rows = TrackRows(
+    rows = MotTable.from_arrays(
         np.array([1, 2]),
         np.array([1, 1]),
         np.array([[0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, 6.0]]),

@@ -6,7 +6,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from phd_scenes import padded_detections, walking_scene
 from scipy.optimize import linear_sum_assignment
 
 from jaxtrack.filters.base import run
@@ -17,6 +16,7 @@ from jaxtrack.filters.kalman import (
     kalman_filter,
     sort_kalman_params,
 )
+from tests.filters.phd_scenes import padded_detections, walking_scene
 
 # --- an independent, slow NumPy reference of the whole tracker (one track at a time) -------
 

@@ -6,8 +6,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from phd_reference import reference_step
-from phd_scenes import padded_detections, walking_scene
 
 import jaxtrack.filters.phd as phd_module
 from jaxtrack.boxes import cxcywh_to_xywh
@@ -15,6 +13,8 @@ from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
 from jaxtrack.models import SurvivalMap, constant_std
+from tests.filters.phd_reference import reference_step
+from tests.filters.phd_scenes import padded_detections, walking_scene
 
 WIDTH, HEIGHT = 640.0, 480.0
 

@@ -8,7 +8,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from phd_scenes import walking_scene
 
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import run
@@ -16,6 +15,7 @@ from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_tracker import VARIANTS, Context, PHDConfig, phd_params
 from jaxtrack.io import SequenceInfo, load_sequence
 from jaxtrack.pipelines.tracking import pad_to, track_sequences
+from tests.filters.phd_scenes import walking_scene
 
 
 @pytest.fixture(scope="module")

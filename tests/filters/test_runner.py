@@ -6,11 +6,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from phd_scenes import walking_scene
 
 from jaxtrack.filters.base import _chunk_functions, run, run_chunked
 from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
+from tests.filters.phd_scenes import walking_scene
 
 PARAMS = default_phd_params(640.0, 480.0, 25.0)
 DETECTIONS, TRUTH = walking_scene(

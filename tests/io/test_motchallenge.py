@@ -20,7 +20,7 @@ from jaxtrack.io import (
     write_results,
 )
 from jaxtrack.types import PAD_BOX
-from tests.conftest import MOT15_SEQUENCES
+from tests.data import MOT15_SEQUENCES
 
 
 def assert_tables_equal(a: MotTable, b: MotTable) -> None:

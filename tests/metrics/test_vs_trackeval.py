@@ -13,8 +13,7 @@ import pytest
 from jaxtrack.io import MotTable, read_mot_file, read_seqinfo, write_mot_file, write_seqinfo
 from jaxtrack.metrics import EvalConfig, combine_sequences, evaluate_sequence
 from jaxtrack.metrics.synthetic import SCENARIOS, Corruption, corrupt
-
-from .trackeval_oracle import COUNT_KEYS, FIELD_MAP, run_trackeval
+from tests.metrics.trackeval_oracle import COUNT_KEYS, FIELD_MAP, run_trackeval
 
 FAST_SEQUENCES = ("KITTI-17", "TUD-Campus", "TUD-Stadtmitte")
 

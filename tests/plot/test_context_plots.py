@@ -80,9 +80,8 @@ def test_context_plots_are_written(learned, truth, tmp_path):
         "birth_evolution.png",
         "clutter_evolution.png",
     ]
-    for path in paths:
-        data = path.read_bytes()
-        assert data[:4] == b"\x89PNG" and len(data) > 10_000
+    for path in paths:  # each figure is more than a blank canvas
+        assert np.unique(imread(path)[..., :3].reshape(-1, 3), axis=0).shape[0] > 20, path.name
     alone = save_context_plots(tmp_path / "alone", learned, WIDTH, HEIGHT)
     # without the truth the heat maps are one column: a narrower figure
     assert imread(alone[0]).shape[1] < imread(paths[0]).shape[1]

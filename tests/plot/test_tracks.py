@@ -142,7 +142,7 @@ def test_phd_frame_figure_writes_a_png_of_the_image_size(synthetic, tmp_path):
         first_frame=1,
         image_size=(scene.info.im_width, scene.info.im_height),
     )
-    assert path == tmp_path / "figures" / "frame.png" and path.stat().st_size > 1000
+    assert path == tmp_path / "figures" / "frame.png"
     pixels = imread(path)
     height, width = pixels.shape[:2]
     assert width >= scene.info.im_width and height >= scene.info.im_height

@@ -1,1 +1,0 @@
-"""jaxtrack.appearance."""
