@@ -150,7 +150,7 @@ def run(args) -> int:
             path, frame = _figure(args, config)
             summary.update(figure=str(path), figure_frame=frame)
             if not args.json:
-                return path, frame
+                print(f"wrote {path} (frame {frame})")
         if args.json:
             print(json.dumps(summary))
         return 0
