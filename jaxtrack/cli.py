@@ -25,6 +25,7 @@ COMMANDS = (
     "tune",
     "detect",
     "track_video",
+    "experiment",
 )
 
 

@@ -26,7 +26,7 @@ def run_cli(monkeypatch):
 
 def test_simulate_writes_a_loadable_folder(run_cli, tmp_path, capsys):
     out = tmp_path / "SYN-01"
-    assert run_cli("--seed", 4, "--out", out, "--frames", 60) == 0
+    assert run_cli("--seed", 4, "--out", out, "--num-frames", 60) == 0
     sequence = load_sequence(out)
     assert sequence.info.name == "SYN-01"
     assert sequence.info.seq_length == 60
@@ -44,7 +44,9 @@ def test_simulate_writes_a_loadable_folder(run_cli, tmp_path, capsys):
 
 def test_same_seed_writes_identical_files(run_cli, tmp_path):
     for name in ("a", "b"):
-        assert run_cli("--seed", 9, "--out", tmp_path / name, "--frames", 30, "--name", "x") == 0
+        assert (
+            run_cli("--seed", 9, "--out", tmp_path / name, "--num-frames", 30, "--name", "x") == 0
+        )
     for name in ("det/det.txt", "gt/gt.txt", "seqinfo.ini"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
 
@@ -53,7 +55,7 @@ def test_config_file_overrides_the_scene(run_cli, tmp_path):
     config = tmp_path / "quiet.json"
     config.write_text(json.dumps({"clutter_sources": [], "uniform_clutter_rate": 0}))
     out = tmp_path / "quiet"
-    assert run_cli("--seed", 1, "--out", out, "--frames", 40, "--config", config) == 0
+    assert run_cli("--seed", 1, "--out", out, "--num-frames", 40, "--scene-config", config) == 0
     sequence = load_sequence(out)
     # Without clutter every detection is a target's: never more detections than targets.
     det_counts = np.bincount(sequence.det_table.frames, minlength=41)
@@ -64,7 +66,7 @@ def test_config_file_overrides_the_scene(run_cli, tmp_path):
 
 
 def test_print_config_round_trips(run_cli, capsys):
-    assert run_cli("--print-config", "--frames", 123) == 0
+    assert run_cli("--print-config", "--num-frames", 123) == 0
     config = config_from_dict(json.loads(capsys.readouterr().out))
     assert config == SceneConfig(num_frames=123)
 
@@ -74,21 +76,23 @@ def test_help_describes_the_outputs(run_cli, capsys):
         run_cli("--help")
     assert exit_info.value.code == 0
     text = capsys.readouterr().out
-    for word in ("--seed", "--out", "--frames", "--config", "context_truth.npz", "preview.png"):
+    for word in ("--seed", "--out", "--num-frames", "--scene-config", "context_truth.npz"):
         assert word in text
 
 
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--seed", 0, "--out", "{tmp}/x", "--frames", 0], "--frames"),
+        (["--seed", 0, "--out", "{tmp}/x", "--num-frames", 0], "--num-frames"),
         (["--seed", -1, "--out", "{tmp}/x"], "--seed"),
-        (["--out", "{tmp}/x"], "--seed"),
         (["--seed", 0], "--out"),
-        (["--seed", 0, "--out", "{tmp}/x", "--preview-frame", 999, "--frames", 5], "preview"),
-        (["--seed", 0, "--out", "{tmp}/x", "--config", "{tmp}/missing.json"], "cannot read"),
-        (["--seed", 0, "--out", "{tmp}/x", "--config", "{tmp}/bad.json"], "invalid JSON"),
-        (["--seed", 0, "--out", "{tmp}/x", "--config", "{tmp}/unknown.json"], "unknown field"),
+        (["--seed", 0, "--out", "{tmp}/x", "--preview-frame", 999, "--num-frames", 5], "preview"),
+        (["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/missing.json"], "cannot read"),
+        (["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/bad.json"], "invalid JSON"),
+        (
+            ["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/unknown.json"],
+            "unknown field",
+        ),
         (["--seed", 0, "--out", "{tmp}/file.txt"], "not a folder"),
     ],
 )

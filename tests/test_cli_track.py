@@ -10,7 +10,7 @@ import pytest
 from matplotlib.image import imread
 
 from jaxtrack.cli import main
-from jaxtrack.commands.track import load_config
+from jaxtrack.commands.arguments import load_config
 from jaxtrack.context.io import save_context
 from jaxtrack.errors import FileFormatError
 from jaxtrack.filters.phd_tracker import PHDConfig, phd_params

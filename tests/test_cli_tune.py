@@ -8,7 +8,7 @@ import json
 import pytest
 
 from jaxtrack.cli import main
-from jaxtrack.commands.track import load_config
+from jaxtrack.commands.arguments import load_config
 from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import read_mot_file
 

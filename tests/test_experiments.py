@@ -1,31 +1,31 @@
-"""Experiment scripts (PHD-context Fig. 14 and 16): quick runs, files, % differences."""
+"""``jaxtrack experiment`` (PHD-context Fig. 14-16): quick runs, files, % differences."""
 
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from matplotlib.image import imread
 
+from jaxtrack.cli import main
 from jaxtrack.experiments.ablation import ABLATION_COLUMNS, add_differences
 from jaxtrack.experiments.common import markdown_table, percent_difference
 from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, TRACKERS
 from jaxtrack.filters.phd_tracker import VARIANTS
 from jaxtrack.io.motchallenge import read_mot_file
 
-SCRIPTS = Path(__file__).resolve().parents[1] / "experiments"
+ROOT = Path(__file__).resolve().parents[1]
 
 
-def _script(name: str):
-    """Imports ``experiments/<name>.py`` as a module (the scripts are not a package)."""
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def _experiment(name: str, *argv) -> int:
+    """Runs ``jaxtrack experiment NAME ARGV...``; its exit status."""
+    return main(["experiment", name, *map(str, argv)])
 
 
 def _read_csv(path: Path) -> tuple[list[str], list[dict]]:
@@ -74,16 +74,30 @@ def test_markdown_table():
 
 
 def test_bad_sequence_exits_2(tmp_path, capsys):
-    module = _script("context_ablation")
-    code = module.main(["--out", str(tmp_path / "out"), "--sequence", str(tmp_path / "none")])
+    code = _experiment("context-ablation", "--out", tmp_path / "out", "--sequence", tmp_path / "x")
     assert code == 2
-    assert "not found" in capsys.readouterr().err
+    error = capsys.readouterr().err
+    assert error.startswith("jaxtrack experiment: error:") and "not found" in error
+
+
+def test_script_runs_the_command(tmp_path):
+    """``python experiments/NAME.py ARGS`` is ``jaxtrack experiment NAME ARGS``."""
+    argv = ["--out", str(tmp_path / "out"), "--sequence", str(tmp_path / "none")]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    script = ROOT / "experiments" / "context_ablation.py"
+    done = subprocess.run(
+        [sys.executable, str(script), *argv], env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 2
+    assert done.stderr.startswith("jaxtrack experiment: error:") and "not found" in done.stderr
 
 
 @pytest.mark.slow
-def test_context_ablation_quick(tmp_path):
+def test_context_ablation_quick(tmp_path, capsys):
     out = tmp_path / "ablation"
-    assert _script("context_ablation").main(["--out", str(out), "--quick", "--seed", "0"]) == 0
+    assert _experiment("context-ablation", "--out", out, "--quick", "--seed", 0, "--quiet") == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("| variant |") and "| A6 |" in printed  # --quiet: the table only
     columns, rows = _read_csv(out / "ablation.csv")
     assert columns == list(ABLATION_COLUMNS)
     assert [row["variant"] for row in rows] == list(VARIANTS)
@@ -102,7 +116,7 @@ def test_context_ablation_quick(tmp_path):
 @pytest.mark.slow
 def test_compare_trackers_quick(tmp_path):
     out = tmp_path / "compare"
-    assert _script("compare_trackers").main(["--out", str(out), "--quick"]) == 0
+    assert _experiment("compare-trackers", "--out", out, "--quick", "--quiet") == 0
     columns, rows = _read_csv(out / "comparison.csv")
     assert columns == list(COMPARISON_COLUMNS)
     assert [row["tracker"] for row in rows] == list(TRACKERS)
@@ -132,7 +146,7 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
     from jaxtrack.pipelines.tracking import track_sequences
 
     out = tmp_path / "sweep"
-    assert _script("sweep_magnitudes").main(["--out", str(out), "--quick", "--seed", "0"]) == 0
+    assert _experiment("sweep-magnitudes", "--out", out, "--quick", "--seed", 0) == 0
     columns, rows = _read_csv(out / "sweep.csv")
     assert columns == list(SWEEP_COLUMNS)
     grid = [(r, s) for r in QUICK_CLUTTER_RATES for s in QUICK_BIRTH_RATES]
@@ -168,8 +182,6 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
 
 @pytest.mark.slow
 def test_demo_quick(tmp_path, capsys):
-    from jaxtrack.cli import main
-
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--out", str(out)]) == 0
     printed = capsys.readouterr().out

@@ -6,6 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
+from jaxtrack.commands.arguments import add_out, add_quiet, add_seed
+
 DESCRIPTION = """\
 The toolkit's main job in one command, on the embedded synthetic surveillance scene (the
 scene of --seed, 800 frames, generated on the fly, true context known):
@@ -43,17 +45,18 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=Path("jaxtrack-demo"),
+    add_out(
+        parser,
+        "output folder (default: ./jaxtrack-demo; created if needed)",
+        required=False,
         metavar="DIR",
-        help="output folder (default: ./jaxtrack-demo; created if needed)",
+        default="jaxtrack-demo",
     )
-    parser.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default 0)")
+    add_seed(parser)
     parser.add_argument(
         "--quick", action="store_true", help="seconds-long smoke run (short scene, few particles)"
     )
+    add_quiet(parser)
     parser.set_defaults(func=run)
 
 
@@ -66,8 +69,10 @@ def run(args: argparse.Namespace) -> int:
     def step(text: str) -> None:
         print(f"[{time.perf_counter() - start:5.0f} s] {text}", flush=True)
 
-    result = run_demo(args.out, args.seed, args.quick, progress=step)
-    print()
+    out = Path(args.out)
+    result = run_demo(out, args.seed, args.quick, progress=None if args.quiet else step)
+    if not args.quiet:
+        print()
     print(result.files[-1].read_text())
-    print(f"wrote {len(result.files)} files into {args.out}/ (figure: {args.out}/demo.png)")
+    print(f"wrote {len(result.files)} files into {out}/ (figure: {out}/demo.png)")
     return 0

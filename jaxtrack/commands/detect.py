@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import json
 import time
 
+from jaxtrack.commands.arguments import add_frames, add_json, add_out, add_quiet
 from jaxtrack.errors import InputError
 
 DESCRIPTION = """\
@@ -51,11 +53,11 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("video", metavar="VIDEO", help="video file or folder of images")
-    parser.add_argument("--out", required=True, metavar="DET.txt", help="detections to write")
+    add_out(parser, "detections to write", metavar="DET.txt")
     parser.add_argument(
         "--method", choices=METHODS, default=defaults.method, help="detector (default horprasert)"
     )
-    parser.add_argument("--frames", metavar="A:B", help="only frames A..B (1-based, inclusive)")
+    add_frames(parser)
     parser.add_argument(
         "--fps", type=float, metavar="F", help="frame rate of the video (overrides the file's)"
     )
@@ -75,6 +77,8 @@ def register(subparsers) -> None:
         help="also write the frames with their detections (.mp4/.avi, or a folder for PNGs)",
     )
     parser.add_argument("--gt", metavar="GT.txt", help="print precision/recall against this gt")
+    add_quiet(parser)
+    add_json(parser)
     parser.set_defaults(func=run)
 
 
@@ -99,39 +103,60 @@ def run(args: argparse.Namespace) -> int:
     )
     start = time.perf_counter()
     with VideoReader(args.video, fps=args.fps) as reader:
-        found = detect_video(reader, args.frames, config, progress=True)
+        found = detect_video(reader, args.frames, config, progress=not args.quiet)
         elapsed = time.perf_counter() - start
         write_mot_file(args.out, found.table)
         first, last = found.frames
-        print(
-            f"wrote {args.out} ({len(found.table)} detections in frames {first}:{last}, "
-            f"{(last - first + 1) / elapsed:.1f} frames/s)"
-        )
+        summary = {
+            "out": str(args.out),
+            "detections": len(found.table),
+            "frames": [first, last],
+            "frames_per_second": (last - first + 1) / elapsed,
+        }
+        if not args.json:
+            print(
+                f"wrote {args.out} ({len(found.table)} detections in frames {first}:{last}, "
+                f"{summary['frames_per_second']:.1f} frames/s)"
+            )
         if found.prior is not None:
             prior = found.prior
-            print(
-                f"  perspective prior: height = {prior.intercept:.1f} + {prior.slope:.3f} * "
-                f"foot row, silhouette w/h {prior.aspect:.2f}"
-            )
+            summary["perspective_prior"] = {
+                "intercept": prior.intercept,
+                "slope": prior.slope,
+                "aspect": prior.aspect,
+            }
+            if not args.json:
+                print(
+                    f"  perspective prior: height = {prior.intercept:.1f} + {prior.slope:.3f} * "
+                    f"foot row, silhouette w/h {prior.aspect:.2f}"
+                )
         if args.gt:
-            print_precision_recall(found.table, args.gt, found.frames, reader.num_frames)
+            precision, recall = precision_recall(
+                found.table, args.gt, found.frames, reader.num_frames
+            )
+            summary.update(precision=precision, recall=recall)
+            if not args.json:
+                print(f"  precision {precision:.3f}, recall {recall:.3f} (IoU 0.5, vs {args.gt})")
         if args.preview:
-            write_preview(reader, found.table, found.frames, args.preview)
-            print(f"  preview: {args.preview}")
+            write_preview(reader, found.table, found.frames, args.preview, not args.quiet)
+            summary["preview"] = str(args.preview)
+            if not args.json:
+                print(f"  preview: {args.preview}")
+    if args.json:
+        print(json.dumps(summary))
     return 0
 
 
-def print_precision_recall(table, gt_path: str, frames: tuple[int, int], num_frames: int):
-    """Prints precision and recall of ``table`` against the gt file on ``frames``."""
+def precision_recall(table, gt_path: str, frames: tuple[int, int], num_frames: int):
+    """Precision and recall of ``table`` against the gt file on ``frames`` (IoU 0.5)."""
     from jaxtrack.io import read_mot_file
     from jaxtrack.metrics.detection import detection_precision_recall
 
     gt = read_mot_file(gt_path, "gt", num_frames).frame_span(*frames)
-    precision, recall = detection_precision_recall(table, gt, frames)
-    print(f"  precision {precision:.3f}, recall {recall:.3f} (IoU 0.5, vs {gt_path})")
+    return detection_precision_recall(table, gt, frames)
 
 
-def write_preview(reader, table, frames: tuple[int, int], path: str) -> None:
+def write_preview(reader, table, frames: tuple[int, int], path: str, progress: bool = True) -> None:
     """Writes the span's frames with their detection boxes to a video or PNG folder."""
     import numpy as np
     from tqdm import tqdm
@@ -141,6 +166,7 @@ def write_preview(reader, table, frames: tuple[int, int], path: str) -> None:
     if not frames[0] <= frames[1]:
         raise InputError(f"empty frame span {frames}")
     with FrameWriter(path, (reader.width, reader.height), reader.fps) as writer:
-        for k in tqdm(range(frames[0], frames[1] + 1), desc="preview", unit="frame"):
+        span = range(frames[0], frames[1] + 1)
+        for k in tqdm(span, desc="preview", unit="frame", disable=not progress):
             boxes = table.boxes[np.flatnonzero(table.frames == k)]
             writer.write(annotate_frame(reader.read(k), boxes, label=f"frame {k}"), k)

@@ -16,7 +16,8 @@ mean IoU, FP, FN, IDSW, Frag, MT/PT/ML, Recall, Precision), identity (IDF1, IDP,
 pooled; VACE_MODA, VACE_MODP averaged over frames; VACE_MOTA with a log10 identity-switch
 penalty) and set distances (OSPA, GOSPA with alpha = 2; frame averages). Ground truth follows
 TrackEval's MOT15 conventions: gt rows with conf 0 are dropped, tracker boxes on them still
-count; --distractors applies the MOT16/17 rules instead. --json prints one JSON object with
+count; --distractors applies the MOT16/17 rules instead. --frames A:B scores only that span
+(gt and results are cut to it). --json prints one JSON object with
 the scores as fractions (or counts). Bad files exit with status 2 and name the file and line.
 """
 
@@ -28,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxtrack.commands.arguments import add_frames, add_json
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
@@ -84,12 +86,8 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--results", metavar="RES_DIR", help="folder with one <SEQ>.txt per sequence"
     )
-    parser.add_argument(
-        "--frames",
-        metavar="A:B",
-        help="score only frames A..B (1-based, inclusive; gt and results are cut to it)",
-    )
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    add_frames(parser)
+    add_json(parser)
     parser.add_argument(
         "--iou-threshold",
         type=float,

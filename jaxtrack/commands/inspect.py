@@ -12,6 +12,7 @@ import json
 
 import numpy as np
 
+from jaxtrack.commands.arguments import add_frames, add_json
 from jaxtrack.io import load_sequence
 from jaxtrack.metrics.detection import detection_precision_recall
 
@@ -24,11 +25,11 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("sequence", metavar="SEQ_DIR", help="folder with seqinfo.ini, det/, gt/")
-    parser.add_argument("--frames", metavar="A:B", help="only frames A..B (1-based, inclusive)")
+    add_frames(parser)
     parser.add_argument(
         "--iou", type=float, default=0.5, help="IoU threshold for a detection to match (0.5)"
     )
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    add_json(parser)
     parser.set_defaults(func=run)
 
 

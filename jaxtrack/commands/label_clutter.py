@@ -7,19 +7,19 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxtrack.commands.arguments import add_frames, add_out, add_seed
 from jaxtrack.errors import InputError
 from jaxtrack.io.video import find_frame_source
 
 DEFAULT_NUM_FRAMES = 20
-DEFAULT_SEED = 0
 
 DESCRIPTION = """\
 Label clutter (detections that are not objects of interest) by hand, for learning the clutter
 intensity (jaxtrack learn-context --clutter-from LABELS.json).
 
-A window shows NUM randomly chosen frames of the span A:B (seeded; frames without detections
-included) one at a time, with the frame's detections from det/det.txt as rectangles:
-green = object, red = clutter.
+A window shows NUM randomly chosen frames of the span --frames A:B (required unless --resume;
+drawn with --seed; frames without detections included) one at a time, with the frame's
+detections from det/det.txt as rectangles: green = object, red = clutter.
 
   left click inside a box   toggle it clutter / object (overlapping boxes: the smallest
                             box containing the click)
@@ -63,14 +63,8 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("sequence", metavar="SEQ_DIR", help="folder with seqinfo.ini and det/")
-    parser.add_argument(
-        "--frames",
-        metavar="A:B",
-        help="span to draw frames from (1-based, inclusive; required unless --resume)",
-    )
-    parser.add_argument(
-        "--out", type=Path, metavar="LABELS.json", required=True, help="labels file to write"
-    )
+    add_frames(parser)
+    add_out(parser, "labels file to write", metavar="LABELS.json")
     parser.add_argument(
         "--video",
         type=Path,
@@ -83,15 +77,14 @@ def register(subparsers) -> None:
         metavar="NUM",
         help=f"frames to label, drawn at random from A:B (default {DEFAULT_NUM_FRAMES})",
     )
-    parser.add_argument(
-        "--seed", type=int, metavar="S", help=f"seed of the frame draw (default {DEFAULT_SEED})"
-    )
+    add_seed(parser)
     parser.add_argument(
         "--resume",
         type=Path,
         metavar="LABELS.json",
         help="continue this labels file: its labelled frames and clutter are kept and its "
-        "pending frames are shown next (not combinable with --frames/--num-frames/--seed)",
+        "pending frames are shown next (not combinable with --frames, --num-frames or a nonzero "
+        "--seed)",
     )
     parser.add_argument(
         "--backend",
@@ -107,6 +100,7 @@ def run(args) -> int:
     from jaxtrack.io.video import VideoReader
     from jaxtrack.plot.label_tool import label_interactively
 
+    out = Path(args.out)
     resume = None
     if args.resume is not None:
         given = [
@@ -114,7 +108,7 @@ def run(args) -> int:
             for flag, value in (
                 ("--frames", args.frames),
                 ("--num-frames", args.num_frames),
-                ("--seed", args.seed),
+                ("--seed", args.seed or None),  # the default 0 draws nothing on resume
             )
             if value is not None
         ]
@@ -131,10 +125,8 @@ def run(args) -> int:
         if args.frames is None:
             raise InputError("--frames A:B is required (or --resume LABELS.json)")
         span = args.frames
-    if args.out.exists() and (resume is None or args.out.resolve() != args.resume.resolve()):
-        raise InputError(
-            f"{args.out} exists; continue it with --resume {args.out} or choose another --out"
-        )
+    if out.exists() and (resume is None or out.resolve() != args.resume.resolve()):
+        raise InputError(f"{out} exists; continue it with --resume {out} or choose another --out")
     sequence = load_sequence(args.sequence, frames=span)
     info = sequence.info
     if resume is not None:
@@ -146,8 +138,7 @@ def run(args) -> int:
             )
     else:
         num_frames = DEFAULT_NUM_FRAMES if args.num_frames is None else args.num_frames
-        seed = DEFAULT_SEED if args.seed is None else args.seed
-        frames = choose_frames(sequence.first_frame, sequence.last_frame, num_frames, seed)
+        frames = choose_frames(sequence.first_frame, sequence.last_frame, num_frames, args.seed)
 
     source = find_frame_source(Path(args.sequence), info.name, args.video)
     reader = None if source is None else VideoReader(source)
@@ -157,7 +148,7 @@ def run(args) -> int:
         labels = label_interactively(
             sequence.det_table,
             frames,
-            args.out,
+            out,
             sequence=info.name,
             image_size=(info.im_width, info.im_height),
             frame_source=None if reader is None else reader.read,
@@ -168,7 +159,7 @@ def run(args) -> int:
         if reader is not None:
             reader.close()
     print(
-        f"{args.out}: {len(labels)} clutter detections on {labels.labelled_frames.size} "
+        f"{out}: {len(labels)} clutter detections on {labels.labelled_frames.size} "
         f"labelled frames ({labels.pending_frames.size} still to show)"
     )
     return 0

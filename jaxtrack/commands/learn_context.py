@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
+from jaxtrack.commands.arguments import add_frames, add_json, add_out, add_quiet, add_seed
 from jaxtrack.errors import InputError
 
 DESCRIPTION = """\
@@ -24,6 +26,7 @@ Event sources:
   --clutter-from tracks detections overlapping no tracker output box by IoU 0.5
   --clutter-from FILE   detections labelled as clutter with `jaxtrack label-clutter`
                         (magnitude: clutter per labelled frame)
+--frames A:B is the training span (default: all frames).
 A video (or image folder) instead of SEQ_DIR: give its detections with --detections
 (`jaxtrack detect VIDEO --out DET.txt`) and, for the gt sources, its ground truth with --gt;
 size, length and frame rate (--fps overrides it) come from the video.
@@ -72,10 +75,8 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--gt", metavar="GT.txt", help="ground truth of the video (gt sources)")
     parser.add_argument("--fps", type=float, metavar="F", help="frame rate of the video")
-    parser.add_argument(
-        "--frames", metavar="A:B", help="training span, 1-based inclusive (default: all frames)"
-    )
-    parser.add_argument("--out", required=True, metavar="CTX.npz", help="context file to write")
+    add_frames(parser)
+    add_out(parser, "context file to write", metavar="CTX.npz")
     parser.add_argument(
         "--birth-from",
         default="tracks",
@@ -95,9 +96,7 @@ def register(subparsers) -> None:
         help="video file or image folder of the sequence: the first training frame is drawn "
         "under the heat maps",
     )
-    parser.add_argument(
-        "--seed", type=int, default=0, help="seed of the tracker run and sample order (default 0)"
-    )
+    add_seed(parser)
     parser.add_argument(
         "--birth-epochs",
         type=int,
@@ -119,6 +118,8 @@ def register(subparsers) -> None:
         metavar="N",
         help=f"frames at the start of the span without births (default {WARMUP_FRAMES})",
     )
+    add_quiet(parser)
+    add_json(parser)
     parser.set_defaults(func=run)
 
 
@@ -159,7 +160,8 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     # steps: loading, (tracking,) collecting events, birth density, clutter density, (plots)
     steps = 5 if "tracks" in (args.birth_from, clutter_from) else 4
-    with tqdm(total=steps + (1 if args.plot else 0), desc="learn-context", unit="step") as bar:
+    total = steps + (1 if args.plot else 0)
+    with tqdm(total=total, desc="learn-context", unit="step", disable=args.quiet) as bar:
         started: list[str] = []
 
         def progress(message: str) -> None:
@@ -188,6 +190,12 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
     elapsed = time.perf_counter() - start
     meta = learned.metadata
+    if args.json:
+        summary = {"out": str(args.out), "seconds": elapsed, **meta}
+        if args.plot:
+            summary["figures"] = [str(path) for path in paths]
+        print(json.dumps(summary))
+        return 0
     print(f"wrote {args.out} (frames {meta['frames'][0]}:{meta['frames'][1]}, {elapsed:.1f} s)")
     for kind in ("birth", "clutter"):
         info = meta[kind]

@@ -7,6 +7,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+from jaxtrack.commands.arguments import add_out, add_seed
 from jaxtrack.errors import InputError
 
 DESCRIPTION = """\
@@ -27,9 +28,9 @@ The same seed and configuration always give the same sequence."""
 EPILOG = """\
 examples:
   jaxtrack simulate --seed 0 --out data/synthetic-0
-  jaxtrack simulate --seed 1 --out /tmp/short --frames 200
+  jaxtrack simulate --seed 1 --out /tmp/short --num-frames 200
   jaxtrack simulate --print-config > scene.json   # edit, then:
-  jaxtrack simulate --seed 2 --out /tmp/custom --config scene.json"""
+  jaxtrack simulate --seed 2 --out /tmp/custom --scene-config scene.json"""
 
 
 def register(subparsers) -> None:
@@ -45,25 +46,21 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--seed", type=int, metavar="N", help="random seed, >= 0 (required)")
+    add_seed(parser)
+    add_out(parser, "sequence folder to write (required; created if needed)", False, "DIR")
     parser.add_argument(
-        "--out",
-        type=Path,
-        metavar="DIR",
-        help="sequence folder to write (required; created if needed)",
-    )
-    parser.add_argument(
-        "--frames",
+        "--num-frames",
         type=int,
         metavar="T",
         help="number of frames (default: the configuration's, 800)",
     )
     parser.add_argument(
-        "--config",
+        "--scene-config",
         type=Path,
         metavar="FILE.json",
-        help="JSON object overriding fields of the scene configuration "
-        "(see --print-config for all fields; zones and clutter_sources replace the defaults)",
+        help="JSON object overriding fields of the scene configuration (not a tracker "
+        "configuration; see --print-config for all fields; zones and clutter_sources replace "
+        "the defaults)",
     )
     parser.add_argument("--name", help="sequence name in seqinfo.ini (default: the folder's name)")
     parser.add_argument(
@@ -95,33 +92,32 @@ def run(args: argparse.Namespace) -> int:
     from jaxtrack.datasets.scene_config import SceneConfig, config_from_dict, config_to_dict
 
     config = SceneConfig()
-    if args.config is not None:
-        config = config_from_dict(_read_json(args.config), config)
-    if args.frames is not None:
-        if args.frames < 1:
-            raise InputError(f"--frames must be >= 1, got {args.frames}")
-        config = dataclasses.replace(config, num_frames=args.frames)
+    if args.scene_config is not None:
+        config = config_from_dict(_read_json(args.scene_config), config)
+    if args.num_frames is not None:
+        if args.num_frames < 1:
+            raise InputError(f"--num-frames must be >= 1, got {args.num_frames}")
+        config = dataclasses.replace(config, num_frames=args.num_frames)
     if args.print_config:
         print(json.dumps(config_to_dict(config), indent=2))
         return 0
-    if args.seed is None:
-        raise InputError("--seed N is required")
     if args.out is None:
         raise InputError("--out DIR is required")
+    out = Path(args.out)
     if args.seed < 0:
         raise InputError(f"--seed must be >= 0, got {args.seed}")
     if args.preview_frame is not None and not 1 <= args.preview_frame <= config.num_frames:
         raise InputError(f"--preview-frame must lie in 1..{config.num_frames}")
-    if args.out.exists() and not args.out.is_dir():
-        raise InputError(f"--out {args.out} exists and is not a folder")
-    name = args.name or config.name or args.out.resolve().name
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} exists and is not a folder")
+    name = args.name or config.name or out.resolve().name
     config = dataclasses.replace(config, name=name)
 
     from jaxtrack.datasets.synthetic import generate_scene, write_scene
     from jaxtrack.plot.scene import save_scene_preview
 
     scene = generate_scene(args.seed, config)
-    out = write_scene(scene, args.out)
+    out = write_scene(scene, out)
     save_scene_preview(scene, out / "preview.png", args.preview_frame)
     stats = scene.summary()
     by_source = ", ".join(f"{k} {v:.2f}" for k, v in stats["clutter_per_frame_by_source"].items())
@@ -144,11 +140,13 @@ def _read_json(path: Path) -> dict:
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as err:
-        raise InputError(f"--config {path}: cannot read ({err.strerror})") from None
+        raise InputError(f"--scene-config {path}: cannot read ({err.strerror})") from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError as err:
-        raise InputError(f"--config {path}, line {err.lineno}: invalid JSON ({err.msg})") from None
+        raise InputError(
+            f"--scene-config {path}, line {err.lineno}: invalid JSON ({err.msg})"
+        ) from None
     if not isinstance(data, dict):
-        raise InputError(f"--config {path}: expected a JSON object of configuration fields")
+        raise InputError(f"--scene-config {path}: expected a JSON object of configuration fields")
     return data

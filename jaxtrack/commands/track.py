@@ -43,11 +43,21 @@ from pathlib import Path
 
 import jax
 
-from jaxtrack.configs import TrackerConfig, load_config_file
+from jaxtrack.commands.arguments import (
+    add_config,
+    add_context_arguments,
+    add_frames,
+    add_json,
+    add_out,
+    add_quiet,
+    add_seed,
+    add_tracker,
+    load_config,
+)
+from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
 from jaxtrack.filters.kalman import KALMAN_PRESETS
-from jaxtrack.filters.phd_tracker import VARIANTS
-from jaxtrack.filters.registry import TRACKERS, build_tracker, tracker_entry
+from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import load_sequence, write_results
 from jaxtrack.io.video import VideoReader, find_frame_source
 from jaxtrack.pipelines.tracking import (
@@ -59,19 +69,6 @@ from jaxtrack.pipelines.tracking import (
 from jaxtrack.plot.tracks import phd_frame_figure
 
 
-def add_context_arguments(parser: argparse.ArgumentParser, variants_doc: str) -> None:
-    """Adds ``--context CTX.npz`` and ``--variant`` (``jaxtrack track``, ``track-video``)."""
-    parser.add_argument(
-        "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
-    )
-    parser.add_argument(
-        "--variant",
-        choices=[name for name in VARIANTS if name != "UM"],
-        default="GM",
-        help=f"which parts of the context to use (default GM; {variants_doc})",
-    )
-
-
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "track",
@@ -81,16 +78,12 @@ def register(subparsers) -> None:
     )
     parser.add_argument("sequence", nargs="?", metavar="SEQ_DIR", help="MOTChallenge sequence")
     parser.add_argument("--benchmark", metavar="MOT_ROOT", help="folder of sequence folders")
-    parser.add_argument(
-        "--out", required=True, help="result file (RES.txt), or a folder with --benchmark"
-    )
-    parser.add_argument("--frames", metavar="A:B", help="only frames A..B (1-based, inclusive)")
-    parser.add_argument("--config", metavar="FILE", help="JSON file overriding the defaults")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    add_out(parser, "result file (RES.txt), or a folder with --benchmark")
+    add_frames(parser)
+    add_config(parser)
+    add_seed(parser)
     add_context_arguments(parser, "see above")
-    parser.add_argument(
-        "--tracker", choices=TRACKERS, default="phd", help="which tracker (default phd)"
-    )
+    add_tracker(parser)
     parser.add_argument(
         "--preset",
         choices=list(KALMAN_PRESETS),
@@ -108,18 +101,9 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--video", metavar="FILE", help="video or image folder behind --figure (default: found)"
     )
+    add_quiet(parser)
+    add_json(parser)
     parser.set_defaults(func=run)
-
-
-def load_config(path: str | None, tracker: str = "phd") -> TrackerConfig:
-    """The configuration of ``tracker``: its defaults, or the JSON file at ``path``.
-
-    Raises:
-        InputError: an unknown tracker; FileFormatError: a missing or bad file, an unknown
-            key or a bad value (named).
-    """
-    config_type = tracker_entry(tracker).config_type
-    return config_type() if path is None else load_config_file(path, config_type)
 
 
 def track_sequence(
@@ -130,8 +114,12 @@ def track_sequence(
     frames=None,
     context_path: str | None = None,
     variant: str = "GM",
-) -> int:
-    """Tracks one sequence folder and writes MOTChallenge results; returns the row count."""
+) -> tuple[int, int]:
+    """Tracks one sequence folder and writes MOTChallenge results.
+
+    Returns:
+        The number of result rows (boxes) and of frames tracked.
+    """
     seq = load_sequence(sequence_dir, frames=frames)
     context = load_tracker_context(context_path)
     _, params = build_tracker(config, seq.info, context, variant)
@@ -141,7 +129,7 @@ def track_sequence(
     elif context is None:
         variant = "UM"
     _write(out_path, rows, config, seed, seq, context_path, variant)
-    return len(rows.frames)
+    return len(rows.frames), seq.num_frames
 
 
 def run(args) -> int:
@@ -150,7 +138,7 @@ def run(args) -> int:
     config = _config(args)
     if args.sequence is not None:
         start = time.perf_counter()
-        count = track_sequence(
+        rows, frames = track_sequence(
             args.sequence,
             args.out,
             config,
@@ -159,9 +147,17 @@ def run(args) -> int:
             args.context,
             args.variant,
         )
-        print(f"wrote {args.out} ({count} boxes, {time.perf_counter() - start:.1f} s)")
+        seconds = time.perf_counter() - start
+        summary = {"out": str(args.out), "rows": rows, "frames": frames, "seconds": seconds}
+        if not args.json:
+            print(f"wrote {args.out} ({rows} boxes, {seconds:.1f} s)")
         if args.figure:
-            _figure(args, config)
+            path, frame = _figure(args, config)
+            summary.update(figure=str(path), figure_frame=frame)
+            if not args.json:
+                print(f"wrote {path} (frame {frame})")
+        if args.json:
+            print(json.dumps(summary))
         return 0
     for option in ("frames", "context", "figure"):
         if getattr(args, option) is not None:
@@ -196,7 +192,7 @@ def _benchmark(args, config: TrackerConfig) -> int:
     out.mkdir(parents=True, exist_ok=True)
     sequences = [load_sequence(folder) for folder in folders]
     start = time.perf_counter()
-    results = track_sequences(sequences, config, args.seed, progress=True)
+    results = track_sequences(sequences, config, args.seed, progress=not args.quiet)
     variant = "UM" if tracker_entry(config.tracker).takes_context else None
     for seq, rows in zip(sequences, results, strict=True):
         _write(
@@ -209,10 +205,16 @@ def _benchmark(args, config: TrackerConfig) -> int:
             variant,
         )
     frames = sum(seq.num_frames for seq in sequences)
-    print(
-        f"wrote {len(sequences)} result files to {out} "
-        f"({frames} frames, {time.perf_counter() - start:.1f} s including one compile)"
-    )
+    seconds = time.perf_counter() - start
+    if args.json:
+        rows = sum(len(result.frames) for result in results)
+        summary = {"out": str(out), "sequences": len(sequences), "rows": rows}
+        print(json.dumps({**summary, "frames": frames, "seconds": seconds}))
+    else:
+        print(
+            f"wrote {len(sequences)} result files to {out} "
+            f"({frames} frames, {seconds:.1f} s including one compile)"
+        )
     return 0
 
 
@@ -228,8 +230,8 @@ def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
     Path(f"{Path(out_path).with_suffix('')}.config.json").write_text(json.dumps(used, indent=2))
 
 
-def _figure(args, config: TrackerConfig) -> None:
-    """Draws ``--figure`` (PHD-context Fig. 3) for the span tracked."""
+def _figure(args, config: TrackerConfig) -> tuple[Path, int]:
+    """Draws ``--figure`` (PHD-context Fig. 3) for the span tracked; its path and frame."""
     seq = load_sequence(args.sequence, frames=args.frames)
     frame = args.figure_frame or (seq.first_frame + seq.last_frame) // 2
     if not seq.first_frame <= frame <= seq.last_frame:
@@ -253,4 +255,4 @@ def _figure(args, config: TrackerConfig) -> None:
         first_frame=seq.first_frame,
         image_size=(seq.info.im_width, seq.info.im_height),
     )
-    print(f"wrote {path} (frame {frame})")
+    return path, frame

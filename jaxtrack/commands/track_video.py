@@ -7,6 +7,14 @@ import json
 import time
 from pathlib import Path
 
+from jaxtrack.commands.arguments import (
+    add_config,
+    add_context_arguments,
+    add_frames,
+    add_out,
+    add_quiet,
+    add_seed,
+)
 from jaxtrack.errors import InputError
 
 DESCRIPTION = """\
@@ -42,7 +50,6 @@ DEFAULT_TRAIL = 20
 
 def register(subparsers) -> None:
     """Adds the ``track-video`` parser to the CLI's sub-parsers."""
-    from jaxtrack.commands.track import add_context_arguments
     from jaxtrack.detect.pipeline import METHODS
 
     parser = subparsers.add_parser(
@@ -53,8 +60,8 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("video", metavar="VIDEO", help="video file or folder of images")
-    parser.add_argument("--out", required=True, metavar="RES.txt", help="results to write")
-    parser.add_argument("--frames", metavar="A:B", help="only frames A..B (1-based, inclusive)")
+    add_out(parser, "results to write", metavar="RES.txt")
+    add_frames(parser)
     parser.add_argument("--fps", type=float, metavar="F", help="frame rate (overrides the file's)")
     parser.add_argument(
         "--method", choices=METHODS, default="horprasert", help="detector (default horprasert)"
@@ -68,9 +75,9 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--save-detections", metavar="DET.txt", help="also write the detections made"
     )
-    parser.add_argument("--config", metavar="FILE", help="JSON tracker configuration overrides")
+    add_config(parser)
     add_context_arguments(parser, "see jaxtrack track --help")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    add_seed(parser)
     parser.add_argument("--annotate", metavar="OUT.mp4", help="write the annotated frames")
     parser.add_argument(
         "--trail",
@@ -85,6 +92,7 @@ def register(subparsers) -> None:
         help="with --annotate and --context: draw that intensity as a heat map",
     )
     parser.add_argument("--gt", metavar="GT.txt", help="print tracking metrics against this gt")
+    add_quiet(parser)
     parser.set_defaults(func=run)
 
 
@@ -100,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     Raises:
         InputError: a bad argument, an unreadable video, detections, context or gt file.
     """
-    from jaxtrack.commands.track import load_config
+    from jaxtrack.commands.arguments import load_config
     from jaxtrack.detect.pipeline import DetectorConfig, detect_video
     from jaxtrack.detect.sequence import video_info, video_sequence
     from jaxtrack.filters.registry import build_tracker
@@ -126,14 +134,14 @@ def run(args: argparse.Namespace) -> int:
             detections = read_mot_file(args.detections, "det", reader.num_frames)
         else:
             config_detect = DetectorConfig(method=args.method, split=not args.no_split)
-            found = detect_video(reader, span, config_detect, progress=True)
+            found = detect_video(reader, span, config_detect, progress=not args.quiet)
             detections = found.table
             if args.save_detections:
                 write_mot_file(args.save_detections, detections)
         detect_seconds = time.perf_counter() - start
         sequence = video_sequence(args.video, detections, span, info)
         _, params = build_tracker(config, info, context, args.variant)
-        (rows,) = track_sequences([sequence], config, args.seed, [params], progress=True)
+        (rows,) = track_sequences([sequence], config, args.seed, [params], progress=not args.quiet)
         elapsed = time.perf_counter() - start
         write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
         used = {
@@ -162,7 +170,14 @@ def run(args: argparse.Namespace) -> int:
             if args.overlay:
                 overlay = intensity_overlay(context, args.overlay, reader.width, reader.height)
             write_annotated(
-                reader, rows, sequence.det_table, span, args.annotate, args.trail, overlay
+                reader,
+                rows,
+                sequence.det_table,
+                span,
+                args.annotate,
+                args.trail,
+                overlay,
+                progress=not args.quiet,
             )
             print(f"  annotated: {args.annotate}")
     return 0
@@ -193,7 +208,9 @@ def intensity_overlay(context, part: str, width: int, height: int):
     return cv2.resize(grid, (width, height), interpolation=cv2.INTER_LINEAR)
 
 
-def write_annotated(reader, rows, det_table, span, path: str, trail: int, overlay=None) -> None:
+def write_annotated(
+    reader, rows, det_table, span, path: str, trail: int, overlay=None, progress: bool = True
+) -> None:
     """Writes the span's frames with detections, tracks (id colours), trails and overlay."""
     import numpy as np
     from tqdm import tqdm
@@ -202,7 +219,8 @@ def write_annotated(reader, rows, det_table, span, path: str, trail: int, overla
 
     feet = np.stack([rows.boxes[:, 0] + rows.boxes[:, 2] / 2, rows.boxes[:, 1] + rows.boxes[:, 3]])
     with FrameWriter(path, (reader.width, reader.height), reader.fps) as writer:
-        for k in tqdm(range(span[0], span[1] + 1), desc="annotate", unit="frame"):
+        frames = range(span[0], span[1] + 1)
+        for k in tqdm(frames, desc="annotate", unit="frame", disable=not progress):
             image = reader.read(k)
             image = annotate_frame(image, det_table.boxes[det_table.frames == k], overlay=overlay)
             here = np.flatnonzero(rows.frames == k)

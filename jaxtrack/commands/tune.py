@@ -6,12 +6,20 @@ import argparse
 import json
 from pathlib import Path
 
+from jaxtrack.commands.arguments import (
+    add_config,
+    add_frames,
+    add_json,
+    add_out,
+    add_quiet,
+    add_seed,
+)
 from jaxtrack.errors import InputError
 
 DESCRIPTION = """\
-Tune the particle PHD tracker's parameters on a span of a MOTChallenge sequence by gradient
-descent through the filter (jaxtrack.tuning), and write a tracker configuration that
-`jaxtrack track --config` uses directly.
+Tune the particle PHD tracker's parameters on a span (--frames A:B) of a MOTChallenge
+sequence by gradient descent through the filter (jaxtrack.tuning), and write a tracker
+configuration that `jaxtrack track --config` uses directly.
 
 Objectives:
   likelihood   minus the PHD measurement log-likelihood per frame (SPEC section 1); needs
@@ -26,9 +34,10 @@ tuned. --tune can add initial_rate, detection_prob, survival_prob, motion_noise_
 measurement_noise_std; every tuned value goes into the configuration written. birth_rate is
 lambda_s (births per frame after the first frame), never the first frame's initial_rate.
 
-Writes OUT (the configuration: the --config values plus the tuned ones, as the keys that
-differ from the defaults) and OUT.tuning.json beside it (start and tuned values, loss
-history, settings)."""
+Starts from --config (a tracker configuration) or the defaults. Writes OUT (the
+configuration: the --config values plus the tuned ones, as the keys that differ from the
+defaults) and OUT.tuning.json beside it (start and tuned values, loss history, settings);
+--json prints that report as one JSON object."""
 
 EPILOG = """\
 examples:
@@ -58,17 +67,15 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("sequence", metavar="SEQ_DIR", help="MOTChallenge sequence folder")
-    parser.add_argument("--out", required=True, metavar="OUT.json", help="configuration to write")
-    parser.add_argument("--frames", metavar="A:B", help="training span (1-based, inclusive)")
+    add_out(parser, "tracker configuration to write", metavar="OUT.json")
+    add_frames(parser)
     parser.add_argument(
         "--objective",
         choices=("likelihood", "supervised"),
         default="likelihood",
         help="what to minimise (default likelihood)",
     )
-    parser.add_argument(
-        "--config", metavar="FILE", help="tracker configuration JSON to start from (overrides)"
-    )
+    add_config(parser)
     parser.add_argument(
         "--tune",
         default=",".join(CONFIG_TRAINABLE),
@@ -105,12 +112,14 @@ def register(subparsers) -> None:
         default="stop_gradient",
         help="resampling gradient estimator (default stop_gradient)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    add_seed(parser)
+    add_quiet(parser)
+    add_json(parser)
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from jaxtrack.commands.track import load_config
+    from jaxtrack.commands.arguments import load_config
     from jaxtrack.io import load_sequence
     from jaxtrack.pipelines.tuning import tune_sequence
 
@@ -135,12 +144,15 @@ def run(args) -> int:
         num_particles=args.particles,
         births_per_detection=args.births_per_detection,
         estimator=args.estimator,
-        progress=True,
+        progress=not args.quiet,
     )
     out.write_text(json.dumps(tuning.config.overrides(), indent=2) + "\n")
     report_path = out.with_suffix(".tuning.json")
     report_path.write_text(json.dumps(tuning.report, indent=2) + "\n")
     report = tuning.report
+    if args.json:
+        print(json.dumps({"out": str(out), "report_file": str(report_path), **report}))
+        return 0
     changes = ", ".join(
         f"{name} {_show(report['start'][name])} -> {_show(report['tuned'][name])}"
         for name in report["tuned"]

@@ -1,4 +1,4 @@
-"""The experiments of PHD-context Sec. V as library code; ``experiments/`` holds thin scripts.
+"""The experiments of PHD-context Sec. V as library code, run by ``jaxtrack experiment NAME``.
 
 * :mod:`~jaxtrack.experiments.common`: output folders, train/test splits of a sequence
   (the synthetic default scene or a MOTChallenge folder), scoring tracker rows, CSV and

@@ -20,10 +20,8 @@ short markdown summary (:func:`markdown_table`) into its output folder
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NamedTuple
@@ -222,42 +220,3 @@ def markdown_table(rows: Sequence[dict], columns: Sequence[str]) -> str:
     ]
     lines += ["| " + " | ".join(cell(row[column]) for column in columns) + " |" for row in rows]
     return "\n".join(lines) + "\n"
-
-
-def experiment_parser(
-    name: str, doc: str, sequence: bool = True, quick_help: str = "short smoke run"
-) -> argparse.ArgumentParser:
-    """The argument parser every experiment script starts from.
-
-    Its description is the first paragraph of ``doc`` (the script's docstring) and its epilog
-    the rest; it has ``--out`` (required), ``--seed`` (default 0), ``--quick`` and, with
-    ``sequence``, ``--sequence SEQ_DIR`` (default: the synthetic scene).
-    """
-    parser = argparse.ArgumentParser(
-        prog=name,
-        description=doc.split("\n\n")[0],
-        epilog=doc.split("\n\n", 1)[1] if "\n\n" in doc else None,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    if sequence:
-        parser.add_argument(
-            "--sequence",
-            metavar="SEQ_DIR",
-            help="MOTChallenge sequence with gt (default: the synthetic scene of --seed)",
-        )
-    parser.add_argument("--quick", action="store_true", help=quick_help)
-    return parser
-
-
-def run_script(main: Callable[[], int], name: str) -> int:
-    """Runs an experiment script's body: bad input prints ``name: error: ...``, exit 2."""
-    try:
-        return main()
-    except InputError as err:
-        print(f"{name}: error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"{name}: interrupted", file=sys.stderr)
-        return 130

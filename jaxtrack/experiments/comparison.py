@@ -159,6 +159,7 @@ def run_comparison(
     quick: bool = False,
     sequence_dir: str | Path | None = None,
     mot_root: str | Path | None = None,
+    progress: bool = True,
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """The whole Fig. 16 experiment: ``comparison.csv|png`` and ``summary.md`` in ``out_dir``.
 
@@ -170,6 +171,7 @@ def run_comparison(
             synthetic scene of ``seed``, written to ``out_dir/scene``.
         mot_root: a folder of sequence folders, each compared too (with a pooled row per
             tracker); None for none.
+        progress: progress bars over the sequences.
 
     Returns:
         The table rows (those of :func:`comparison_table`, the synthetic or given sequence
@@ -185,7 +187,7 @@ def run_comparison(
     if sequence_dir is None:
         sequence_dir = synthetic_sequence(out / "scene", seed, quick)
     config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
-    rows = comparison_table([split_halves(sequence_dir)], config, seed, progress=True)
+    rows = comparison_table([split_halves(sequence_dir)], config, seed, progress=progress)
     root_note = ""
     if mot_root is not None:
         root = Path(mot_root)
@@ -198,7 +200,7 @@ def run_comparison(
             raise InputError(f"{root}: no sequence folders (with seqinfo.ini) found")
         combined = f"{root.name} combined"
         splits = [split_halves(folder) for folder in folders]
-        rows += comparison_table(splits, config, seed, combined, progress=True)
+        rows += comparison_table(splits, config, seed, combined, progress=progress)
         root_note = f" and on the {len(folders)} sequences of `{root}` (pooled: `{combined}`)"
     csv_path = write_csv(out / "comparison.csv", rows, COMPARISON_COLUMNS)
     png_path = save_comparison_figure(

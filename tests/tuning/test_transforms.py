@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxtrack.commands.track import load_config
+from jaxtrack.commands.arguments import load_config
 from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import TUNABLE, PHDConfig, phd_params
 from jaxtrack.models.survival import SurvivalMap

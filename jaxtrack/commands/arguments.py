@@ -1,0 +1,96 @@
+"""The arguments every ``jaxtrack`` command shares, so that a flag means the same everywhere.
+
+``--frames A:B`` is always a 1-based inclusive span, ``--seed N`` defaults to 0, ``--config
+FILE.json`` is always a tracker configuration, ``--quiet`` turns progress bars off and
+``--json`` prints the results as one JSON object. Commands import each other's helpers only
+through this module (``load_config``, ``add_context_arguments``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from jaxtrack.configs import TrackerConfig, load_config_file
+from jaxtrack.filters.phd_tracker import VARIANTS
+from jaxtrack.filters.registry import TRACKERS, tracker_entry
+
+#: Help of ``--frames`` (every command).
+FRAMES_HELP = "frame span A:B (1-based, inclusive; A: or :B leave an end open)"
+#: Help of ``--seed`` (every command).
+SEED_HELP = "random seed (default 0)"
+#: Help of ``--config`` (every command).
+CONFIG_HELP = (
+    "tracker configuration: a JSON object whose keys override the tracker's defaults "
+    "(see jaxtrack track --help; jaxtrack tune writes one)"
+)
+#: Help of ``--quiet`` (every command).
+QUIET_HELP = "no progress bars or step messages"
+#: Help of ``--json`` (every command).
+JSON_HELP = "print the results as one JSON object instead of a table"
+
+
+def add_frames(parser: argparse.ArgumentParser) -> None:
+    """Adds ``--frames A:B`` (read with :func:`jaxtrack.io.parse_frame_span`)."""
+    parser.add_argument("--frames", metavar="A:B", help=FRAMES_HELP)
+
+
+def add_seed(parser: argparse.ArgumentParser) -> None:
+    """Adds ``--seed N`` (default 0)."""
+    parser.add_argument("--seed", type=int, default=0, metavar="N", help=SEED_HELP)
+
+
+def add_out(
+    parser: argparse.ArgumentParser,
+    help: str,
+    required: bool = True,
+    metavar: str = "PATH",
+    default: str | None = None,
+) -> None:
+    """Adds ``--out PATH``: what the command writes (``help`` says what)."""
+    parser.add_argument("--out", required=required, default=default, metavar=metavar, help=help)
+
+
+def add_config(parser: argparse.ArgumentParser) -> None:
+    """Adds ``--config FILE.json``: always a tracker configuration (:func:`load_config`)."""
+    parser.add_argument("--config", metavar="FILE.json", help=CONFIG_HELP)
+
+
+def add_quiet(parser: argparse.ArgumentParser) -> None:
+    """Adds ``--quiet``: progress bars off (``progress=not args.quiet``)."""
+    parser.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+
+
+def add_json(parser: argparse.ArgumentParser) -> None:
+    """Adds ``--json``: one JSON object on stdout instead of the table."""
+    parser.add_argument("--json", action="store_true", help=JSON_HELP)
+
+
+def add_tracker(parser: argparse.ArgumentParser) -> None:
+    """Adds ``--tracker NAME``, one of the registry's trackers (default phd)."""
+    parser.add_argument(
+        "--tracker", choices=list(TRACKERS), default="phd", help="which tracker (default phd)"
+    )
+
+
+def add_context_arguments(parser: argparse.ArgumentParser, variants_doc: str) -> None:
+    """Adds ``--context CTX.npz`` and ``--variant`` (``jaxtrack track``, ``track-video``)."""
+    parser.add_argument(
+        "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
+    )
+    parser.add_argument(
+        "--variant",
+        choices=[name for name in VARIANTS if name != "UM"],
+        default="GM",
+        help=f"which parts of the context to use (default GM; {variants_doc})",
+    )
+
+
+def load_config(path: str | None, tracker: str = "phd") -> TrackerConfig:
+    """The configuration of ``tracker``: its defaults, or the ``--config`` file at ``path``.
+
+    Raises:
+        InputError: an unknown tracker; FileFormatError: a missing or bad file, an unknown
+            key or a bad value (named).
+    """
+    config_type = tracker_entry(tracker).config_type
+    return config_type() if path is None else load_config_file(path, config_type)

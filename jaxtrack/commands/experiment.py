@@ -1,0 +1,250 @@
+"""``jaxtrack experiment NAME``: the paper's experiments (logic in :mod:`jaxtrack.experiments`).
+
+Every experiment takes ``--out DIR`` (required), ``--seed N`` (default 0), ``--quick`` (a
+short smoke run) and ``--quiet``; those on one sequence also ``--sequence SEQ_DIR``
+(default: the synthetic scene of ``--seed``, written to ``OUT/scene``). The scripts in
+``experiments/`` run the same command (``python experiments/context_ablation.py ...`` is
+``jaxtrack experiment context-ablation ...``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import NamedTuple
+
+from jaxtrack.commands.arguments import add_out, add_quiet, add_seed
+
+#: The data folder beside the repository (``../shared/data``).
+SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+#: The MOT15 training sequences (default ``--mot-root`` of compare-trackers).
+DEFAULT_MOT_ROOT = SHARED_DATA / "mot15"
+#: PETS09-S2L1 (default ``--pets`` of gradient-tuning).
+DEFAULT_PETS = DEFAULT_MOT_ROOT / "PETS09-S2L1"
+
+
+class Experiment(NamedTuple):
+    """One ``jaxtrack experiment`` sub-command.
+
+    Attributes:
+        help: the one line ``jaxtrack experiment --help`` lists.
+        description: what it does and writes (its ``--help``).
+        quick_help: what ``--quick`` shortens.
+        sequence: whether it takes ``--sequence SEQ_DIR``.
+        add_extras: adds its own arguments, or None.
+        run: runs it on the parsed arguments; returns the exit status.
+    """
+
+    help: str
+    description: str
+    quick_help: str
+    sequence: bool
+    add_extras: Callable[[argparse.ArgumentParser], None] | None
+    run: Callable[[argparse.Namespace], int]
+
+
+def _steps(args: argparse.Namespace) -> Callable[[str], None] | None:
+    """Prints each step (and turns the progress bars on) unless ``--quiet``."""
+    return None if args.quiet else print
+
+
+def _written(files) -> str:
+    return "wrote " + ", ".join(str(path) for path in files)
+
+
+def _context_ablation(args: argparse.Namespace) -> int:
+    from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
+    from jaxtrack.experiments.common import markdown_table
+
+    result, files = run_ablation(
+        args.out, args.seed, args.quick, args.sequence, progress=_steps(args)
+    )
+    print(markdown_table(result.rows, ABLATION_COLUMNS))
+    print(_written(files))
+    return 0
+
+
+def _sweep_magnitudes(args: argparse.Namespace) -> int:
+    from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
+
+    result, files = run_magnitude_sweep(
+        args.out, args.seed, args.quick, args.sequence, progress=_steps(args)
+    )
+    print(files[-1].read_text())
+    print(json.dumps(sweep_summary(result), indent=2))
+    print(_written(files))
+    return 0
+
+
+def _compare_trackers_extras(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--mot-root",
+        metavar="DIR",
+        default=str(DEFAULT_MOT_ROOT),
+        help="folder of sequence folders also compared (default: %(default)s)",
+    )
+    parser.add_argument("--no-mot", action="store_true", help="skip the --mot-root sequences")
+
+
+def _compare_trackers(args: argparse.Namespace) -> int:
+    from jaxtrack.experiments.common import markdown_table
+    from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, run_comparison
+
+    mot_root = None if args.quick or args.no_mot else args.mot_root
+    rows, files = run_comparison(
+        args.out, args.seed, args.quick, args.sequence, mot_root, progress=not args.quiet
+    )
+    print(markdown_table(rows, COMPARISON_COLUMNS[:-1]))
+    print(_written(files))
+    return 0
+
+
+def _gradient_tuning_extras(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--pets",
+        default=str(DEFAULT_PETS),
+        metavar="SEQ_DIR",
+        help="PETS09-S2L1 folder (default: %(default)s)",
+    )
+    parser.add_argument("--no-pets", action="store_true", help="only the synthetic scene")
+
+
+def _gradient_tuning(args: argparse.Namespace) -> int:
+    from jaxtrack.experiments.common import markdown_table
+    from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
+
+    result = gradient_tuning_experiment(
+        args.out,
+        args.seed,
+        args.quick,
+        None if args.no_pets else args.pets,
+        progress=not args.quiet,
+    )
+    print(markdown_table(result["summary"], SUMMARY_COLUMNS))
+    for goal in result["goals"]:
+        print(
+            f"{goal['dataset']}: tuned MOTA {goal['tuned_MOTA']:.2f} vs grid "
+            f"{goal['grid_MOTA']:.2f} ({goal['tuned_vs_grid_percent']:.1f}%), "
+            f"{goal['tuning_runs']} vs {goal['grid_runs']} runs: "
+            f"goal {'met' if goal['met'] else 'NOT met'}"
+        )
+    print(f"wrote {args.out}/summary.csv, steps.csv, goals.csv, summary.md, gradient_tuning.png")
+    return 0
+
+
+#: The experiments, by name (``experiments/<name with _>.py`` runs the same).
+EXPERIMENTS = {
+    "context-ablation": Experiment(
+        help="context ablation (PHD-context Fig. 14): UM, GM and A1-A6 on one test span",
+        description="""\
+Context ablation, PHD-context Fig. 14: UM, GM and A1-A6 on the same test span.
+
+Learns context on the first half of a sequence (births from a UM tracker run, and for A6
+from the ground truth; clutter from the ground truth), tracks the second half with every
+variant and writes ablation.csv, ablation.png (bars of the MOTA/MOTP/MODA/MODP % difference
+w.r.t. UM) and summary.md into --out. Logic: jaxtrack.experiments.ablation.
+
+examples:
+  jaxtrack experiment context-ablation --out /tmp/ablation
+  jaxtrack experiment context-ablation --out /tmp/pets --sequence SEQ_DIR""",
+        quick_help="short smoke run (short scene, few particles)",
+        sequence=True,
+        add_extras=None,
+        run=_context_ablation,
+    ),
+    "sweep-magnitudes": Experiment(
+        help="magnitude sweep (PHD-context Fig. 15): scores against lambda_r and lambda_s",
+        description="""\
+Magnitude sweep, PHD-context Fig. 15: MOTA/MOTP/MODA/MODP against lambda_r and lambda_s.
+
+Learns context on the first half of a sequence (births from a UM tracker run, clutter from
+the ground truth), then tracks the second half for every point of a log-spaced grid of
+clutter magnitudes lambda_r (0.1..10 false detections per frame) and birth magnitudes
+lambda_s (0.02..2 births per frame), 9 x 9 by default, with uniform intensities (UM) and with
+the learned ones (GM): 162 tracker runs in one vmapped sweep sharded over all JAX devices.
+Writes sweep.csv (every configuration), sweep.png (scores against each magnitude),
+sweep_mota.png (MOTA over the grid) and summary.md into --out. Logic:
+jaxtrack.experiments.magnitudes.
+
+examples:
+  jaxtrack experiment sweep-magnitudes --out /tmp/sweep
+  XLA_FLAGS=--xla_force_host_platform_device_count=2 jaxtrack experiment sweep-magnitudes ...""",
+        quick_help="short smoke run (short scene, few particles, 3 x 3)",
+        sequence=True,
+        add_extras=None,
+        run=_sweep_magnitudes,
+    ),
+    "compare-trackers": Experiment(
+        help="tracker comparison (PHD-context Fig. 16): PHD-GM, PHD-UM, Kalman, SORT-like",
+        description="""\
+Tracker comparison, PHD-context Fig. 16: PHD-context vs data association, same detections.
+
+On each sequence, context is learned on the first half and four trackers are scored on the
+second half: the PHD tracker with learned context (PHD-GM) and with uniform intensities
+(PHD-UM), the Kalman data-association baseline (Kalman) and its SORT-like preset. Unless
+--quick or --no-mot, also on every sequence under --mot-root, with pooled scores. Writes
+comparison.csv, comparison.png and summary.md into --out. Logic:
+jaxtrack.experiments.comparison.
+
+examples:
+  jaxtrack experiment compare-trackers --out /tmp/compare
+  jaxtrack experiment compare-trackers --out /tmp/quick --quick""",
+        quick_help="short smoke run (short synthetic scene, few particles, no --mot-root)",
+        sequence=True,
+        add_extras=_compare_trackers_extras,
+        run=_compare_trackers,
+    ),
+    "gradient-tuning": Experiment(
+        help="gradient tuning of the magnitudes vs an 8 x 8 grid sweep (synthetic, PETS)",
+        description="""\
+Gradient tuning versus a grid sweep of the clutter and birth magnitudes.
+
+From mis-specified magnitudes (lambda_r = 10, lambda_s = 1), tunes the PHD tracker by adam on
+the unsupervised PHD log-likelihood of a training span and compares it on the test span with
+the best configuration of an 8x8 grid sweep (chosen by training MOTA): on the synthetic scene
+of --seed (halves) and on PETS09-S2L1 (frames 1-400 / 401-795). Writes summary.csv,
+steps.csv (loss and test MOTA per step), goals.csv, summary.md and gradient_tuning.png
+(loss and MOTA against the step) into --out. Logic: jaxtrack.experiments.tuning.
+
+examples:
+  jaxtrack experiment gradient-tuning --out /tmp/gt
+  jaxtrack experiment gradient-tuning --out /tmp/gt-synthetic --no-pets""",
+        quick_help="short smoke run (short spans, 3x3 grid, 2 steps)",
+        sequence=False,
+        add_extras=_gradient_tuning_extras,
+        run=_gradient_tuning,
+    ),
+}
+
+
+def register(subparsers) -> None:
+    """Adds the ``experiment`` parser (one sub-parser per experiment) to the CLI."""
+    parser = subparsers.add_parser(
+        "experiment",
+        help="run one of the paper's experiments (ablation, sweep, comparison, tuning)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    experiments = parser.add_subparsers(dest="experiment", metavar="NAME", required=True)
+    for name, experiment in EXPERIMENTS.items():
+        sub = experiments.add_parser(
+            name,
+            help=experiment.help,
+            description=experiment.description,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        add_out(sub, "output folder (created if needed)", metavar="DIR")
+        add_seed(sub)
+        if experiment.sequence:
+            sub.add_argument(
+                "--sequence",
+                metavar="SEQ_DIR",
+                help="MOTChallenge sequence with gt (default: the synthetic scene of --seed)",
+            )
+        sub.add_argument("--quick", action="store_true", help=experiment.quick_help)
+        add_quiet(sub)
+        if experiment.add_extras is not None:
+            experiment.add_extras(sub)
+        sub.set_defaults(func=experiment.run)
