@@ -11,6 +11,7 @@ import argparse
 import importlib
 import sys
 
+from jaxtrack import __version__
 from jaxtrack.errors import InputError
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
@@ -37,7 +38,6 @@ def build_parser() -> argparse.ArgumentParser:
             "scene context, MOTChallenge data tools and TrackEval-exact metrics."
         ),
     )
-    from jaxtrack import __version__
 
     parser.add_argument("--version", action="version", version=f"jaxtrack {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)

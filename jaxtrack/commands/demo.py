@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 from jaxtrack.commands.arguments import add_out, add_quiet, add_seed
+from jaxtrack.experiments.demo import run_demo
 
 DESCRIPTION = """\
 The toolkit's main job in one command, on the embedded synthetic surveillance scene (the
@@ -62,7 +63,6 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Runs the demo; prints each step, the results table and the files written."""
-    from jaxtrack.experiments.demo import run_demo
 
     start = time.perf_counter()
 

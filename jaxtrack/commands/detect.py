@@ -6,8 +6,15 @@ import argparse
 import json
 import time
 
+import numpy as np
+from tqdm import tqdm
+
 from jaxtrack.commands.arguments import add_frames, add_json, add_out, add_quiet
+from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.errors import InputError
+from jaxtrack.io import read_mot_file, write_mot_file
+from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
+from jaxtrack.metrics.detection import detection_precision_recall
 
 DESCRIPTION = """\
 Detect people in a video file (or a folder of images) by background subtraction and write
@@ -42,7 +49,6 @@ examples:
 
 def register(subparsers) -> None:
     """Adds the ``detect`` parser to the CLI's sub-parsers."""
-    from jaxtrack.detect.pipeline import METHODS, DetectorConfig
 
     defaults = DetectorConfig()
     parser = subparsers.add_parser(
@@ -94,9 +100,6 @@ def run(args: argparse.Namespace) -> int:
     Raises:
         InputError: a bad argument, an unreadable video or ground-truth file.
     """
-    from jaxtrack.detect.pipeline import DetectorConfig, detect_video
-    from jaxtrack.io import write_mot_file
-    from jaxtrack.io.video import VideoReader
 
     config = DetectorConfig(
         method=args.method, train_frames=args.train_frames, split=not args.no_split
@@ -149,8 +152,6 @@ def run(args: argparse.Namespace) -> int:
 
 def precision_recall(table, gt_path: str, frames: tuple[int, int], num_frames: int):
     """Precision and recall of ``table`` against the gt file on ``frames`` (IoU 0.5)."""
-    from jaxtrack.io import read_mot_file
-    from jaxtrack.metrics.detection import detection_precision_recall
 
     gt = read_mot_file(gt_path, "gt", num_frames).frame_span(*frames)
     return detection_precision_recall(table, gt, frames)
@@ -158,10 +159,6 @@ def precision_recall(table, gt_path: str, frames: tuple[int, int], num_frames: i
 
 def write_preview(reader, table, frames: tuple[int, int], path: str, progress: bool = True) -> None:
     """Writes the span's frames with their detection boxes to a video or PNG folder."""
-    import numpy as np
-    from tqdm import tqdm
-
-    from jaxtrack.io.video import FrameWriter, annotate_frame
 
     if not frames[0] <= frames[1]:
         raise InputError(f"empty frame span {frames}")

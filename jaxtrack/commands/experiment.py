@@ -16,6 +16,11 @@ from pathlib import Path
 from typing import NamedTuple
 
 from jaxtrack.commands.arguments import add_out, add_quiet, add_seed
+from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
+from jaxtrack.experiments.common import markdown_table
+from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, run_comparison
+from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
+from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
 
 #: The data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -55,8 +60,6 @@ def _written(files) -> str:
 
 
 def _context_ablation(args: argparse.Namespace) -> int:
-    from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
-    from jaxtrack.experiments.common import markdown_table
 
     result, files = run_ablation(
         args.out, args.seed, args.quick, args.sequence, progress=_steps(args)
@@ -67,7 +70,6 @@ def _context_ablation(args: argparse.Namespace) -> int:
 
 
 def _sweep_magnitudes(args: argparse.Namespace) -> int:
-    from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 
     result, files = run_magnitude_sweep(
         args.out, args.seed, args.quick, args.sequence, progress=_steps(args)
@@ -89,8 +91,6 @@ def _compare_trackers_extras(parser: argparse.ArgumentParser) -> None:
 
 
 def _compare_trackers(args: argparse.Namespace) -> int:
-    from jaxtrack.experiments.common import markdown_table
-    from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, run_comparison
 
     mot_root = None if args.quick or args.no_mot else args.mot_root
     rows, files = run_comparison(
@@ -112,8 +112,6 @@ def _gradient_tuning_extras(parser: argparse.ArgumentParser) -> None:
 
 
 def _gradient_tuning(args: argparse.Namespace) -> int:
-    from jaxtrack.experiments.common import markdown_table
-    from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
 
     result = gradient_tuning_experiment(
         args.out,

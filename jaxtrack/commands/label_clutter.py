@@ -8,8 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from jaxtrack.commands.arguments import add_frames, add_out, add_seed
+from jaxtrack.context.clutter_labels import choose_frames, load_clutter_labels
 from jaxtrack.errors import InputError
-from jaxtrack.io.video import find_frame_source
+from jaxtrack.io import load_sequence
+from jaxtrack.io.video import VideoReader, find_frame_source
+from jaxtrack.plot.label_tool import label_interactively
 
 DEFAULT_NUM_FRAMES = 20
 
@@ -95,10 +98,6 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from jaxtrack.context.clutter_labels import choose_frames, load_clutter_labels
-    from jaxtrack.io import load_sequence
-    from jaxtrack.io.video import VideoReader
-    from jaxtrack.plot.label_tool import label_interactively
 
     out = Path(args.out)
     resume = None

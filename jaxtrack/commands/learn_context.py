@@ -7,8 +7,19 @@ import json
 import time
 from pathlib import Path
 
+from tqdm import tqdm
+
 from jaxtrack.commands.arguments import add_frames, add_json, add_out, add_quiet, add_seed
+from jaxtrack.context.io import save_context
+from jaxtrack.context.learn import BIRTH_EPOCHS, CLUTTER_EPOCHS
+from jaxtrack.context.samples import WARMUP_FRAMES
+from jaxtrack.datasets.context_truth import load_context_truth
+from jaxtrack.detect.sequence import video_info, video_sequence
 from jaxtrack.errors import InputError
+from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
+from jaxtrack.io.video import VideoReader
+from jaxtrack.pipelines.context import learn_context
+from jaxtrack.plot.context import save_context_plots
 
 DESCRIPTION = """\
 Learn the scene context of a MOTChallenge sequence on a training frame span: the birth
@@ -55,8 +66,6 @@ def register(subparsers) -> None:
     Args:
         subparsers: the object returned by ``ArgumentParser.add_subparsers``.
     """
-    from jaxtrack.context.learn import BIRTH_EPOCHS, CLUTTER_EPOCHS
-    from jaxtrack.context.samples import WARMUP_FRAMES
 
     parser = subparsers.add_parser(
         "learn-context",
@@ -135,7 +144,6 @@ def run(args: argparse.Namespace) -> int:
     Raises:
         InputError: a bad argument, file or span, a missing source, or no events.
     """
-    from tqdm import tqdm
 
     for name in ("birth_epochs", "clutter_epochs"):
         if getattr(args, name) < 1:
@@ -153,9 +161,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--gt and --fps apply to a video given with --detections")
     if args.video is not None and not Path(args.video).exists():
         raise InputError(f"--video {args.video}: not found")
-
-    from jaxtrack.context.io import save_context
-    from jaxtrack.pipelines.context import learn_context
 
     start = time.perf_counter()
     # steps: loading, (tracking,) collecting events, birth density, clutter density, (plots)
@@ -211,9 +216,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _video_sequence(args: argparse.Namespace):
     """``(sequence, None)``: the video's training span with its detections (and gt)."""
-    from jaxtrack.detect.sequence import video_info, video_sequence
-    from jaxtrack.io import parse_frame_span, read_mot_file
-    from jaxtrack.io.video import VideoReader
 
     with VideoReader(args.sequence, fps=args.fps) as reader:
         info = video_info(reader)
@@ -224,14 +226,9 @@ def _video_sequence(args: argparse.Namespace):
 
 def _plot(args: argparse.Namespace, learned) -> list[Path]:
     """Writes the figures of ``learned`` to ``args.plot``."""
-    from jaxtrack.io import read_seqinfo
-    from jaxtrack.plot.context import save_context_plots
 
     sequence = Path(args.sequence)
     if args.detections:
-        from jaxtrack.detect.sequence import video_info
-        from jaxtrack.io.video import VideoReader
-
         with VideoReader(sequence, fps=args.fps) as reader:
             info = video_info(reader)
         if args.video is None:
@@ -241,13 +238,9 @@ def _plot(args: argparse.Namespace, learned) -> list[Path]:
     truth = None
     truth_path = sequence / "context_truth.npz"
     if truth_path.is_file():
-        from jaxtrack.datasets.context_truth import load_context_truth
-
         truth = load_context_truth(truth_path)
     background = None
     if args.video is not None:
-        from jaxtrack.io.video import VideoReader
-
         with VideoReader(args.video) as reader:
             background = reader.read(learned.metadata["frames"][0])
     return save_context_plots(

@@ -8,7 +8,10 @@ import json
 from pathlib import Path
 
 from jaxtrack.commands.arguments import add_out, add_seed
+from jaxtrack.datasets.scene_config import SceneConfig, config_from_dict, config_to_dict
+from jaxtrack.datasets.synthetic import generate_scene, write_scene
 from jaxtrack.errors import InputError
+from jaxtrack.plot.scene import save_scene_preview
 
 DESCRIPTION = """\
 Generate a synthetic surveillance sequence with known scene context (targets entering through
@@ -89,7 +92,6 @@ def run(args: argparse.Namespace) -> int:
     Raises:
         InputError: a missing or invalid argument or configuration file.
     """
-    from jaxtrack.datasets.scene_config import SceneConfig, config_from_dict, config_to_dict
 
     config = SceneConfig()
     if args.scene_config is not None:
@@ -112,9 +114,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--out {out} exists and is not a folder")
     name = args.name or config.name or out.resolve().name
     config = dataclasses.replace(config, name=name)
-
-    from jaxtrack.datasets.synthetic import generate_scene, write_scene
-    from jaxtrack.plot.scene import save_scene_preview
 
     scene = generate_scene(args.seed, config)
     out = write_scene(scene, out)

@@ -7,6 +7,10 @@ import json
 import time
 from pathlib import Path
 
+import cv2
+import numpy as np
+from tqdm import tqdm
+
 from jaxtrack.commands.arguments import (
     add_config,
     add_context_arguments,
@@ -14,8 +18,18 @@ from jaxtrack.commands.arguments import (
     add_out,
     add_quiet,
     add_seed,
+    load_config,
 )
+from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
+from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
+from jaxtrack.detect.sequence import video_info, video_sequence
 from jaxtrack.errors import InputError
+from jaxtrack.filters.registry import build_tracker
+from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
+from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
+from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.pipelines.tracking import load_tracker_context, track_sequences, tracker_description
+from jaxtrack.plot.context import position_map
 
 DESCRIPTION = """\
 Track people in a video end to end: detect them by background subtraction (as `jaxtrack
@@ -50,7 +64,6 @@ DEFAULT_TRAIL = 20
 
 def register(subparsers) -> None:
     """Adds the ``track-video`` parser to the CLI's sub-parsers."""
-    from jaxtrack.detect.pipeline import METHODS
 
     parser = subparsers.add_parser(
         "track-video",
@@ -108,17 +121,6 @@ def run(args: argparse.Namespace) -> int:
     Raises:
         InputError: a bad argument, an unreadable video, detections, context or gt file.
     """
-    from jaxtrack.commands.arguments import load_config
-    from jaxtrack.detect.pipeline import DetectorConfig, detect_video
-    from jaxtrack.detect.sequence import video_info, video_sequence
-    from jaxtrack.filters.registry import build_tracker
-    from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
-    from jaxtrack.io.video import VideoReader
-    from jaxtrack.pipelines.tracking import (
-        load_tracker_context,
-        track_sequences,
-        tracker_description,
-    )
 
     if args.trail < 0:
         raise InputError("--trail must be >= 0")
@@ -185,8 +187,6 @@ def run(args: argparse.Namespace) -> int:
 
 def print_tracking_scores(gt_path: str, rows, span: tuple[int, int], num_frames: int) -> dict:
     """Prints (and returns) MOTA, MOTP, MODA, MODP and IDF1 of ``rows`` on ``span``."""
-    from jaxtrack.io import read_mot_file
-    from jaxtrack.metrics.evaluate import evaluate_sequence
 
     gt = read_mot_file(gt_path, "gt", num_frames).frame_span(*span)
     summary = evaluate_sequence(gt, rows, span).summary()
@@ -197,10 +197,6 @@ def print_tracking_scores(gt_path: str, rows, span: tuple[int, int], num_frames:
 
 def intensity_overlay(context, part: str, width: int, height: int):
     """The context's birth or clutter intensity over the image centres, ``[height, width]``."""
-    import cv2
-
-    from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
-    from jaxtrack.plot.context import position_map
 
     intensity = context.birth if part == "birth" else context.clutter
     dims = BIRTH_POSITION_DIMS if part == "birth" else CLUTTER_POSITION_DIMS
@@ -212,10 +208,6 @@ def write_annotated(
     reader, rows, det_table, span, path: str, trail: int, overlay=None, progress: bool = True
 ) -> None:
     """Writes the span's frames with detections, tracks (id colours), trails and overlay."""
-    import numpy as np
-    from tqdm import tqdm
-
-    from jaxtrack.io.video import FrameWriter, annotate_frame
 
     feet = np.stack([rows.boxes[:, 0] + rows.boxes[:, 2] / 2, rows.boxes[:, 1] + rows.boxes[:, 3]])
     with FrameWriter(path, (reader.width, reader.height), reader.fps) as writer:

@@ -13,8 +13,18 @@ from jaxtrack.commands.arguments import (
     add_out,
     add_quiet,
     add_seed,
+    load_config,
 )
 from jaxtrack.errors import InputError
+from jaxtrack.filters.phd_tracker import TUNABLE
+from jaxtrack.io import load_sequence
+from jaxtrack.pipelines.tuning import (
+    CONFIG_TRAINABLE,
+    TUNING_BIRTHS_PER_DETECTION,
+    TUNING_PARTICLES,
+    tune_sequence,
+)
+from jaxtrack.tuning.objectives import ESTIMATORS
 
 DESCRIPTION = """\
 Tune the particle PHD tracker's parameters on a span (--frames A:B) of a MOTChallenge
@@ -51,13 +61,6 @@ examples:
 
 def register(subparsers) -> None:
     """Adds the ``tune`` parser to the CLI's sub-parsers."""
-    from jaxtrack.filters.phd_tracker import TUNABLE
-    from jaxtrack.pipelines.tuning import (
-        CONFIG_TRAINABLE,
-        TUNING_BIRTHS_PER_DETECTION,
-        TUNING_PARTICLES,
-    )
-    from jaxtrack.tuning.objectives import ESTIMATORS
 
     parser = subparsers.add_parser(
         "tune",
@@ -119,9 +122,6 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from jaxtrack.commands.arguments import load_config
-    from jaxtrack.io import load_sequence
-    from jaxtrack.pipelines.tuning import tune_sequence
 
     out = Path(args.out)
     if out.suffix != ".json":

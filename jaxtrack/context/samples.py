@@ -35,6 +35,8 @@ import numpy as np
 
 from jaxtrack.boxes import iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.map_em import estimate_magnitude
+from jaxtrack.metrics.preprocess import prepare_sequence
+from jaxtrack.metrics.vace import detection_mapping
 from jaxtrack.types import MotTable
 
 if TYPE_CHECKING:
@@ -233,8 +235,6 @@ def clutter_samples_from_gt(
     Returns:
         The unmatched detections as ``(y1, y2, w, h)``, source ``"gt"``.
     """
-    from jaxtrack.metrics.preprocess import prepare_sequence
-    from jaxtrack.metrics.vace import detection_mapping
 
     every_gt = MotTable.from_arrays(gt_table.frames, gt_table.ids, gt_table.boxes)
     numbered = MotTable.from_arrays(det_table.frames, np.arange(len(det_table)), det_table.boxes)

@@ -33,6 +33,7 @@ from typing import NamedTuple
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from jaxtrack.detect.blobs import clean_mask, extract_blobs
 from jaxtrack.detect.horprasert import classify, fit_horprasert, foreground_mask
@@ -45,7 +46,7 @@ from jaxtrack.detect.perspective import (
     split_blob,
 )
 from jaxtrack.errors import InputError
-from jaxtrack.io.motchallenge import MotTable
+from jaxtrack.io.motchallenge import MotTable, parse_frame_span
 from jaxtrack.io.video import VideoReader
 
 #: Detector methods of :func:`detect_video` (``jaxtrack detect --method``).
@@ -184,7 +185,6 @@ def detect_video(
 
 
 def _detect(reader, frames, config: DetectorConfig, progress: bool) -> VideoDetections:
-    from jaxtrack.io.motchallenge import parse_frame_span
 
     span = parse_frame_span(frames, reader.num_frames)
     foreground = mask_function(
@@ -193,8 +193,6 @@ def _detect(reader, frames, config: DetectorConfig, progress: bool) -> VideoDete
     min_area = max(round(config.min_area * config.scale**2), 1)
     numbers = range(span[0], span[1] + 1)
     if progress:
-        from tqdm import tqdm
-
         numbers = tqdm(numbers, desc=f"detect ({config.method})", unit="frame")
     per_frame = []
     for k in numbers:

@@ -36,6 +36,7 @@ from jaxtrack.experiments.common import (
 from jaxtrack.filters.phd_tracker import VARIANTS, Context, PHDConfig, phd_params
 from jaxtrack.pipelines.sweep import common_shapes
 from jaxtrack.pipelines.tracking import track_sequences
+from jaxtrack.plot.experiments import save_ablation_figure
 
 #: What each variant uses (PHD-context Sec. V), for tables and summaries.
 VARIANT_DESCRIPTIONS = {
@@ -162,7 +163,6 @@ def run_ablation(
         InputError: bad data (see :func:`~jaxtrack.experiments.common.split_halves` and
             :func:`ablation_table`) or output folder.
     """
-    from jaxtrack.plot.experiments import save_ablation_figure
 
     start = time.perf_counter()
     out = output_folder(out_dir)

@@ -28,11 +28,14 @@ from typing import NamedTuple
 
 from jaxtrack.context.samples import WARMUP_FRAMES
 from jaxtrack.datasets.scene_config import SceneConfig
+from jaxtrack.datasets.synthetic import generate_scene, write_scene
 from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import MotSequence, MotTable, load_sequence
 from jaxtrack.io.motchallenge import read_seqinfo
 from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
+from jaxtrack.pipelines.context import learn_context
+from jaxtrack.plot.scene import save_scene_preview
 
 #: Scores reported in percent, in this order.
 SCORE_KEYS = ("MOTA", "MOTP", "MODA", "MODP", "IDF1", "HOTA")
@@ -87,8 +90,6 @@ def synthetic_sequence(out_dir: str | Path, seed: int, quick: bool = False) -> P
     Raises:
         InputError: a negative seed.
     """
-    from jaxtrack.datasets.synthetic import generate_scene, write_scene
-    from jaxtrack.plot.scene import save_scene_preview
 
     if seed < 0:
         raise InputError(f"seed must be >= 0, got {seed}")
@@ -150,7 +151,6 @@ def learn_split(
     Raises:
         InputError: no birth or clutter events on the training span.
     """
-    from jaxtrack.pipelines.context import learn_context
 
     return learn_context(
         split.train,

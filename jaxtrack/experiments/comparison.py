@@ -24,6 +24,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from jaxtrack.errors import InputError
 from jaxtrack.experiments.common import (
     COUNT_KEYS,
@@ -44,6 +46,7 @@ from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_params
 from jaxtrack.metrics.evaluate import combine_sequences
 from jaxtrack.pipelines.sweep import common_shapes
 from jaxtrack.pipelines.tracking import track_sequences
+from jaxtrack.plot.experiments import save_comparison_figure
 
 #: The compared trackers: name -> (``track_sequences`` tracker, Kalman preset or variant).
 TRACKERS = {
@@ -129,8 +132,6 @@ def _learn_contexts(
     """GM contexts of the training halves, None (with the reason) where none can be learned."""
     items = splits
     if progress:
-        from tqdm import tqdm
-
         items = tqdm(splits, desc="learning context", unit="seq")
     contexts, notes = [], []
     for split in items:
@@ -180,7 +181,6 @@ def run_comparison(
     Raises:
         InputError: bad data, a ``mot_root`` without sequence folders, or a bad output folder.
     """
-    from jaxtrack.plot.experiments import save_comparison_figure
 
     start = time.perf_counter()
     out = output_folder(out_dir)

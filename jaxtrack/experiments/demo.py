@@ -24,6 +24,7 @@ from typing import Any, NamedTuple
 import jax
 import numpy as np
 
+from jaxtrack.datasets.context_truth import load_context_truth
 from jaxtrack.experiments.common import (
     COUNT_KEYS,
     QUICK_TRACKER_CONFIG,
@@ -47,6 +48,9 @@ from jaxtrack.experiments.magnitudes import (
 from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of
 from jaxtrack.io.motchallenge import write_results
 from jaxtrack.pipelines.tracking import phd_frame_snapshot, track_sequences
+from jaxtrack.plot.context import save_context_plots
+from jaxtrack.plot.experiments import save_demo_figure
+from jaxtrack.plot.tracks import phd_frame_figure
 
 #: The demo's magnitude grid: ``lambda_r`` (false detections / frame) x ``lambda_s``
 #: (births / frame), log-spaced.
@@ -94,10 +98,6 @@ def run_demo(
     Raises:
         InputError: a bad output folder or seed.
     """
-    from jaxtrack.datasets.context_truth import load_context_truth
-    from jaxtrack.plot.context import save_context_plots
-    from jaxtrack.plot.experiments import save_demo_figure
-    from jaxtrack.plot.tracks import phd_frame_figure
 
     notify = progress or (lambda _: None)
     seconds: dict[str, float] = {}

@@ -38,6 +38,7 @@ from jaxtrack.experiments.common import (
 )
 from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of, phd_params
 from jaxtrack.pipelines.sweep import batch_params, common_shapes, magnitude_grid, sweep
+from jaxtrack.plot.experiments import save_sweep_figure, save_sweep_heatmaps
 
 #: Clutter magnitudes ``lambda_r`` of the default grid (false detections per frame).
 CLUTTER_RATES = np.logspace(-1.0, 1.0, 9)
@@ -281,7 +282,6 @@ def write_sweep_files(result: MagnitudeSweep, out: Path, name: str) -> list[Path
     Returns:
         The three files.
     """
-    from jaxtrack.plot.experiments import save_sweep_figure, save_sweep_heatmaps
 
     return [
         write_csv(out / "sweep.csv", result.rows, SWEEP_COLUMNS),

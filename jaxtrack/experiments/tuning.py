@@ -46,6 +46,7 @@ from jaxtrack.io import load_sequence
 from jaxtrack.pipelines.sweep import magnitude_grid, sweep
 from jaxtrack.pipelines.tracking import track_sequences
 from jaxtrack.pipelines.tuning import CONFIG_TRAINABLE, tune_sequence
+from jaxtrack.plot.experiments import save_tuning_figure
 
 
 @dataclasses.dataclass(frozen=True)
@@ -317,7 +318,6 @@ def gradient_tuning_experiment(
     text = markdown_table(summary, SUMMARY_COLUMNS) + "\n" + markdown_table(goals, GOAL_COLUMNS)
     write_csv(out / "goals.csv", goals, GOAL_COLUMNS)
     (out / "summary.md").write_text(text)
-    from jaxtrack.plot.experiments import save_tuning_figure
 
     save_tuning_figure(steps, losses, summary, out / "gradient_tuning.png")
     return {"summary": summary, "steps": steps, "goals": goals}

@@ -37,8 +37,10 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.experimental import multihost_utils
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jaxtyping import Array, ArrayLike
+from tqdm import tqdm
 
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
@@ -296,8 +298,6 @@ def sweep(
     gt = None if ground_truth is None else ground_truth.frame_span(*span)
     chunks = range(num_chunks)
     if progress:
-        from tqdm import tqdm
-
         chunks = tqdm(chunks, desc="sweep", unit="chunk")
     rows, scores, log_likelihood = [], [], []
     pending = dispatch(0)
@@ -373,8 +373,6 @@ def _put(value: np.ndarray, sharding: NamedSharding) -> jax.Array:
 def _gather(outputs):
     """Device outputs as host NumPy arrays (all-gathered across processes when several)."""
     if jax.process_count() > 1:
-        from jax.experimental import multihost_utils
-
         return multihost_utils.process_allgather(outputs, tiled=True)
     return jax.tree.map(np.asarray, outputs)
 

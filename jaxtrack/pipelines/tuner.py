@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from jaxtyping import Array
+from tqdm import tqdm
 
 from jaxtrack.filters.phd import PHDParams
 from jaxtrack.tuning.objectives import Objective, check_ground_truth
@@ -151,8 +152,6 @@ def tune(
     stop_reason = "max_steps"
     steps = range(num_steps)
     if progress:
-        from tqdm import tqdm
-
         steps = tqdm(steps, desc=f"tuning ({objective.name})", unit="step")
     for s in steps:
         if fresh_keys:

@@ -29,6 +29,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
+from jaxtrack.plot.context import (
+    BIRTH_POSITION_DIMS,
+    CLUTTER_POSITION_DIMS,
+    draw_intensity,
+    position_map,
+)
+
 
 def _save(figure: Figure, path: str | Path, dpi: int = 100) -> Path:
     """Writes ``figure`` as a PNG; returns ``path`` as a :class:`~pathlib.Path`."""
@@ -256,17 +263,6 @@ def demo_figure(context, sweep, rows, info) -> Figure:
         The figure: birth map, clutter map, MOTA against ``lambda_r``, against ``lambda_s``
         (then the two colour bars).
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import NullFormatter
-
-    from jaxtrack.plot.context import (
-        BIRTH_POSITION_DIMS,
-        CLUTTER_POSITION_DIMS,
-        draw_intensity,
-        position_map,
-    )
-    from jaxtrack.plot.experiments import tick_labels
 
     width, height = info.im_width, info.im_height
     figure = Figure(figsize=(12, 7.5), layout="constrained")
