@@ -13,8 +13,8 @@ What ``jaxtrack track`` does, as library code for scripts and notebooks:
   not where the targets already in view at the start of a span are.
 * :func:`track_sequences` runs the tracker on several sequences with **one compile**: the
   padded detections of all of them are brought to a common number of detection slots and run
-  in chunks of a fixed number of frames (:func:`~jaxtrack.filters.base.run_chunked`), so the
-  compiled chunk is reused across frames and sequences.
+  in chunks of a fixed number of frames (:func:`~jaxtrack.filters.base.run` with
+  ``chunk_frames``), so the compiled chunk is reused across frames and sequences.
 
 ``tracker="kalman"`` runs the baseline data-association tracker instead
 (:mod:`~jaxtrack.filters.kalman`, a bank of Kalman filters with gating and optimal assignment)
@@ -41,7 +41,7 @@ import numpy as np
 from jaxtrack.association.offline import TrackRows, finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import Filter, run_chunked
+from jaxtrack.filters.base import Filter, run
 from jaxtrack.filters.kalman import KALMAN_PRESETS, KalmanParams, kalman_filter
 from jaxtrack.filters.phd import PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import (
@@ -273,7 +273,7 @@ def track_sequences(
         items = tqdm(items, total=len(sequences), desc="tracking", unit="seq")
     for seq, seq_params in items:
         detections = pad_to(seq.detections, seq.num_frames, capacity)
-        _, info = run_chunked(filt, key, seq_params, detections, chunk_frames)
+        _, info = run(filt, key, seq_params, detections, chunk_frames=chunk_frames)
         if config["output"] == "online":
             results.append(track_rows(info.tracks, seq.first_frame))
         else:
