@@ -14,6 +14,7 @@ BIRTH = uniform_birth_intensity(0.3, 640.0, 480.0, max_speed=8.0)
 MEASUREMENTS = jnp.array([[200.0, 150.0, 40.0, 90.0], [0.5, 0.5, 1.0, 1.0], [400, 300, 30, 70]])
 MASK = jnp.array([True, False, True])
 NOISE = jnp.array([4.0, 6.0, 5.0, 8.0])
+STARTED = jnp.asarray(True)
 
 
 def test_birth_weights_estimate_the_birth_intensity_seen_by_a_detection():
@@ -23,7 +24,9 @@ def test_birth_weights_estimate_the_birth_intensity_seen_by_a_detection():
     shifted = MEASUREMENTS[:1] + NOISE
 
     def estimate(key):
-        states, log_weights = sample_births(key, MEASUREMENTS, MASK, 32, BIRTH, NOISE, constant_std)
+        states, log_weights = sample_births(
+            key, MEASUREMENTS, MASK, 32, BIRTH, BIRTH, STARTED, NOISE, constant_std
+        )
         log_g = log_likelihood(shifted, states, NOISE, constant_std)[0]
         return jnp.sum(jnp.exp(log_weights + log_g))
 
