@@ -39,7 +39,7 @@ def test_birth_weights_estimate_the_birth_intensity_seen_by_a_detection():
 
 def test_padded_slots_give_no_mass_and_real_slots_sample_around_their_detection():
     states, log_weights = sample_births(
-        jax.random.key(1), MEASUREMENTS, MASK, 64, BIRTH, NOISE, constant_std
+        jax.random.key(1), MEASUREMENTS, MASK, 64, BIRTH, BIRTH, STARTED, NOISE, constant_std
     )
     assert states.shape == (3 * 64, 6)
     log_weights = np.asarray(log_weights).reshape(3, 64)
@@ -53,6 +53,6 @@ def test_padded_slots_give_no_mass_and_real_slots_sample_around_their_detection(
 
 def test_no_detections_no_birth_mass():
     _, log_weights = sample_births(
-        jax.random.key(2), MEASUREMENTS, jnp.zeros(3, bool), 16, BIRTH, NOISE
+        jax.random.key(2), MEASUREMENTS, jnp.zeros(3, bool), 16, BIRTH, BIRTH, STARTED, NOISE
     )
     assert np.all(np.asarray(log_weights) == LOG_ZERO)

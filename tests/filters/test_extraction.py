@@ -63,7 +63,7 @@ def test_measurement_partition_keeps_the_parts_heavier_than_the_threshold():
         jnp.array([True, True, True, False]),
         jnp.asarray(0.5),
     )
-    np.testing.assert_allclose(estimates.masses, [0.9, 0.3, 0.7, 0.0], rtol=1e-6, atol=1e-30)
+    np.testing.assert_allclose(estimates.masses, [0.9, 0.3, 0.7, 0.0], rtol=1e-6, atol=1e-20)
     np.testing.assert_array_equal(estimates.states, states)
     np.testing.assert_array_equal(estimates.mask, [True, False, True, False])
 
