@@ -7,8 +7,13 @@ scenario's typical frame) and 8, 32, 128 by default, for 1e4, 1e5 and 1e6 partic
 number of particles and of detections it times (median of repeats; 3 at 1e6 particles):
 
 * ``jax_recursion``: prediction, measurement-driven births, the eq. 10 update and systematic
-  resampling, composed from jaxtrack's building blocks under one ``jax.jit`` (compile
-  excluded and reported apart, ``block_until_ready`` on every call);
+  resampling, composed from the PHD tracker's public stages (:mod:`jaxtrack.filters.phd`)
+  under one ``jax.jit`` (compile excluded and reported apart, ``block_until_ready`` on every
+  call);
+* ``update_memory``: peak temporary memory of the blocked update (``phd_update`` with its
+  default block) and of the unblocked form (one block of all the particles, which writes
+  ``[num_detections, num_particles]`` arrays), from XLA's ``memory_analysis()`` of the
+  compiled update (``temp_size_in_bytes``: deterministic, inputs and outputs excluded);
 * ``jax_step``: the tracker's whole ``phd_filter(...).step`` (also state extraction by the
   measurement partition and labelling);
 * ``numpy_recursion``: the same recursion as ``jax_recursion`` written here in vectorised NumPy
@@ -26,13 +31,16 @@ number of particles and of detections it times (median of repeats; 3 at 1e6 part
   those above a million pairs are timed once.
 
 Throughput is in particle x detection pairs per second (``num_particles * num_detections /
-time``). Prints JSON. Usage: ``python benchmarks/phd_step.py [--quick]``.
+time``). Prints one JSON object on its last line. Usage:
+``python benchmarks/phd_step.py [--quick]`` (``--quick``: 1e4 particles, 8 and 32 detections,
+3 repeats; under a minute on 2 cores).
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime
+import functools
 import json
 import math
 import os
@@ -47,9 +55,8 @@ import numpy as np
 
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import log_intensity
-from jaxtrack.filters import PHDParams, default_phd_params, phd_filter, phd_update, resample
-from jaxtrack.filters.births import sample_births
-from jaxtrack.models import sample_constant_velocity, survival_probability
+from jaxtrack.filters import PHDParams, default_phd_params, phd_filter, resample
+from jaxtrack.filters.phd import default_block_size, phd_births, phd_update, predict
 from jaxtrack.types import Detections
 
 try:
@@ -126,34 +133,29 @@ def scene(
     return particles, log_weights, detections
 
 
-def jax_recursion(num_particles: int) -> Callable:
-    """Predict, birth, update, resample: the PHD recursion from jaxtrack's building blocks.
+def jax_recursion(num_particles: int, block_size: int | None = None) -> Callable:
+    """Predict, birth, update, resample: the PHD recursion composed from jaxtrack's stages.
 
     Args:
         num_particles: particles kept after resampling.
+        block_size: particles per block of the update (None: the tracker's default).
 
     Returns:
         The jitted ``(key, particles, log_weights, params, frame) -> (particles, log_weights,
         log_likelihood)``.
     """
+    births = functools.partial(phd_births, births_per_detection=BIRTHS_PER_DETECTION)
+    update = functools.partial(phd_update, block_size=block_size)
 
     def recursion(key, particles, log_weights, params, frame):
         key_motion, key_birth, key_resample = jax.random.split(key, 3)
         measurements = xywh_to_cxcywh(frame.boxes, jnp)
-        survivors = sample_constant_velocity(key_motion, particles, params.motion_noise_std)
-        survivor_log_weights = log_weights + jnp.log(
-            survival_probability(params.survival_prob, particles)
+        survivors, survivor_log_weights = predict(key_motion, particles, log_weights, params)
+        born, birth_log_weights = births(
+            key_birth, measurements, frame.mask, params, jnp.asarray(True)
         )
-        births, birth_log_weights = sample_births(
-            key_birth,
-            measurements,
-            frame.mask,
-            BIRTHS_PER_DETECTION,
-            params.birth_intensity,
-            params.measurement_noise_std,
-        )
-        predicted = jnp.concatenate([survivors, births])
-        _, log_likelihood, updated = phd_update(
+        predicted = jnp.concatenate([survivors, born])
+        updated = update(
             params,
             measurements,
             frame.scores,
@@ -161,10 +163,41 @@ def jax_recursion(num_particles: int) -> Callable:
             predicted,
             jnp.concatenate([survivor_log_weights, birth_log_weights]),
         )
-        new_particles, new_log_weights = resample(key_resample, predicted, updated, num_particles)
-        return new_particles, new_log_weights, log_likelihood
+        new_particles, new_log_weights = resample(
+            key_resample, predicted, updated.log_weights, num_particles
+        )
+        return new_particles, new_log_weights, updated.log_likelihood
 
     return jax.jit(recursion)
+
+
+def update_memory(params: PHDParams, particles, log_weights, frame) -> dict:
+    """XLA's temporary memory of the eq. 10 update and extraction reductions, blocked or not.
+
+    ``jax.jit(phd_update).lower(...).compile().memory_analysis().temp_size_in_bytes`` (the
+    compiled program's scratch buffers, deterministic; inputs and outputs excluded) for the
+    default block size and for one block of all the particles (the unblocked form, which
+    materialises ``[num_detections, num_particles]`` arrays), on the scene's particles. The
+    blocked form still holds per-particle arrays (the updated weights, expected scores).
+
+    Returns:
+        Bytes of both forms, the block size and the size of one ``[detections, particles]``
+        float32 array for scale.
+    """
+    measurements = xywh_to_cxcywh(frame.boxes, jnp)
+    num_particles, num_detections = particles.shape[0], measurements.shape[0]
+    args = (params, measurements, frame.scores, frame.mask, particles, log_weights)
+
+    def temp_bytes(block_size):
+        update = functools.partial(phd_update, block_size=block_size)
+        return jax.jit(update).lower(*args).compile().memory_analysis().temp_size_in_bytes
+
+    return {
+        "block_size": default_block_size(num_particles, num_detections),
+        "blocked_temp_bytes": temp_bytes(None),
+        "unblocked_temp_bytes": temp_bytes(num_particles),
+        "pairs_array_bytes": 4 * num_particles * num_detections,
+    }
 
 
 def numpy_recursion(
@@ -459,6 +492,7 @@ def bench(num_particles: int, num_detections: int, repeats: int, stonesoup_max_p
         lambda: numpy_recursion(rng, particles, log_weights, params, boxes), repeats
     )
     stonesoup = time_stonesoup(params, particles, log_weights, boxes, repeats, stonesoup_max_pairs)
+    memory = update_memory(params, jnp.asarray(particles), jnp.asarray(log_weights), frame)
     pairs = num_particles * num_detections
     return {
         "num_particles": num_particles,
@@ -471,6 +505,7 @@ def bench(num_particles: int, num_detections: int, repeats: int, stonesoup_max_p
         "jax_step_s": jax_step_time,
         "jax_step_min_s": jax_step_min,
         "jax_step_compile_s": step_compile,
+        "update_memory": memory,
         "numpy_recursion_s": numpy_time,
         "numpy_recursion_min_s": numpy_min,
         "stonesoup": stonesoup,
@@ -518,10 +553,10 @@ def main() -> None:
         default=13_000_000,
         help="skip Stone Soup above this many particle x detection pairs (about 1.3 us each)",
     )
-    parser.add_argument("--quick", action="store_true", help="1e4 particles, 8 detections only")
+    parser.add_argument("--quick", action="store_true", help="1e4 particles, 8 and 32 detections")
     args = parser.parse_args()
     if args.quick:
-        args.particles, args.detections, args.repeats = [10_000], [8], 3
+        args.particles, args.detections, args.repeats = [10_000], [8, 32], 3
     load_before = os.getloadavg()
     results = [
         bench(
@@ -557,8 +592,7 @@ def main() -> None:
                 ),
                 "summary": summary(results),
                 "results": results,
-            },
-            indent=2,
+            }
         )
     )
 

@@ -12,7 +12,7 @@ The flat public API (optax style)::
 
 from jaxtrack.configs import TrackerConfig, load_config_file
 from jaxtrack.errors import FileFormatError, InputError
-from jaxtrack.filters.base import Filter, run, run_chunked
+from jaxtrack.filters.base import Filter, run
 from jaxtrack.filters.kalman import kalman_filter
 from jaxtrack.filters.kalman_tracker import KalmanConfig
 from jaxtrack.filters.phd import PHDInfo, PHDParams, PHDState, phd_filter
@@ -65,7 +65,6 @@ __all__ = [
     "phd_params",
     "product_grid",
     "run",
-    "run_chunked",
     "supervised_objective",
     "sweep",
     "track_sequences",

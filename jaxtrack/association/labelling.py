@@ -14,7 +14,8 @@ On the 11 MOT15 training sequences (``jaxtrack track --benchmark``), the precede
 duplicate check and the velocity smoothing together raised the combined IDF1 from 45.6 to
 49.8 and HOTA from 34.8 to 37.2 (offline output, see :mod:`jaxtrack.association.offline`).
 
-All of it runs inside the filter's ``lax.scan`` with a fixed table of ``max_tracks`` slots.
+All of it runs inside the filter's ``lax.scan`` with a fixed table of ``max_tracks`` slots, the
+:class:`~jaxtrack.association.track_table.TrackTable` shared with the Kalman tracker.
 """
 
 from __future__ import annotations
@@ -26,6 +27,13 @@ from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.association.assignment import gated_assignment
 from jaxtrack.association.estimates import Estimates
+from jaxtrack.association.track_table import (
+    TrackTable,
+    commit_tracks,
+    count_missed,
+    init_track_table,
+    start_tracks,
+)
 from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix
 from jaxtrack.models.dynamics import MEASURED, VELOCITY
 
@@ -61,22 +69,15 @@ class LabelState(NamedTuple):
     """Track table carried from frame to frame.
 
     Attributes:
+        table: slots, identities, confirmation and missed-frame counters
+            (:class:`~jaxtrack.association.track_table.TrackTable`).
         boxes: ``(y1, y2, w, h)`` of each track when it was last linked.
         velocities: ``(vy1, vy2)`` of each track, pixels per frame.
-        ids: identity of each track (-1 for free slots).
-        missed: frames since each track was last linked.
-        active: True where a slot holds a live track.
-        confirmed: True for tracks that have been confirmed.
-        next_id: identity the next new track gets (identities start at 1).
     """
 
+    table: TrackTable
     boxes: Float[Array, "max_tracks 4"]
     velocities: Float[Array, "max_tracks 2"]
-    ids: Int[Array, " max_tracks"]
-    missed: Int[Array, " max_tracks"]
-    active: Bool[Array, " max_tracks"]
-    confirmed: Bool[Array, " max_tracks"]
-    next_id: Int[Array, ""]
 
 
 class Labels(NamedTuple):
@@ -97,13 +98,9 @@ class Labels(NamedTuple):
 def init_labels(max_tracks: int) -> LabelState:
     """An empty track table with ``max_tracks`` slots."""
     return LabelState(
+        table=init_track_table(max_tracks),
         boxes=jnp.tile(jnp.array([0.5, 0.5, 1.0, 1.0]), (max_tracks, 1)),
         velocities=jnp.zeros((max_tracks, 2)),
-        ids=jnp.full((max_tracks,), -1, jnp.int32),
-        missed=jnp.zeros((max_tracks,), jnp.int32),
-        active=jnp.zeros((max_tracks,), bool),
-        confirmed=jnp.zeros((max_tracks,), bool),
-        next_id=jnp.asarray(1, jnp.int32),
     )
 
 
@@ -120,55 +117,44 @@ def label_step(
     Returns:
         The new table and the estimates' labels.
     """
-    num_tracks, num_estimates = state.active.shape[0], estimates.mask.shape[0]
+    table, num_estimates = state.table, estimates.mask.shape[0]
     boxes = estimates.states[:, MEASURED]
-    steps = (state.missed + 1).astype(boxes.dtype)[:, None]
+    steps = (table.missed + 1).astype(boxes.dtype)[:, None]
     predicted = state.boxes.at[:, :2].add(state.velocities * steps)
     overlap = iou_matrix(cxcywh_to_xywh(predicted, jnp), cxcywh_to_xywh(boxes, jnp), xp=jnp)
-    allowed = state.active[:, None] & estimates.mask[None] & (overlap >= params.min_iou)
+    allowed = table.active[:, None] & estimates.mask[None] & (overlap >= params.min_iou)
     # Confirmed tracks first: among the largest matchings, one that links confirmed tracks
     # wins over one that links tentative ones (a penalty above any IoU difference).
-    match = gated_assignment(jnp.where(state.confirmed[:, None], 0.0, 1.0) - overlap, allowed)
+    match = gated_assignment(jnp.where(table.confirmed[:, None], 0.0, 1.0) - overlap, allowed)
     linked = match >= 0
-    missed = jnp.where(linked, 0, state.missed + 1)
-    active = state.active & (missed <= params.max_missed_frames)
+    missed, active = count_missed(table, linked, params.max_missed_frames)
 
     linked_to = jnp.where(linked, match, num_estimates)
     is_linked = jnp.zeros(num_estimates, bool).at[linked_to].set(True, mode="drop")
-    duplicate = jnp.any(state.active[:, None] & (overlap >= params.new_track_max_iou), axis=0)
-    unlinked = estimates.mask & ~is_linked & ~duplicate
-    rank = jnp.cumsum(unlinked, dtype=jnp.int32) - 1
-    free_slots = jnp.argsort(active, stable=True)
-    stored = unlinked & (rank < jnp.sum(~active))
-    slot = jnp.where(stored, free_slots[jnp.clip(rank, 0, num_tracks - 1)], num_tracks)
-    held = linked_to.at[slot].set(jnp.arange(num_estimates, dtype=jnp.int32), mode="drop")
+    duplicate = jnp.any(table.active[:, None] & (overlap >= params.new_track_max_iou), axis=0)
+    new = start_tracks(active, estimates.mask & ~is_linked & ~duplicate, table.next_id)
+    held = jnp.where(new.born, new.source, linked_to)
     holds = held < num_estimates
     safe_held = jnp.minimum(held, num_estimates - 1)
-    new_track = holds & ~linked
-    ids = jnp.where(new_track, state.next_id + rank[safe_held], state.ids)
-    ids = jnp.where(active | holds, ids, -1)
     confirmed = jnp.where(
         holds,
-        (linked & state.confirmed) | (estimates.scores[safe_held] >= params.confirm_score),
-        active & state.confirmed,
+        (linked & table.confirmed) | (estimates.scores[safe_held] >= params.confirm_score),
+        active & table.confirmed,
     )
+    new_table = commit_tracks(new, table, active, missed, confirmed)
     new_state = LabelState(
+        table=new_table,
         boxes=jnp.where(holds[:, None], boxes[safe_held], state.boxes),
         velocities=jnp.where(
             holds[:, None],
             _velocity(state, params, boxes[safe_held], estimates.states[safe_held], linked, steps),
             state.velocities,
         ),
-        ids=ids,
-        missed=jnp.where(holds, 0, missed),
-        active=active | holds,
-        confirmed=confirmed,
-        next_id=state.next_id + jnp.sum(unlinked, dtype=jnp.int32),
     )
     labels = Labels(
-        ids=jnp.full(num_estimates, -1, jnp.int32).at[held].set(ids, mode="drop"),
+        ids=jnp.full(num_estimates, -1, jnp.int32).at[held].set(new_table.ids, mode="drop"),
         confirmed=jnp.zeros(num_estimates, bool).at[held].set(confirmed, mode="drop"),
-        overflow=jnp.any(unlinked & ~stored),
+        overflow=new.overflow,
     )
     return new_state, labels
 

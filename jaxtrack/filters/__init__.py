@@ -2,7 +2,7 @@
 the sequence runners."""
 
 from jaxtrack.association.estimates import Estimates
-from jaxtrack.filters.base import Filter, run, run_chunked
+from jaxtrack.filters.base import Filter, run
 from jaxtrack.filters.extraction import gmm_clusters, measurement_partition
 from jaxtrack.filters.kalman import (
     KalmanInfo,
@@ -53,7 +53,6 @@ __all__ = [
     "resample",
     "residual",
     "run",
-    "run_chunked",
     "score_log_ratio",
     "sort_kalman_params",
     "stratified",

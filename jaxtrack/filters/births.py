@@ -21,6 +21,7 @@ the only place where births can gain mass in the update).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -34,16 +35,38 @@ from jaxtrack.models.noise import NoiseModel, state_dependent_std
 LOG_ZERO = -1e30
 
 
-def sample_births(
+class BirthDraws(NamedTuple):
+    """Birth particles drawn around the detections, before weighting.
+
+    Attributes:
+        states: ``births_per_detection * max_detections`` states, detection-major.
+        log_mixture: ``log sum_z N((y1, y2, w, h); z, Sigma(z))`` over the real detections.
+        log_velocity_volume: ``log |V_v|`` of the velocity range the velocities were drawn in.
+        real: True for the particles of real detection slots.
+    """
+
+    states: Float[Array, "num_births 6"]
+    log_mixture: Float[Array, " num_births"]
+    log_velocity_volume: Float[Array, ""]
+    real: Bool[Array, " num_births"]
+
+
+def velocity_bounds(intensity: Intensity) -> tuple[Float[Array, " 2"], Float[Array, " 2"]]:
+    """Lower and upper corners ``V_v`` of the velocity part of an intensity's volume."""
+    return intensity.lower[jnp.array(VELOCITY)], intensity.upper[jnp.array(VELOCITY)]
+
+
+def draw_births(
     key: Array,
     measurements: Float[Array, "max_detections 4"],
     mask: Bool[Array, " max_detections"],
     births_per_detection: int,
-    birth_intensity: Intensity,
+    velocity_lower: Float[Array, " 2"],
+    velocity_upper: Float[Array, " 2"],
     measurement_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
-) -> tuple[Float[Array, "num_births 6"], Float[Array, " num_births"]]:
-    """Draws birth particles around the detections and weights them by ``gamma / (J p)``.
+) -> BirthDraws:
+    """Draws birth particles from ``p(x | Z_k)`` (the module's importance density).
 
     Args:
         key: PRNG key; split into the Gaussian draws ``normal(k1, (M, J, 4))`` and the
@@ -51,14 +74,14 @@ def sample_births(
         measurements: detections ``(y1, y2, w, h)``; padded slots must hold a positive size.
         mask: True for real detections.
         births_per_detection: particles per detection slot (static).
-        birth_intensity: ``gamma`` over the 6-D state space (PHD-context eq. 19).
+        velocity_lower: lower corner of the velocity range ``V_v``.
+        velocity_upper: upper corner of ``V_v``.
         measurement_noise_std: measurement noise parameters (relative for SDV).
         noise_model: the likelihood's noise model.
 
     Returns:
-        ``births_per_detection * max_detections`` states, detection-major (sizes clipped
-        below at :data:`~jaxtrack.models.dynamics.MIN_SIZE`, far in the Gaussian's tail), and their
-        log-weights (:data:`LOG_ZERO` for particles of padded slots).
+        The draws (sizes clipped below at :data:`~jaxtrack.models.dynamics.MIN_SIZE`, far in
+        the Gaussian's tail) and the parts of their proposal density.
     """
     num_slots = measurements.shape[0]
     key_gauss, key_velocity = jax.random.split(key)
@@ -66,8 +89,6 @@ def sample_births(
     normal = jax.random.normal(key_gauss, (num_slots, births_per_detection, 4), measurements.dtype)
     measured = (measurements[:, None, :] + std[:, None, :] * normal).reshape(-1, 4)
     measured = measured.at[:, 2:].set(jnp.maximum(measured[:, 2:], MIN_SIZE))
-    velocity_lower = birth_intensity.lower[jnp.array(VELOCITY)]
-    velocity_upper = birth_intensity.upper[jnp.array(VELOCITY)]
     velocity = jax.random.uniform(
         key_velocity,
         (num_slots * births_per_detection, 2),
@@ -81,13 +102,88 @@ def sample_births(
     residual = (measured[:, None, :] - measurements[None]) / std[None]
     log_gauss = -0.5 * jnp.sum(residual**2, axis=-1) - jnp.sum(jnp.log(std), axis=-1)[None]
     log_gauss = log_gauss - 2 * math.log(2 * math.pi)
-    log_mixture_sum = jax.nn.logsumexp(jnp.where(mask[None], log_gauss, LOG_ZERO), axis=-1)
-    log_velocity_volume = jnp.sum(jnp.log(velocity_upper - velocity_lower))
-    log_weights = (
-        log_intensity(birth_intensity, states)
-        - math.log(births_per_detection)
-        - log_mixture_sum
-        + log_velocity_volume
+    return BirthDraws(
+        states=states,
+        log_mixture=jax.nn.logsumexp(jnp.where(mask[None], log_gauss, LOG_ZERO), axis=-1),
+        log_velocity_volume=jnp.sum(jnp.log(velocity_upper - velocity_lower)),
+        real=jnp.repeat(mask, births_per_detection),
     )
-    real = jnp.repeat(mask, births_per_detection)
-    return states, jnp.where(real, log_weights, LOG_ZERO)
+
+
+def birth_log_weights(
+    draws: BirthDraws, birth_intensity: Intensity, births_per_detection: int
+) -> Float[Array, " num_births"]:
+    """``log w = log gamma(x) - log(J p(x | Z_k))`` of drawn births.
+
+    ``J p(x | Z_k) = births_per_detection sum_z N(x; z, Sigma(z)) / |V_v|``.
+
+    Args:
+        draws: the births (:func:`draw_births`).
+        birth_intensity: ``gamma`` over the 6-D state space (PHD-context eq. 19).
+        births_per_detection: particles per detection slot (static).
+
+    Returns:
+        The log-weights (:data:`LOG_ZERO` for particles of padded slots).
+    """
+    log_weights = (
+        log_intensity(birth_intensity, draws.states)
+        - math.log(births_per_detection)
+        - draws.log_mixture
+        + draws.log_velocity_volume
+    )
+    return jnp.where(draws.real, log_weights, LOG_ZERO)
+
+
+def sample_births(
+    key: Array,
+    measurements: Float[Array, "max_detections 4"],
+    mask: Bool[Array, " max_detections"],
+    births_per_detection: int,
+    birth_intensity: Intensity,
+    initial_intensity: Intensity,
+    started: Bool[Array, ""],
+    measurement_noise_std: Float[Array, " 4"],
+    noise_model: NoiseModel = state_dependent_std,
+) -> tuple[Float[Array, "num_births 6"], Float[Array, " num_births"]]:
+    """Draws one frame's birth particles and weights them by ``gamma / (J p)``.
+
+    Before the first frame (``started`` False) ``gamma`` is ``initial_intensity``, afterwards
+    ``birth_intensity``. The particles are drawn once, with the velocity range of the chosen
+    intensity; both intensities are evaluated and the chosen log-weights kept (they may be
+    PyTrees of different shapes, e.g. a learned mixture and a uniform).
+
+    Args:
+        key: PRNG key (:func:`draw_births`).
+        measurements: detections ``(y1, y2, w, h)``; padded slots must hold a positive size.
+        mask: True for real detections.
+        births_per_detection: particles per detection slot (static).
+        birth_intensity: ``gamma`` over the 6-D state space (PHD-context eq. 19).
+        initial_intensity: ``gamma`` of the first frame.
+        started: False on the first frame.
+        measurement_noise_std: measurement noise parameters (relative for SDV).
+        noise_model: the likelihood's noise model.
+
+    Returns:
+        ``births_per_detection * max_detections`` states, detection-major, and their
+        log-weights (:data:`LOG_ZERO` for particles of padded slots).
+    """
+    (birth_lower, birth_upper), (initial_lower, initial_upper) = (
+        velocity_bounds(birth_intensity),
+        velocity_bounds(initial_intensity),
+    )
+    draws = draw_births(
+        key,
+        measurements,
+        mask,
+        births_per_detection,
+        jnp.where(started, birth_lower, initial_lower),
+        jnp.where(started, birth_upper, initial_upper),
+        measurement_noise_std,
+        noise_model,
+    )
+    log_weights = jnp.where(
+        started,
+        birth_log_weights(draws, birth_intensity, births_per_detection),
+        birth_log_weights(draws, initial_intensity, births_per_detection),
+    )
+    return draws.states, log_weights

@@ -159,19 +159,22 @@ def _merge_overlapping(share, state_sums, score_sums, live, merge_iou):
 
 
 def measurement_partition(
-    particles: Float[Array, "num_particles 6"],
-    log_weights: Float[Array, " num_particles"],
-    log_detection_terms: Float[Array, "max_detections num_particles"],
+    detection_log_masses: Float[Array, " max_detections"],
+    detection_states: Float[Array, "max_detections 6"],
     detection_scores: Float[Array, " max_detections"],
     detection_mask: Bool[Array, " max_detections"],
     mass_threshold: Float[Array, ""],
 ) -> Estimates:
     """One estimate per detection whose share of the updated PHD exceeds the threshold.
 
+    The part of detection ``z``, ``D_z(x) = psi_z(x) D(x) / (kappa(z) + C(z))`` (a term of
+    PHD-context eq. 10), has mass ``C(z) / (kappa(z) + C(z))`` and mean state
+    ``sum_i psi_z(x_i) w_i x_i / C(z)``; both come from the update's blocked pass
+    (:func:`~jaxtrack.filters.phd.phd_update`).
+
     Args:
-        particles: predicted particles (survivors and births), before resampling.
-        log_weights: their predicted log-weights.
-        log_detection_terms: ``log(psi_z(x_i) / (kappa(z) + C(z)))`` (PHD-context eq. 10).
+        detection_log_masses: ``log(C(z) / (kappa(z) + C(z)))`` per detection.
+        detection_states: mean state of each detection's part.
         detection_scores: detector confidences.
         detection_mask: True for real detections.
         mass_threshold: minimum share ``C(z) / (kappa(z) + C(z))`` of an estimate (0.5).
@@ -179,12 +182,9 @@ def measurement_partition(
     Returns:
         ``max_detections`` estimate slots, slot ``j`` from detection ``j``.
     """
-    log_parts = log_weights[None] + log_detection_terms
-    log_shares = jax.nn.logsumexp(log_parts, axis=-1)
-    posterior = jnp.exp(log_parts - log_shares[:, None])
-    shares = jnp.exp(log_shares)
+    shares = jnp.exp(detection_log_masses)
     return Estimates(
-        states=posterior @ particles,
+        states=detection_states,
         masses=shares,
         scores=detection_scores,
         mask=detection_mask & (shares > mass_threshold),

@@ -53,6 +53,13 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.association.assignment import gated_assignment
+from jaxtrack.association.track_table import (
+    TrackTable,
+    commit_tracks,
+    count_missed,
+    init_track_table,
+    start_tracks,
+)
 from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.filters.base import Filter
 from jaxtrack.linalg import cholesky, solve_lower, solve_spd
@@ -112,29 +119,22 @@ class KalmanParams(NamedTuple):
 
 
 class KalmanState(NamedTuple):
-    """The scan carry: the track table.
+    """The scan carry: the track table and each slot's Kalman filter.
 
     Attributes:
+        table: slots, identities (from 1), confirmation and consecutive missed frames
+            (:class:`~jaxtrack.association.track_table.TrackTable`).
         means: posterior state ``(y1, vy1, y2, vy2, w, h)`` of each slot.
         covs: posterior covariance of each slot.
-        ids: identity of each track (-1 for free slots); identities start at 1.
-        active: True where a slot holds a live track.
-        confirmed: True for confirmed tracks.
-        missed: consecutive frames without a detection.
         age: frames since the track's birth (1 on its birth frame).
         hit_history: bit ``j`` set when the track was detected ``j`` frames ago.
-        next_id: identity of the next new track.
     """
 
+    table: TrackTable
     means: Float[Array, "max_tracks 6"]
     covs: Float[Array, "max_tracks 6 6"]
-    ids: Int[Array, " max_tracks"]
-    active: Bool[Array, " max_tracks"]
-    confirmed: Bool[Array, " max_tracks"]
-    missed: Int[Array, " max_tracks"]
     age: Int[Array, " max_tracks"]
     hit_history: Int[Array, " max_tracks"]
-    next_id: Int[Array, ""]
 
 
 class KalmanInfo(NamedTuple):
@@ -281,15 +281,11 @@ def kalman_filter(
     def init(key: Array, params: KalmanParams) -> KalmanState:
         del key, params
         return KalmanState(
+            table=init_track_table(max_tracks),
             means=jnp.tile(jnp.array([0.5, 0.0, 0.5, 0.0, 1.0, 1.0]), (max_tracks, 1)),
             covs=jnp.tile(jnp.eye(STATE_DIM), (max_tracks, 1, 1)),
-            ids=jnp.full((max_tracks,), -1, jnp.int32),
-            active=jnp.zeros((max_tracks,), bool),
-            confirmed=jnp.zeros((max_tracks,), bool),
-            missed=jnp.zeros((max_tracks,), jnp.int32),
             age=jnp.zeros((max_tracks,), jnp.int32),
             hit_history=jnp.zeros((max_tracks,), jnp.int32),
-            next_id=jnp.asarray(1, jnp.int32),
         )
 
     def step(
@@ -309,8 +305,9 @@ def kalman_filter(
         overlap = iou_matrix(
             cxcywh_to_xywh(means[:, jnp.array(MEASURED)], jnp), detections.boxes, xp=jnp
         )
+        table = state.table
         allowed = (
-            state.active[:, None]
+            table.active[:, None]
             & usable[None]
             & (distances <= params.gate)
             & (overlap >= params.min_iou)
@@ -329,9 +326,9 @@ def kalman_filter(
         window_bits = (jnp.left_shift(1, window) - 1).astype(jnp.int32)
         history = (jnp.left_shift(state.hit_history, 1) | hit.astype(jnp.int32)) & window_bits
         age = state.age + 1
-        missed = jnp.where(hit, 0, state.missed + 1)
-        confirmed = state.confirmed | (jax.lax.population_count(history) >= params.confirm_hits)
-        alive = state.active & (missed <= params.max_missed_frames) & (confirmed | (age < window))
+        missed, alive = count_missed(table, hit, params.max_missed_frames)
+        confirmed = table.confirmed | (jax.lax.population_count(history) >= params.confirm_hits)
+        alive = alive & (confirmed | (age < window))
 
         # Births: every usable detection left unpaired starts a tentative track.
         paired = (
@@ -339,42 +336,29 @@ def kalman_filter(
             .at[jnp.where(hit, match, num_detections)]
             .set(True, mode="drop")
         )
-        orphan = usable & ~paired
-        rank = jnp.cumsum(orphan, dtype=jnp.int32) - 1
-        free_slots = jnp.argsort(alive, stable=True)
-        stored = orphan & (rank < jnp.sum(~alive))
-        slot = jnp.where(stored, free_slots[jnp.clip(rank, 0, max_tracks - 1)], max_tracks)
-        born_from = (
-            jnp.full(max_tracks, num_detections, jnp.int32)
-            .at[slot]
-            .set(jnp.arange(num_detections, dtype=jnp.int32), mode="drop")
-        )
-        born = born_from < num_detections
-        source = jnp.minimum(born_from, num_detections - 1)
+        new = start_tracks(alive, usable & ~paired, table.next_id)
+        born = new.born
+        source = jnp.minimum(new.source, num_detections - 1)
         birth_means, birth_covs = jax.vmap(_birth, in_axes=(0, None, None))(
             measurements[source], params, measurement_noise_model
         )
         first_confirmed = params.confirm_hits <= 1
-
+        new_table = commit_tracks(
+            new, table, alive, missed, jnp.where(born, first_confirmed, confirmed & alive)
+        )
         new_state = KalmanState(
+            table=new_table,
             means=jnp.where(born[:, None], birth_means, means),
             covs=jnp.where(born[:, None, None], birth_covs, covs),
-            ids=jnp.where(
-                born, state.next_id + rank[source], jnp.where(alive, state.ids, -1)
-            ).astype(jnp.int32),
-            active=alive | born,
-            confirmed=jnp.where(born, first_confirmed, confirmed & alive),
-            missed=jnp.where(born, 0, jnp.where(alive, missed, 0)),
             age=jnp.where(born, 1, jnp.where(alive, age, 0)),
             hit_history=jnp.where(born, 1, jnp.where(alive, history, 0)),
-            next_id=state.next_id + jnp.sum(stored, dtype=jnp.int32),
         )
         detected = (alive & hit) | born
         scores = detections.scores[jnp.where(born, source, jnp.maximum(match, 0))]
         info = KalmanInfo(
-            tracks=_tracks(new_state, detected & new_state.confirmed, scores),
+            tracks=_tracks(new_state, detected & new_table.confirmed, scores),
             candidates=_tracks(new_state, detected, scores),
-            track_overflow=jnp.any(orphan & ~stored),
+            track_overflow=new.overflow,
         )
         return new_state, info
 
@@ -405,7 +389,7 @@ def _tracks(state: KalmanState, selected: Bool[Array, " max_tracks"], scores) ->
     boxes = cxcywh_to_xywh(state.means[:, jnp.array(MEASURED)], jnp)
     return Tracks(
         boxes=jnp.where(selected[:, None], boxes, jnp.asarray(PAD_BOX, boxes.dtype)),
-        ids=jnp.where(selected, state.ids, -1),
+        ids=jnp.where(selected, state.table.ids, -1),
         scores=jnp.where(selected, scores, 0.0).astype(boxes.dtype),
         mask=selected,
     )
@@ -471,22 +455,3 @@ KALMAN_PRESETS: dict[str, KalmanPreset] = {
     "default": KalmanPreset("likelihood", default_kalman_params),
     "sort": KalmanPreset("iou", sort_kalman_params),
 }
-
-
-def check_kalman_params(params: KalmanParams) -> None:
-    """Raises ValueError when (concrete) ``params`` are out of range."""
-    for name in ("motion_noise_std", "measurement_noise_std", "initial_velocity_std"):
-        if not bool(jnp.all(getattr(params, name) > 0)):
-            raise ValueError(f"{name} must be positive, got {getattr(params, name)}")
-    hits, window = float(params.confirm_hits), float(params.confirm_window)
-    if not 1 <= hits <= window <= MAX_CONFIRM_WINDOW:
-        raise ValueError(
-            f"need 1 <= confirm_hits <= confirm_window <= {MAX_CONFIRM_WINDOW}, "
-            f"got {hits:g} and {window:g}"
-        )
-    if not 0 <= float(params.min_iou) < 1:
-        raise ValueError(f"min_iou must be in [0, 1), got {float(params.min_iou)}")
-    if not float(params.gate) > 0:
-        raise ValueError(f"gate must be positive, got {float(params.gate)}")
-    if float(params.max_missed_frames) < 0:
-        raise ValueError(f"max_missed_frames must be >= 0, got {float(params.max_missed_frames)}")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -97,18 +98,19 @@ def residual(key: Array, probs: Float[Array, " n"], num_samples: int) -> Int[Arr
 
 def resample(
     key: Array,
-    particles: Float[Array, "n state_dim"],
+    particles: Any,
     log_weights: Float[Array, " n"],
     num_samples: int,
     scheme: ResamplingScheme = systematic,
     stop_gradient: bool = False,
     soft_weight: float = 0.0,
-) -> tuple[Float[Array, "num_samples state_dim"], Float[Array, " num_samples"]]:
+) -> tuple[Any, Float[Array, " num_samples"]]:
     """Resamples to ``num_samples`` particles of weight ``M / num_samples``, ``M = sum w``.
 
     Args:
         key: PRNG key for the scheme.
-        particles: particle states.
+        particles: particle states: an array ``[n, ...]`` or a PyTree of such arrays (e.g.
+            states and per-particle values that travel with them).
         log_weights: unnormalised log-weights; their total mass is preserved.
         num_samples: number of particles after resampling (static).
         scheme: :func:`systematic` (default), :func:`stratified`, :func:`multinomial` or
@@ -126,7 +128,8 @@ def resample(
             Not combined with ``stop_gradient``.
 
     Returns:
-        The resampled particles and their log-weights.
+        The resampled particles (the PyTree's leaves indexed by the ancestors) and their
+        log-weights.
 
     Raises:
         ValueError: ``soft_weight`` outside ``[0, 1)``, or combined with ``stop_gradient``.
@@ -142,7 +145,7 @@ def resample(
         proposal = jax.lax.stop_gradient((1 - soft_weight) * probs + soft_weight / n)
         ancestors = scheme(key, proposal, num_samples)
         log_ratios = (log_weights - log_mass)[ancestors] - jnp.log(proposal[ancestors])
-        return particles[ancestors], log_mass + jax.nn.log_softmax(log_ratios)
+        return _select(particles, ancestors), log_mass + jax.nn.log_softmax(log_ratios)
     ancestors = scheme(key, probs, num_samples)
     new_log_weights = jnp.full((num_samples,), log_mass - math.log(num_samples))
     if stop_gradient:
@@ -152,4 +155,9 @@ def resample(
             + ancestor_log_weights
             - jax.lax.stop_gradient(ancestor_log_weights)
         )
-    return particles[ancestors], new_log_weights
+    return _select(particles, ancestors), new_log_weights
+
+
+def _select(particles: Any, ancestors: Int[Array, " num_samples"]) -> Any:
+    """The ancestors' rows of every leaf of ``particles``."""
+    return jax.tree.map(lambda leaf: leaf[ancestors], particles)

@@ -4,8 +4,8 @@
 several sequences with **one compile**: the tracker's filter is cached on its configuration's
 static setting, the padded detections of all sequences are brought to a common number of
 detection slots and run in chunks of a fixed number of frames
-(:func:`~jaxtrack.filters.base.run_chunked`), so the compiled chunk is reused across frames,
-sequences and calls.
+(:func:`~jaxtrack.filters.base.run` with ``chunk_frames``), so the compiled chunk is reused
+across frames, sequences and calls.
 
 Output (the configuration's ``output``): ``"offline"`` keeps every confirmed track over its
 whole life, the frames before its confirmation included, and fills gaps of up to ``max_gap``
@@ -26,7 +26,7 @@ from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
-from jaxtrack.filters.base import Filter, run, run_chunked
+from jaxtrack.filters.base import Filter, run
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
 from jaxtrack.filters.phd_tracker import Context
 from jaxtrack.filters.registry import build_tracker
@@ -77,7 +77,7 @@ def track_sequences(
         items, total=len(sequences), desc="tracking", unit="seq", disable=not progress
     ):
         detections = pad_to(seq.detections, seq.num_frames, capacity)
-        _, info = run_chunked(filt, key, seq_params, detections, chunk_frames)
+        _, info = run(filt, key, seq_params, detections, chunk_frames=chunk_frames)
         results.append(output_rows(info, config, seq.first_frame))
     return results
 

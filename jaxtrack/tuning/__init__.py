@@ -14,7 +14,6 @@ from jaxtrack.tuning.objectives import (
     likelihood_objective,
     make_objective,
     relaxed_gospa,
-    scan_filter,
     supervised_objective,
     tuning_filter,
 )
@@ -34,7 +33,6 @@ __all__ = [
     "make_objective",
     "parameter_space",
     "relaxed_gospa",
-    "scan_filter",
     "supervised_objective",
     "to_config",
     "tuning_filter",

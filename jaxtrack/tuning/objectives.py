@@ -1,7 +1,7 @@
 """Differentiable objectives of the PHD tracker over a sequence.
 
-Both objectives run the filter over the frames with ``lax.scan`` (:func:`scan_filter`, the
-same keys and results as :func:`~jaxtrack.filters.base.run`) and differentiate through it:
+Both objectives run the filter over the frames with :func:`~jaxtrack.filters.base.run` (its
+``checkpoint`` and a per-frame loss as its ``frame_output``) and differentiate through it:
 the dynamics and the births are reparameterised samples (noise times a scale), the
 resampling step uses one of three gradient estimators (:func:`tuning_filter`), and the scan
 body is wrapped in ``jax.checkpoint`` so that the backward pass stores one carry per frame
@@ -23,22 +23,20 @@ keys (common random numbers).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Literal, NamedTuple
+from typing import Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from jaxtrack.boxes import xywh_to_cxcywh
-from jaxtrack.filters.base import Filter
+from jaxtrack.filters.base import Filter, run
 from jaxtrack.filters.phd import phd_filter
 from jaxtrack.models.dynamics import MEASURED
 from jaxtrack.types import Detections, GroundTruth
 
 #: Gradient estimators of the resampling step (:func:`tuning_filter`).
 ESTIMATORS = ("stop_gradient", "soft", "none")
-
-FrameLoss = Callable[[Any, Any, Any], dict[str, Float[Array, ""]]]
 
 
 class Objective(NamedTuple):
@@ -99,49 +97,6 @@ def tuning_filter(
     )
 
 
-def scan_filter(
-    filt: Filter,
-    key: Array,
-    params: Any,
-    detections: Detections,
-    frame_loss: FrameLoss,
-    per_frame: Any = None,
-    checkpoint: bool = True,
-) -> dict[str, Float[Array, " num_frames"]]:
-    """Runs ``filt`` over the frames and returns per-frame scalars (a pure function).
-
-    Frame ``t`` gives ``frame_loss(state_t, info_t, per_frame_t)``, ``state_t`` the carry
-    after the frame's step (the posterior particles). Keys are split as in
-    :func:`~jaxtrack.filters.base.run`, so the per-frame infos are those of ``run``.
-
-    Args:
-        filt: the filter.
-        key: PRNG key.
-        params: the filter's parameters.
-        detections: padded detections ``[num_frames, max_detections]``.
-        frame_loss: ``(state, info, per_frame_t) -> {name: scalar}``.
-        per_frame: a PyTree with a leading ``num_frames`` axis handed to ``frame_loss``
-            frame by frame (e.g. the ground truth), or None.
-        checkpoint: wrap the scan body in ``jax.checkpoint`` (rematerialisation).
-
-    Returns:
-        ``{name: [num_frames]}``.
-    """
-    key_init, key_frames = jax.random.split(key)
-    state = filt.init(key_init, params)
-    frame_keys = jax.random.split(key_frames, detections.mask.shape[0])
-
-    def body(state, inputs):
-        frame_key, detections_t, extra_t = inputs
-        new_state, info = filt.step(frame_key, state, params, detections_t)
-        return new_state, frame_loss(new_state, info, extra_t)
-
-    if checkpoint:
-        body = jax.checkpoint(body)
-    _, outputs = jax.lax.scan(body, state, (frame_keys, detections, per_frame))
-    return outputs
-
-
 def likelihood_objective(filt: Filter, checkpoint: bool = True) -> Objective:
     """Minus the PHD measurement log-likelihood per frame (unsupervised).
 
@@ -159,12 +114,12 @@ def likelihood_objective(filt: Filter, checkpoint: bool = True) -> Objective:
         ``mass`` (the mean PHD mass).
     """
 
-    def frame_loss(state, info, _):
+    def frame_loss(state, info, index):
         return {"log_likelihood": info.log_likelihood, "mass": info.mass}
 
     def loss(params, key, detections, ground_truth=None):
         del ground_truth
-        out = scan_filter(filt, key, params, detections, frame_loss, None, checkpoint)
+        _, out = run(filt, key, params, detections, checkpoint=checkpoint, frame_output=frame_loss)
         num_frames = detections.mask.shape[0]
         total = jnp.sum(out["log_likelihood"])
         return -total / num_frames, {"log_likelihood": total, "mass": jnp.mean(out["mass"])}
@@ -298,18 +253,25 @@ def supervised_objective(
     if cardinality_weight < 0:
         raise ValueError(f"cardinality_weight must be >= 0, got {cardinality_weight}")
 
-    def frame_loss(state, info, truth_t):
-        boxes, mask = truth_t
-        particle_boxes = state.particles[:, MEASURED]
-        gospa, mass = relaxed_gospa(
-            particle_boxes, state.log_weights, boxes, mask, cutoff, epsilon, iterations
-        )
-        return {"gospa": gospa, "cardinality_error": (mass - jnp.sum(mask)) ** 2, "mass": mass}
-
     def loss(params, key, detections, ground_truth):
         boxes = xywh_to_cxcywh(jnp.asarray(ground_truth.boxes), jnp)
         mask = jnp.asarray(ground_truth.mask) & ~jnp.asarray(ground_truth.ignored)
-        out = scan_filter(filt, key, params, detections, frame_loss, (boxes, mask), checkpoint)
+
+        def frame_loss(state, info, index):
+            particle_boxes = state.particles[:, MEASURED]
+            gospa, mass = relaxed_gospa(
+                particle_boxes,
+                state.log_weights,
+                boxes[index],
+                mask[index],
+                cutoff,
+                epsilon,
+                iterations,
+            )
+            cardinality_error = (mass - jnp.sum(mask[index])) ** 2
+            return {"gospa": gospa, "cardinality_error": cardinality_error, "mass": mass}
+
+        _, out = run(filt, key, params, detections, checkpoint=checkpoint, frame_output=frame_loss)
         metrics = {name: jnp.mean(value) for name, value in out.items()}
         total = metrics["gospa"] + cardinality_weight * metrics["cardinality_error"]
         return total, metrics

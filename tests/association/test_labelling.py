@@ -136,7 +136,7 @@ def test_an_estimate_overlapping_a_live_track_starts_no_duplicate_track():
         state, _ = label_step(init_labels(4), params, first)
         state, labels = label_step(state, params, second)
         np.testing.assert_array_equal(labels.ids[:2], [1, expected])
-        assert int(jnp.sum(state.active)) == (1 if expected < 0 else 2)
+        assert int(jnp.sum(state.table.active)) == (1 if expected < 0 else 2)
 
 
 def test_confirmed_tracks_take_precedence_over_tentative_ones():

@@ -14,6 +14,7 @@ BIRTH = uniform_birth_intensity(0.3, 640.0, 480.0, max_speed=8.0)
 MEASUREMENTS = jnp.array([[200.0, 150.0, 40.0, 90.0], [0.5, 0.5, 1.0, 1.0], [400, 300, 30, 70]])
 MASK = jnp.array([True, False, True])
 NOISE = jnp.array([4.0, 6.0, 5.0, 8.0])
+STARTED = jnp.asarray(True)
 
 
 def test_birth_weights_estimate_the_birth_intensity_seen_by_a_detection():
@@ -23,7 +24,9 @@ def test_birth_weights_estimate_the_birth_intensity_seen_by_a_detection():
     shifted = MEASUREMENTS[:1] + NOISE
 
     def estimate(key):
-        states, log_weights = sample_births(key, MEASUREMENTS, MASK, 32, BIRTH, NOISE, constant_std)
+        states, log_weights = sample_births(
+            key, MEASUREMENTS, MASK, 32, BIRTH, BIRTH, STARTED, NOISE, constant_std
+        )
         log_g = log_likelihood(shifted, states, NOISE, constant_std)[0]
         return jnp.sum(jnp.exp(log_weights + log_g))
 
@@ -36,7 +39,7 @@ def test_birth_weights_estimate_the_birth_intensity_seen_by_a_detection():
 
 def test_padded_slots_give_no_mass_and_real_slots_sample_around_their_detection():
     states, log_weights = sample_births(
-        jax.random.key(1), MEASUREMENTS, MASK, 64, BIRTH, NOISE, constant_std
+        jax.random.key(1), MEASUREMENTS, MASK, 64, BIRTH, BIRTH, STARTED, NOISE, constant_std
     )
     assert states.shape == (3 * 64, 6)
     log_weights = np.asarray(log_weights).reshape(3, 64)
@@ -50,6 +53,6 @@ def test_padded_slots_give_no_mass_and_real_slots_sample_around_their_detection(
 
 def test_no_detections_no_birth_mass():
     _, log_weights = sample_births(
-        jax.random.key(2), MEASUREMENTS, jnp.zeros(3, bool), 16, BIRTH, NOISE
+        jax.random.key(2), MEASUREMENTS, jnp.zeros(3, bool), 16, BIRTH, BIRTH, STARTED, NOISE
     )
     assert np.all(np.asarray(log_weights) == LOG_ZERO)

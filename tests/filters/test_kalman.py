@@ -11,7 +11,8 @@ from scipy.optimize import linear_sum_assignment
 from jaxtrack.filters.base import run
 from jaxtrack.filters.kalman import (
     KALMAN_PRESETS,
-    check_kalman_params,
+    MAX_CONFIRM_WINDOW,
+    KalmanParams,
     default_kalman_params,
     kalman_filter,
     sort_kalman_params,
@@ -189,18 +190,18 @@ def test_matches_numpy_reference(preset):
         state = filt.init(jax.random.PRNGKey(0), params64)
         births = deaths = 0
         for t, (table, output) in enumerate(history):
-            previous = set(np.asarray(state.ids)[np.asarray(state.active)].tolist())
+            previous = set(np.asarray(state.table.ids)[np.asarray(state.table.active)].tolist())
             state, info = step(
                 jax.random.PRNGKey(t), state, params64, jax.tree.map(lambda x, t=t: x[t], dets64)
             )
-            active = np.asarray(state.active)
-            ids = np.asarray(state.ids)
+            active = np.asarray(state.table.active)
+            ids = np.asarray(state.table.ids)
             assert sorted(ids[active].tolist()) == sorted(table), f"frame {t}"
             for slot in np.nonzero(active)[0]:
                 mean, cov, confirmed = table[int(ids[slot])]
                 np.testing.assert_allclose(state.means[slot], mean, rtol=1e-5, atol=1e-5)
                 np.testing.assert_allclose(state.covs[slot], cov, rtol=1e-5, atol=1e-5)
-                assert bool(state.confirmed[slot]) == confirmed
+                assert bool(state.table.confirmed[slot]) == confirmed
             out_mask = np.asarray(info.tracks.mask)
             out = dict(
                 zip(
@@ -288,6 +289,25 @@ def test_track_table_overflow_is_reported():
         padded_detections(frames, 5),
     )
     assert bool(info.track_overflow[0]) and int(np.sum(info.candidates.mask)) == 3
+
+
+def check_kalman_params(params: KalmanParams) -> None:
+    """Raises ValueError when (concrete) ``params`` are out of range."""
+    for name in ("motion_noise_std", "measurement_noise_std", "initial_velocity_std"):
+        if not bool(jnp.all(getattr(params, name) > 0)):
+            raise ValueError(f"{name} must be positive, got {getattr(params, name)}")
+    hits, window = float(params.confirm_hits), float(params.confirm_window)
+    if not 1 <= hits <= window <= MAX_CONFIRM_WINDOW:
+        raise ValueError(
+            f"need 1 <= confirm_hits <= confirm_window <= {MAX_CONFIRM_WINDOW}, "
+            f"got {hits:g} and {window:g}"
+        )
+    if not 0 <= float(params.min_iou) < 1:
+        raise ValueError(f"min_iou must be in [0, 1), got {float(params.min_iou)}")
+    if not float(params.gate) > 0:
+        raise ValueError(f"gate must be positive, got {float(params.gate)}")
+    if float(params.max_missed_frames) < 0:
+        raise ValueError(f"max_missed_frames must be >= 0, got {float(params.max_missed_frames)}")
 
 
 @pytest.mark.parametrize(

@@ -7,7 +7,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import jaxtrack.filters.phd as phd_module
 from jaxtrack.boxes import cxcywh_to_xywh
 from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import PHDParams, phd_filter
@@ -63,12 +62,10 @@ MASK = np.array([True, True, True, False])
     [(0.0, None), (1.0, None), (1.0, 20)],
     ids=["plain", "scores", "blocks"],
 )
-def test_step_matches_numpy_reference(score_weight, block, monkeypatch):
-    if block is not None:  # 48 predicted particles in blocks of 20: 3 blocks, the last overlapping
-        monkeypatch.setattr(phd_module, "_MIN_BLOCK", block)
-        monkeypatch.setattr(phd_module, "_PAIRS_PER_BLOCK", block)
+def test_step_matches_numpy_reference(score_weight, block):
+    # blocks: 48 predicted particles in blocks of 20, 3 blocks, the last overlapping
     with jax.enable_x64(True):
-        filt = phd_filter(32, births_per_detection=4, extraction="partition")
+        filt = phd_filter(32, births_per_detection=4, extraction="partition", block_size=block)
         params = _to_float64(
             _params(score_weight=jnp.asarray(score_weight), survival_prob=jnp.asarray(0.97))
         )

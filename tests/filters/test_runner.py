@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxtrack.filters.base import _chunk_functions, run, run_chunked
+from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
 from tests.filters.phd_scenes import walking_scene
@@ -134,16 +134,68 @@ def test_one_step_gradient_matches_finite_differences():
     np.testing.assert_allclose(grad, numeric, rtol=1e-4)
 
 
+def _compiled_functions(function):
+    """Runs ``function()`` and lists the names of the functions XLA compiled meanwhile."""
+    events = []
+
+    def listener(event, duration, **kwargs):
+        if event == "/jax/core/compile/backend_compile_duration":
+            events.append(kwargs.get("fun_name"))
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        result = function()
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    return result, events
+
+
 def test_chunked_run_equals_run_and_compiles_once():
     filt = phd_filter(256, births_per_detection=8)
     key = jax.random.PRNGKey(2)
     _, expected = jax.jit(lambda k, p, d: run(filt, k, p, d))(key, PARAMS, DETECTIONS)
-    _, chunked = run_chunked(filt, key, PARAMS, DETECTIONS, chunk_frames=5)  # 12 = 5 + 5 + 2
+    (_, chunked), compiled = _compiled_functions(
+        lambda: run(filt, key, PARAMS, DETECTIONS, chunk_frames=5)  # 12 = 5 + 5 + 2
+    )
     _close(chunked, expected, rtol=1e-5, atol=1e-5)
+    assert compiled.count("jit(scan)") == 1
     shorter = jax.tree.map(lambda x: x[:7], DETECTIONS)
-    _, prefix = run_chunked(filt, key, PARAMS, shorter, chunk_frames=5)
+    (_, prefix), compiled = _compiled_functions(
+        lambda: run(filt, key, PARAMS, shorter, chunk_frames=5)
+    )
     _close(prefix, jax.tree.map(lambda x: x[:7], expected), rtol=1e-5, atol=1e-5)
-    _, scan_chunk = _chunk_functions(filt)
-    assert scan_chunk._cache_size() == 1  # one compile for 12 and 7 frames
+    assert "jit(scan)" not in compiled  # the chunk scan compiled for 12 frames serves 7
     with pytest.raises(ValueError, match="chunk_frames must be positive"):
-        run_chunked(filt, key, PARAMS, DETECTIONS, chunk_frames=0)
+        run(filt, key, PARAMS, DETECTIONS, chunk_frames=0)
+
+
+def test_checkpoint_and_frame_output_keep_the_per_frame_results():
+    """``checkpoint`` changes memory, not values; ``frame_output`` sees each frame's state and
+    index, chunked or not; gradients through the checkpointed run equal the plain ones."""
+    filt = phd_filter(128, births_per_detection=4)
+    key = jax.random.key(5)
+
+    def output(state, info, index):
+        return {"mass": state.mass, "log_likelihood": info.log_likelihood, "index": index}
+
+    _, plain = jax.jit(lambda k: run(filt, k, PARAMS, DETECTIONS))(key)
+    _, checked = jax.jit(
+        lambda k: run(filt, k, PARAMS, DETECTIONS, checkpoint=True, frame_output=output)
+    )(key)
+    _, chunked = run(filt, key, PARAMS, DETECTIONS, chunk_frames=5, frame_output=output)
+    for outputs in (checked, chunked):
+        np.testing.assert_allclose(outputs["mass"], plain.mass, rtol=1e-5)
+        np.testing.assert_allclose(outputs["log_likelihood"], plain.log_likelihood, rtol=1e-5)
+        np.testing.assert_array_equal(outputs["index"], np.arange(12))
+
+    def total(detection_prob, checkpoint):
+        params = PARAMS._replace(detection_prob=detection_prob)
+        _, out = run(filt, key, params, DETECTIONS, checkpoint=checkpoint, frame_output=output)
+        return jnp.sum(out["log_likelihood"])
+
+    grads = [
+        jax.jit(jax.grad(total), static_argnums=1)(jnp.asarray(0.9), checkpoint)
+        for checkpoint in (False, True)
+    ]
+    assert np.isfinite(grads[0]) and grads[0] != 0
+    np.testing.assert_allclose(grads[1], grads[0], rtol=1e-5)
