@@ -13,6 +13,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from jaxtrack.cli import main
+from jaxtrack.commands import label_clutter as label_clutter_command
 from jaxtrack.context.clutter_labels import choose_frames, load_clutter_labels
 from jaxtrack.plot import label_tool
 
@@ -167,7 +168,8 @@ def test_session_wiring_and_resume(capsys, tmp_path, mot15_root, monkeypatch):
     sequence_dir = mot15_root / "TUD-Stadtmitte"
     out = tmp_path / "tud.json"
     calls: list[dict] = []
-    monkeypatch.setattr(label_tool, "label_interactively", headless_session(calls, 1, 2))
+    # The command's own reference to the session (the command module imports it by name).
+    monkeypatch.setattr(label_clutter_command, "label_interactively", headless_session(calls, 1, 2))
     status, printed, _ = run_cli(
         capsys, sequence_dir, "--frames", "1:90", "--num-frames", "5", "--seed", "7", "--out", out
     )

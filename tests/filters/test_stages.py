@@ -9,7 +9,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from phd_scenes import padded_detections
 
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import Intensity, log_intensity
@@ -28,6 +27,7 @@ from jaxtrack.filters.phd_defaults import default_phd_params, uniform_birth_inte
 from jaxtrack.filters.resampling import resample
 from jaxtrack.models import log_likelihood, state_dependent_std
 from jaxtrack.models.dynamics import MEASURED, MIN_SIZE, VELOCITY
+from tests.filters.phd_scenes import padded_detections
 
 WIDTH, HEIGHT = 640.0, 480.0
 PARAMS = default_phd_params(WIDTH, HEIGHT, 25.0)._replace(score_weight=jnp.asarray(0.7))
