@@ -138,13 +138,14 @@ def replace_leaves(params: Any, properties: Any, values: Mapping[str, Any]) -> A
     return jax.tree.map(replace, properties, params, is_leaf=_is_props)
 
 
-def check_names(properties: Any, names: tuple[str, ...]) -> None:
-    """Raises :class:`~jaxtrack.errors.InputError` for a name no leaf of ``properties`` has."""
+def check_names(properties: Any, names: tuple[str, ...], kind: str = "parameter") -> None:
+    """Raises :class:`~jaxtrack.errors.InputError` for a name no leaf of ``properties`` has
+    (the message calls the names ``kind``)."""
     known = named_leaves(properties)
     unknown = [name for name in names if name not in known]
     if unknown:
         raise InputError(
-            f"unknown parameter(s) {', '.join(unknown)}; known: {', '.join(known) or 'none'}"
+            f"unknown {kind}(s) {', '.join(unknown)}; known: {', '.join(known) or 'none'}"
         )
 
 

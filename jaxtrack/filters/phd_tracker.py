@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
-from jaxtrack.context.intensity import Intensity
+from jaxtrack.context.intensity import Intensity, birth_speed_limit, uniform_birth_intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.phd import PHDParams, phd_filter
@@ -196,11 +196,11 @@ def phd_params(
     params = default_phd_params(
         info.im_width, info.im_height, info.frame_rate, birth_rate, clutter_rate
     )
-    initial = default_phd_params(
-        info.im_width, info.im_height, info.frame_rate, config.initial_rate, clutter_rate
-    )
+    max_speed = birth_speed_limit(info.im_height, info.frame_rate)
     params = params._replace(
-        initial_intensity=initial.initial_intensity,
+        initial_intensity=uniform_birth_intensity(
+            config.initial_rate, info.im_width, info.im_height, max_speed
+        ),
         detection_prob=jnp.asarray(config.detection_prob, jnp.float32),
         survival_prob=jnp.asarray(config.survival_prob, jnp.float32),
         motion_noise_std=jnp.asarray(config.motion_noise_std, jnp.float32),

@@ -65,7 +65,10 @@ def track_sequences(
     Raises:
         InputError: a configuration of no registered tracker.
     """
-    built = [build_tracker(config, seq.info) for seq in sequences]
+    # The filter is the same for every sequence; default params are built only when needed.
+    built = [
+        build_tracker(config, seq.info) for seq in (sequences if params is None else sequences[:1])
+    ]
     filt = built[0][0]
     if params is None:
         params = [seq_params for _, seq_params in built]

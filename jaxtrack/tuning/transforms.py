@@ -26,6 +26,7 @@ from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
 from jaxtrack.filters.registry import properties_of
 from jaxtrack.parameters import (
+    check_names,
     constrained,
     from_unconstrained,
     leaf_values,
@@ -95,12 +96,7 @@ def parameter_space(
     """
     trainable, frozen = tuple(trainable), set(frozen)
     properties = properties_of(params)
-    known = named_leaves(properties)
-    unknown = sorted((set(trainable) | frozen) - set(known))
-    if unknown:
-        raise InputError(
-            f"unknown tunable parameter(s) {', '.join(unknown)}; known: {', '.join(known)}"
-        )
+    check_names(properties, (*trainable, *sorted(frozen)), "tunable parameter")
     names = tuple(name for name in trainable if name not in frozen)
     if not names:
         raise InputError("no parameter left to tune (all frozen)")
