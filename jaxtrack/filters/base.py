@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -11,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-from jaxtrack.types import Detections
+from jaxtrack.types import PAD_BOX, Detections
 
 
 class Filter(NamedTuple):
@@ -32,6 +33,79 @@ class Filter(NamedTuple):
 FrameOutput = Callable[[Any, Any, Array], Any]
 
 
+#: Smallest detection capacity of a chunk with ``fit_capacity`` (a power of two).
+MIN_CAPACITY = 16
+#: A chunk of crowded frames whose ``frames x capacity`` is at most this compiles with XLA's
+#: backend optimisation off: about half the compile time, several times the run time per
+#: frame, a gain for a few crowded frames.
+QUICK_COMPILE_WORK = 8192
+#: With ``fit_capacity``, a frame is *crowded* when its detections need more than this many
+#: times the capacity of the sequence's median frame; crowded frames run in chunks of their own.
+CROWDED_FACTOR = 4
+
+
+class Chunk(NamedTuple):
+    """One compiled call of a chunked :func:`run`: frames ``start..stop-1`` at ``capacity``;
+    ``crowded`` for a chunk of crowded frames."""
+
+    start: int
+    stop: int
+    capacity: int
+    crowded: bool = False
+
+
+def capacity_for(count: float) -> int:
+    """The detection capacity for ``count`` detections: a power of two, at least
+    :data:`MIN_CAPACITY` (so that capacities, and compiles, come in few sizes)."""
+    return max(MIN_CAPACITY, 1 << max(0, math.ceil(math.log2(max(count, 1)))))
+
+
+def plan_chunks(counts: np.ndarray, chunk_frames: int) -> list[Chunk]:
+    """How :func:`run` with ``fit_capacity`` splits a sequence into compiled calls.
+
+    The capacity depends on the sequence's own detection counts only. Regular frames use
+    one capacity, :func:`capacity_for` of the largest regular count, in chunks of
+    ``chunk_frames``. A frame is crowded when its count exceeds :data:`CROWDED_FACTOR` times
+    the capacity of the median count; each run of consecutive crowded frames gets chunks of
+    its own, at the capacity its largest count needs. One crowded frame thus costs one
+    frame at its capacity (and one compile per new capacity), not a whole run padded to it.
+
+    Args:
+        counts: detections per frame.
+        chunk_frames: frames per chunk at most (> 0).
+
+    Returns:
+        The chunks, in frame order, covering every frame once.
+    """
+    counts = np.asarray(counts, np.int64)
+    if counts.size == 0:
+        return []
+    crowded = counts > CROWDED_FACTOR * capacity_for(float(np.median(counts)))
+    regular = capacity_for(int(counts[~crowded].max(initial=0)))
+    chunks = []
+    edges = np.flatnonzero(np.diff(crowded.astype(np.int8))) + 1
+    for start, stop in zip([0, *edges.tolist()], [*edges.tolist(), counts.size], strict=True):
+        for first in range(start, stop, chunk_frames):
+            last = min(first + chunk_frames, stop)
+            capacity = capacity_for(int(counts[first:last].max())) if crowded[first] else regular
+            chunks.append(Chunk(first, last, capacity, bool(crowded[first])))
+    return chunks
+
+
+def fit_detections(inputs: Detections) -> Detections:
+    """Detections brought to the capacity a ``fit_capacity`` run gives the sequence.
+
+    Each frame's real detections move to its first slots and the slots are cut (or padded)
+    to the largest capacity of :func:`plan_chunks`. An unchunked run over these detections
+    (e.g. a vmapped sweep) then gives what the chunked ``fit_capacity`` run gives whenever
+    the sequence has no crowded frames (one capacity for every chunk).
+    """
+    inputs = _compact(jax.tree.map(np.asarray, inputs))
+    counts = inputs.mask.sum(axis=1)
+    capacity = max(chunk.capacity for chunk in plan_chunks(counts, max(1, counts.size)))
+    return _fit_slots(inputs, capacity)
+
+
 def run(
     filt: Filter,
     key: Array,
@@ -40,6 +114,7 @@ def run(
     *,
     checkpoint: bool = False,
     chunk_frames: int | None = None,
+    fit_capacity: bool = False,
     frame_output: FrameOutput | None = None,
 ) -> tuple[Any, Any]:
     """Runs a filter over a sequence with ``lax.scan``: the one scan driver.
@@ -54,11 +129,19 @@ def run(
 
     With ``chunk_frames``, the scan is compiled for a chunk of that many frames (once per
     filter, chunk length, option set, parameter and detection shapes: the compile is cached
-    on the :class:`Filter`) and called ``ceil(num_frames / chunk_frames)`` times from a host
-    loop with the state carried between calls, the last chunk padded with empty frames (the
-    last frame repeated with every detection masked out; their outputs are dropped).
-    Sequences of different lengths then share one compile, at the cost of at most
-    ``chunk_frames - 1`` wasted frames. Not for ``jax.grad`` or ``jax.vmap`` (a host loop).
+    on the :class:`Filter`) and called from a host loop with the state carried between
+    calls. A chunk with fewer frames (the last one, or a crowded run) is padded with frames
+    that are skipped (``lax.cond``: the state passes through unchanged, their outputs are
+    dropped), so sequences of any length share one compile. Not for ``jax.grad`` or
+    ``jax.vmap`` (a host loop).
+
+    With ``fit_capacity`` as well, each chunk's detections are cut to the capacity that
+    :func:`plan_chunks` gives it (from the sequence's own counts: a power of two, crowded
+    frames in chunks of their own), instead of the ``max_detections`` of ``inputs``. The
+    result then depends on the sequence only, not on how much ``inputs`` were padded (e.g. to
+    share an array with other sequences), and a crowded frame does not slow every frame.
+    Per-frame outputs whose shapes follow the capacity (e.g. the PHD tracker's estimates and
+    tracks) are padded with zeros (``False`` in masks) to the largest chunk's.
 
     Args:
         filt: the filter (e.g. :func:`~jaxtrack.filters.phd.phd_filter`).
@@ -68,18 +151,22 @@ def run(
         checkpoint: wrap each frame in ``jax.checkpoint``, so that a backward pass stores
             one carry per frame and recomputes the frame's intermediates.
         chunk_frames: frames per compiled call (> 0), or None for one scan.
+        fit_capacity: with ``chunk_frames``, fit each chunk's detection capacity to its
+            frames (see above).
         frame_output: what to stack per frame instead of the infos (e.g. a per-frame loss
             of the posterior state, which then need not be stored for every frame).
 
     Returns:
-        The final state (when chunked: after the padding frames, which only predict) and the
-        per-frame outputs stacked over ``num_frames`` (NumPy arrays when chunked).
+        The final state and the per-frame outputs stacked over ``num_frames`` (NumPy arrays
+        when chunked).
 
     Raises:
-        ValueError: ``chunk_frames`` not positive.
+        ValueError: ``chunk_frames`` not positive, or ``fit_capacity`` without it.
     """
     if chunk_frames is not None and chunk_frames <= 0:
         raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
+    if fit_capacity and chunk_frames is None:
+        raise ValueError("fit_capacity needs chunk_frames (a host loop over chunks)")
     key_init, key_frames = jax.random.split(key)
     num_frames = int(np.shape(inputs.mask)[0])
     frame_keys = jax.random.split(key_frames, num_frames)
@@ -87,16 +174,28 @@ def run(
         return _run_chunks(
             filt,
             key_init,
-            key_frames,
             frame_keys,
             params,
             inputs,
             chunk_frames,
+            fit_capacity,
             checkpoint,
             frame_output,
         )
     scan = _frame_scan(filt, checkpoint, frame_output)
     return scan(filt.init(key_init, params), params, frame_keys, inputs, jnp.arange(num_frames))
+
+
+def _frame_body(filt: Filter, params: Any, checkpoint: bool, frame_output: FrameOutput | None):
+    """The scan body ``(state, (frame_key, inputs_t, index)) -> (state, output)``."""
+
+    def body(state, xs):
+        frame_key, inputs_t, index = xs
+        new_state, info = filt.step(frame_key, state, params, inputs_t)
+        output = info if frame_output is None else frame_output(new_state, info, index)
+        return new_state, output
+
+    return jax.checkpoint(body) if checkpoint else body
 
 
 def _frame_scan(
@@ -105,51 +204,125 @@ def _frame_scan(
     """The scan ``(state, params, frame_keys, inputs, frame_indices) -> (state, outputs)``."""
 
     def scan(state, params, frame_keys, inputs, frame_indices):
-        def body(state, xs):
-            frame_key, inputs_t, index = xs
-            new_state, info = filt.step(frame_key, state, params, inputs_t)
-            output = info if frame_output is None else frame_output(new_state, info, index)
-            return new_state, output
-
-        if checkpoint:
-            body = jax.checkpoint(body)
+        body = _frame_body(filt, params, checkpoint, frame_output)
         return jax.lax.scan(body, state, (frame_keys, inputs, frame_indices))
 
     return scan
 
 
-def _run_chunks(filt, key_init, key_frames, frame_keys, params, inputs, chunk_frames, *options):
+def _chunk_scan(
+    filt: Filter, checkpoint: bool, frame_output: FrameOutput | None
+) -> Callable[..., tuple[Any, Any]]:
+    """:func:`_frame_scan` with a per-frame ``valid`` flag; invalid frames are skipped
+    (``lax.cond``, so a skipped frame costs nothing): the state passes through unchanged and
+    the outputs are zeros."""
+
+    def scan(state, params, frame_keys, inputs, frame_indices, valid):
+        body = _frame_body(filt, params, checkpoint, frame_output)
+
+        def frame(state, xs):
+            *frame_xs, valid_t = xs
+
+            def skip(state):
+                new_state, output = jax.eval_shape(body, state, frame_xs)
+                state = jax.tree.map(lambda x, s: x.astype(s.dtype), state, new_state)
+                return state, jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), output)
+
+            return jax.lax.cond(valid_t, lambda s: body(s, frame_xs), skip, state)
+
+        return jax.lax.scan(frame, state, (frame_keys, inputs, frame_indices, valid))
+
+    return scan
+
+
+def _run_chunks(filt, key_init, frame_keys, params, inputs, chunk_frames, fit, *options):
     """:func:`run` with ``chunk_frames``: a host loop over the cached, jitted chunk scan."""
-    num_frames = frame_keys.shape[0]
-    num_chunks = max(1, -(-num_frames // chunk_frames))
-    padded = num_chunks * chunk_frames
-    if padded > num_frames:
-        extra = jax.random.split(jax.random.fold_in(key_frames, 1), padded - num_frames)
-        frame_keys = jnp.concatenate([frame_keys, extra])
-    # Padding frames repeat the last frame with every detection masked out (no detections).
-    padded_inputs = jax.tree.map(
-        lambda x: np.concatenate([x, np.repeat(x[-1:], padded - num_frames, axis=0)]),
-        jax.tree.map(np.asarray, inputs),
-    )
-    padded_inputs.mask[num_frames:] = False
-    init, scan_chunk = _chunk_functions(filt, *options)
+    inputs = jax.tree.map(np.asarray, inputs)
+    num_frames, slots = inputs.mask.shape
+    if fit:
+        inputs = _compact(inputs)
+        chunks = plan_chunks(inputs.mask.sum(axis=1), chunk_frames)
+    else:
+        chunks = [
+            Chunk(start, min(start + chunk_frames, num_frames), slots)
+            for start in range(0, num_frames, chunk_frames)
+        ]
+    if num_frames == 0:
+        raise ValueError("a chunked run needs at least one frame")
+    init, scan_chunk, quick_scan_chunk = _chunk_functions(filt, *options)
     state = init(key_init, params)
     outputs = []
-    for c in range(num_chunks):
-        window = slice(c * chunk_frames, (c + 1) * chunk_frames)
-        state, output = scan_chunk(
+    for chunk in chunks:
+        frames = np.arange(chunk.start, chunk.start + chunk_frames)
+        window = np.minimum(frames, max(num_frames - 1, 0))
+        chunk_inputs = _fit_slots(jax.tree.map(lambda x, w=window: x[w], inputs), chunk.capacity)
+        valid = frames < chunk.stop
+        chunk_inputs.mask[~valid] = False
+        quick = chunk.crowded and (chunk.stop - chunk.start) * chunk.capacity <= QUICK_COMPILE_WORK
+        state, output = (quick_scan_chunk if quick else scan_chunk)(
             state,
             params,
             frame_keys[window],
-            jax.tree.map(lambda x, w=window: x[w], padded_inputs),
-            np.arange(window.start, window.stop),
+            chunk_inputs,
+            frames,
+            valid,
         )
-        outputs.append(output)
-    stacked = jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *outputs)
-    return state, jax.tree.map(lambda x: x[:num_frames], stacked)
+        used = chunk.stop - chunk.start
+        outputs.append(jax.tree.map(lambda x, n=used: np.asarray(x)[:n], output))
+    return state, _concatenate(outputs)
+
+
+def _compact(inputs: Detections) -> Detections:
+    """The detections with each frame's real ones in its first slots (order kept)."""
+    order = np.argsort(~inputs.mask, axis=1, kind="stable")
+    return jax.tree.map(
+        lambda x: np.take_along_axis(x, order.reshape(order.shape + (1,) * (x.ndim - 2)), 1),
+        inputs,
+    )
+
+
+def _fit_slots(inputs: Detections, capacity: int) -> Detections:
+    """Detections ``[T, D]`` cut, or padded with empty slots, to ``[T, capacity]``."""
+    extra = capacity - inputs.mask.shape[1]
+    if extra <= 0:
+        return jax.tree.map(lambda x: x[:, :capacity], inputs)
+    boxes = np.concatenate(
+        [
+            inputs.boxes,
+            np.broadcast_to(
+                np.asarray(PAD_BOX, inputs.boxes.dtype), (*inputs.mask.shape[:1], extra, 4)
+            ),
+        ],
+        axis=1,
+    )
+    return Detections(
+        boxes=boxes,
+        scores=np.pad(inputs.scores, ((0, 0), (0, extra))),
+        mask=np.pad(inputs.mask, ((0, 0), (0, extra))),
+    )
+
+
+def _concatenate(outputs: list[Any]) -> Any:
+    """Per-chunk outputs concatenated over frames; axes that differ between chunks (those
+    that follow the detection capacity) are padded with zeros to the largest."""
+
+    def join(*xs):
+        shape = np.max([x.shape for x in xs], axis=0)
+        padded = [
+            np.pad(
+                x, [(0, 0)] + [(0, int(n - m)) for n, m in zip(shape[1:], x.shape[1:], strict=True)]
+            )
+            for x in xs
+        ]
+        return np.concatenate(padded)
+
+    return jax.tree.map(join, *outputs)
 
 
 @functools.lru_cache(maxsize=16)
 def _chunk_functions(filt: Filter, checkpoint: bool, frame_output: FrameOutput | None):
-    """Jitted ``init`` and chunk scan of a filter (cached, so that calls share compiles)."""
-    return jax.jit(filt.init), jax.jit(_frame_scan(filt, checkpoint, frame_output))
+    """Jitted ``init`` and chunk scan of a filter, and the chunk scan compiled quickly
+    (:data:`QUICK_COMPILE_WORK`); cached, so that calls share compiles."""
+    scan = _chunk_scan(filt, checkpoint, frame_output)
+    quick = jax.jit(scan, compiler_options={"xla_backend_optimization_level": 0})
+    return jax.jit(filt.init), jax.jit(scan), quick

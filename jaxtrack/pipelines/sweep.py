@@ -45,7 +45,7 @@ from tqdm import tqdm
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import Filter, run
+from jaxtrack.filters.base import Filter, fit_detections, run
 from jaxtrack.filters.registry import properties_of
 from jaxtrack.io import MotTable
 from jaxtrack.metrics.evaluate import SUMMARY_KEYS, EvalConfig, evaluate_sequence
@@ -231,10 +231,14 @@ def sweep(
 ) -> SweepResult:
     """Runs and scores a filter for a batch of configurations.
 
-    Every configuration ``b`` gives exactly what ``run(filt, keys[b], params_b, detections)``
-    gives (same keys, same frames), post-processed as ``jaxtrack track`` does (``"offline"``:
+    Every configuration ``b`` gives exactly what ``run(filt, keys[b], params_b,
+    fit_detections(detections))`` gives (same keys, same frames), post-processed as
+    ``jaxtrack track`` does (``"offline"``:
     :func:`~jaxtrack.association.offline.finalise_tracks`; ``"online"``: the filter's
-    frame-by-frame output).
+    frame-by-frame output). The detections are first brought to the capacity ``jaxtrack
+    track`` gives the sequence (:func:`~jaxtrack.filters.base.fit_detections`), so a
+    configuration gives what ``jaxtrack track`` gives with it, unless the sequence has crowded
+    frames (which the tracker runs at a capacity of their own).
 
     Args:
         filt: the filter (its per-frame info must have ``tracks`` and ``candidates``, as
@@ -276,7 +280,7 @@ def sweep(
         swept = {name: np.asarray(v) for name, v in updates.items()}
     batch = _batch_size(batched)
     keys, key_impl = _config_keys(key, batch)
-    detections = Detections(*(np.asarray(leaf) for leaf in detections))
+    detections = fit_detections(detections)
     num_frames = detections.mask.shape[0]
 
     devices = list(jax.devices() if devices is None else devices)

@@ -1,11 +1,13 @@
 """Running a tracker over sequences: what ``jaxtrack track`` does, as library code.
 
 :func:`track_sequences` runs any registered tracker (:mod:`jaxtrack.filters.registry`) on
-several sequences with **one compile**: the tracker's filter is cached on its configuration's
-static setting, the padded detections of all sequences are brought to a common number of
-detection slots and run in chunks of a fixed number of frames
-(:func:`~jaxtrack.filters.base.run` with ``chunk_frames``), so the compiled chunk is reused
-across frames, sequences and calls.
+several sequences with few compiles: the tracker's filter is cached on its configuration's
+static setting and each sequence runs in chunks of a fixed number of frames
+(:func:`~jaxtrack.filters.base.run` with ``chunk_frames`` and ``fit_capacity``), each chunk
+at a detection capacity from the sequence's own counts (a power of two; crowded frames in
+chunks of their own), so a compiled chunk is reused across frames, sequences and calls of
+the same capacity, and **a sequence's result does not depend on the other sequences tracked
+with it** (each gets the same key, ``PRNGKey(seed)``, and its own capacities).
 
 Output (the configuration's ``output``): ``"offline"`` keeps every confirmed track over its
 whole life, the frames before its confirmation included, and fills gaps of up to ``max_gap``
@@ -52,7 +54,8 @@ def track_sequences(
     Args:
         sequences: the loaded sequences.
         config: the tracker's configuration (its type selects the tracker).
-        seed: PRNG seed (the same key for every sequence).
+        seed: PRNG seed (the same key for every sequence, so a sequence gives the same
+            result alone and in company).
         params: one parameter PyTree per sequence (default: the registry's, e.g. uniform
             intensities for the PHD tracker). Parameters of different PyTree shapes (e.g.
             contexts with different numbers of components) compile once per shape.
@@ -72,17 +75,37 @@ def track_sequences(
     filt = built[0][0]
     if params is None:
         params = [seq_params for _, seq_params in built]
-    capacity = max(seq.detections.mask.shape[1] for seq in sequences)
     key = jax.random.PRNGKey(seed)
     results = []
     items = zip(sequences, params, strict=True)
     for seq, seq_params in tqdm(
         items, total=len(sequences), desc="tracking", unit="seq", disable=not progress
     ):
-        detections = pad_to(seq.detections, seq.num_frames, capacity)
-        _, info = run(filt, key, seq_params, detections, chunk_frames=chunk_frames)
+        _, info = run(
+            filt,
+            key,
+            seq_params,
+            seq.detections,
+            chunk_frames=chunk_frames,
+            fit_capacity=True,
+            frame_output=track_outputs,
+        )
         results.append(output_rows(info, config, seq.first_frame))
     return results
+
+
+class TrackOutputs(NamedTuple):
+    """What :func:`track_sequences` keeps of each frame's info: the tracks and candidates."""
+
+    tracks: Tracks
+    candidates: Tracks
+
+
+def track_outputs(state: Any, info: Any, index: Any) -> TrackOutputs:
+    """The per-frame output of a tracking run (``frame_output`` of
+    :func:`~jaxtrack.filters.base.run`): only what :func:`output_rows` reads."""
+    del state, index
+    return TrackOutputs(info.tracks, info.candidates)
 
 
 def load_tracker_context(path: str | None) -> Context | None:
