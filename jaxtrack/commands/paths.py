@@ -6,8 +6,7 @@ Every command lists the files and folders it will write (:class:`Output`, side f
 :class:`~jaxtrack.errors.InputError` naming the option) when an output
 
 * is one of its inputs (paths resolved: symlinks, ``..``, and the same file under two names
-  via :func:`os.path.samefile`), or would add a file to a folder the run reads as a whole
-  (an image to an image folder, a sequence to a benchmark root);
+  via :func:`os.path.samefile`), or would add an image to an image folder the run reads;
 * is an existing folder where a file is written, or an existing file where a folder is;
 * cannot be written: a file on the way to it, or an existing file or the nearest existing
   folder not writable (:func:`os.access`);
@@ -22,7 +21,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -67,7 +66,7 @@ class Output(NamedTuple):
     def label(self) -> str:
         """How messages name it: ``--out r.txt``, or ``r.config.json (written with --out ...)``."""
         named = f"{self.option} {self.given}"
-        return named if str(self.path) == str(self.given) else f"{self.path} (written with {named})"
+        return named if self.path == Path(self.given) else f"{self.path} (written with {named})"
 
 
 class Input(NamedTuple):
@@ -77,15 +76,13 @@ class Input(NamedTuple):
         path: the file or folder (need not exist: writing a sequence's ``gt/gt.txt`` is refused
             even where the sequence has none yet).
         what: what it is, in words (``the detections of SEQ``).
-        picks: for a folder read as a whole, whether a file at a relative path (its parts)
-            would become part of the input (an image of an image folder); None for a file.
-        adds: what such a file would add, in words (``a frame``).
+        image_folder: a folder of images read as a whole: every image written into it
+            would become a frame.
     """
 
     path: Path
     what: str
-    picks: Callable[[tuple[str, ...]], bool] | None = None
-    adds: str = ""
+    image_folder: bool = False
 
 
 def output_file(option: str, given: str | os.PathLike, path: str | os.PathLike | None = None):
@@ -142,7 +139,7 @@ def video_input(path: str | os.PathLike | None, what: str) -> list[Input]:
     if path is None:
         return []
     if Path(path).is_dir():
-        return [Input(Path(path), what, _image_in_folder, "a frame")]
+        return [Input(Path(path), what, image_folder=True)]
     return [Input(Path(path), what)]
 
 
@@ -151,7 +148,7 @@ def sequence_inputs(folder: str | os.PathLike) -> list[Input]:
     ``img1/`` and the videos in the folder (whether or not this run reads them)."""
     root = Path(folder)
     inputs = [Input(root.joinpath(*parts), f"{what} of {folder}") for parts, what in SEQUENCE_FILES]
-    inputs.append(Input(root / "img1", f"the frames of {folder}", _image_in_folder, "a frame"))
+    inputs.append(Input(root / "img1", f"the frames of {folder}", image_folder=True))
     if root.is_dir():
         videos = (p for p in sorted(root.iterdir()) if p.suffix.lower() in VIDEO_EXTENSIONS)
         inputs += [Input(path, f"the video of {folder}") for path in videos if path.is_file()]
@@ -159,8 +156,8 @@ def sequence_inputs(folder: str | os.PathLike) -> list[Input]:
 
 
 def benchmark_inputs(root: str | os.PathLike, folders: Iterable[Path]) -> list[Input]:
-    """A benchmark root read as a whole (its sequence folders) and each sequence's files."""
-    inputs = [Input(Path(root), f"the sequences of {root}", _sequence_in_root, "a sequence")]
+    """A benchmark root (not itself an output folder) and each sequence's files."""
+    inputs = [Input(Path(root), f"the sequences of {root}")]
     for folder in folders:
         inputs += sequence_inputs(folder)
     return inputs
@@ -185,14 +182,6 @@ def check_outputs(outputs: Sequence[Output], inputs: Sequence[Input]) -> None:
     for i, first in enumerate(outputs):
         for second in outputs[i + 1 :]:
             _check_apart(first, second)
-
-
-def _image_in_folder(parts: tuple[str, ...]) -> bool:
-    return len(parts) == 1 and Path(parts[0]).suffix.lower() in IMAGE_EXTENSIONS
-
-
-def _sequence_in_root(parts: tuple[str, ...]) -> bool:
-    return len(parts) == 2 and parts[1] == "seqinfo.ini"
 
 
 def _resolved(path: str | os.PathLike) -> Path:
@@ -243,13 +232,12 @@ def _check_not_input(output: Output, source: Input) -> None:
     path, source_path = _resolved(output.path), _resolved(source.path)
     if path == source_path or _same_existing(output.path, source.path):
         raise InputError(f"{output.label} is an input of this run ({source.what})")
-    if source.picks is not None:
-        parts = _inside(path, source_path)
-        if parts is not None and source.picks(parts):
+    if source.image_folder and path.parent == source_path:
+        if path.suffix.lower() in IMAGE_EXTENSIONS:
             if path.exists():
                 raise InputError(f"{output.label} is an input of this run ({source.what})")
             raise InputError(
-                f"{output.label} would add {source.adds} to {source.path}, an input of this run "
+                f"{output.label} would add a frame to {source.path}, an input of this run "
                 f"({source.what})"
             )
     if output.names is not None:
