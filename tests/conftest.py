@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli_workspace import build_workspace
 from tests.data import DATA_ROOT, MOT15_ROOT, require_data
 
 
@@ -25,3 +26,10 @@ def mot15_root() -> Path:
 def data_root() -> Path:
     require_data()
     return DATA_ROOT
+
+
+@pytest.fixture
+def workspace(tmp_path) -> dict[str, str]:
+    """Small inputs for CLI refusal tests (tests/cli_workspace.py); their paths by name."""
+    require_data()
+    return build_workspace(tmp_path)

@@ -9,8 +9,10 @@ through this module (``load_config``, ``add_context_arguments``).
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterable
 
 from jaxtrack.configs import TrackerConfig, load_config_file
+from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import VARIANTS
 from jaxtrack.filters.registry import TRACKERS, tracker_entry
 
@@ -80,9 +82,41 @@ def add_context_arguments(parser: argparse.ArgumentParser, variants_doc: str) ->
     parser.add_argument(
         "--variant",
         choices=[name for name in VARIANTS if name != "UM"],
-        default="GM",
-        help=f"which parts of the context to use (default GM; {variants_doc})",
+        help=f"which parts of --context to use (default GM; {variants_doc})",
     )
+
+
+#: The ``--variant`` used with ``--context`` when none is given.
+DEFAULT_VARIANT = "GM"
+
+
+def context_variant(args: argparse.Namespace) -> str | None:
+    """The variant of ``--context``: ``--variant``, else GM; None without ``--context``.
+
+    Raises:
+        InputError: ``--variant`` without ``--context`` (it would be ignored: UM is run).
+    """
+    if args.context is None:
+        refuse_ignored(args, ["variant"], "needs --context (without one the tracker runs UM)")
+        return None
+    return args.variant or DEFAULT_VARIANT
+
+
+def refuse_ignored(args: argparse.Namespace, names: Iterable[str], reason: str) -> None:
+    """Refuses the first of the options ``names`` that was given, as it would be ignored.
+
+    Args:
+        args: the parsed arguments; an option counts as given unless it is None or False.
+        names: the options' attribute names (``figure_frame`` for ``--figure-frame``).
+        reason: why it would be ignored, after the flag (``needs --figure``).
+
+    Raises:
+        InputError: ``--<name> <reason>``.
+    """
+    for name in names:
+        value = getattr(args, name)
+        if value is not None and value is not False:
+            raise InputError(f"--{name.replace('_', '-')} {reason}")
 
 
 def load_config(path: str | None, tracker: str = "phd") -> TrackerConfig:

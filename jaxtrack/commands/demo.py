@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 from jaxtrack.commands.arguments import add_out, add_quiet, add_seed
+from jaxtrack.commands.paths import SCENE_FILES, check_outputs, output_folder
 from jaxtrack.experiments.demo import run_demo
 
 DESCRIPTION = """\
@@ -29,6 +30,23 @@ scene of --seed, 800 frames, generated on the fly, true context known):
        scene/              the synthetic sequence (MOTChallenge folder)
 
 About 2-3 minutes on 2 CPU cores (most of it compiling and learning)."""
+
+#: The files the demo writes into --out (the scene's in scene/).
+DEMO_FILES = (
+    "demo.png",
+    "intensities.png",
+    "birth_evolution.png",
+    "clutter_evolution.png",
+    "sweep.png",
+    "sweep_mota.png",
+    "tracks.png",
+    "results.csv",
+    "sweep.csv",
+    "UM.txt",
+    "GM.txt",
+    "summary.md",
+    *(f"scene/{name}" for name in SCENE_FILES),
+)
 
 EPILOG = """\
 examples:
@@ -70,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"[{time.perf_counter() - start:5.0f} s] {text}", flush=True)
 
     out = Path(args.out)
+    check_outputs(output_folder("--out", args.out, DEMO_FILES), [])
     result = run_demo(out, args.seed, args.quick, progress=None if args.quiet else step)
     if not args.quiet:
         print()

@@ -5,15 +5,23 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from jaxtrack.commands.arguments import add_frames, add_json, add_out, add_quiet
+from jaxtrack.commands.paths import (
+    check_outputs,
+    file_input,
+    frames_output,
+    output_file,
+    video_input,
+)
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.errors import InputError
 from jaxtrack.io import read_mot_file, write_mot_file
-from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
+from jaxtrack.io.video import VIDEO_EXTENSIONS, FrameWriter, VideoReader, annotate_frame
 from jaxtrack.metrics.detection import detection_precision_recall
 
 DESCRIPTION = """\
@@ -65,7 +73,10 @@ def register(subparsers) -> None:
     )
     add_frames(parser)
     parser.add_argument(
-        "--fps", type=float, metavar="F", help="frame rate of the video (overrides the file's)"
+        "--fps",
+        type=float,
+        metavar="F",
+        help="frame rate of a --preview video (default: the input video's)",
     )
     parser.add_argument(
         "--train-frames",
@@ -101,6 +112,22 @@ def run(args: argparse.Namespace) -> int:
         InputError: a bad argument, an unreadable video or ground-truth file.
     """
 
+    if args.fps is not None and not (
+        args.preview and Path(args.preview).suffix.lower() in VIDEO_EXTENSIONS
+    ):
+        raise InputError(
+            "--fps applies to a --preview video (.mp4/.avi); detection does not use the frame rate"
+        )
+    outputs = [output_file("--out", args.out)]
+    if args.preview:
+        outputs.append(frames_output("--preview", args.preview))
+    check_outputs(
+        outputs,
+        [
+            *video_input(args.video, f"the video {args.video}"),
+            *file_input(args.gt, f"the ground truth --gt {args.gt}"),
+        ],
+    )
     config = DetectorConfig(
         method=args.method, train_frames=args.train_frames, split=not args.no_split
     )

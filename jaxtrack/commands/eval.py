@@ -29,11 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.commands.arguments import add_frames, add_json
+from jaxtrack.commands.arguments import add_frames, add_json, refuse_ignored
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
 
+#: Minimum IoU of a match (default of --iou-threshold).
+DEFAULT_IOU_THRESHOLD = 0.5
 #: Columns of the benchmark table (ratios printed in %).
 TABLE_COLUMNS = (
     "HOTA",
@@ -91,7 +93,6 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--iou-threshold",
         type=float,
-        default=0.5,
         metavar="T",
         help="minimum IoU of a match for CLEAR, identity and MODA/MODP (default 0.5)",
     )
@@ -128,8 +129,11 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    if args.centre_threshold is not None:
+        reason = "is unused with --centre-threshold (boxes match by centre distance)"
+        refuse_ignored(args, ["iou_threshold"], reason)
     config = EvalConfig(
-        iou_threshold=args.iou_threshold,
+        iou_threshold=DEFAULT_IOU_THRESHOLD if args.iou_threshold is None else args.iou_threshold,
         centre_threshold=args.centre_threshold,
         distractors=args.distractors,
         ospa_cutoff=args.ospa_c,

@@ -15,7 +15,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from jaxtrack.commands.arguments import add_out, add_quiet, add_seed
+from jaxtrack.commands.arguments import add_out, add_quiet, add_seed, refuse_ignored
+from jaxtrack.commands.paths import (
+    SCENE_FILES,
+    benchmark_inputs,
+    check_outputs,
+    output_folder,
+    sequence_inputs,
+)
+from jaxtrack.errors import InputError
 from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
 from jaxtrack.experiments.common import markdown_table
 from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, run_comparison
@@ -40,6 +48,9 @@ class Experiment(NamedTuple):
         sequence: whether it takes ``--sequence SEQ_DIR``.
         add_extras: adds its own arguments, or None.
         run: runs it on the parsed arguments; returns the exit status.
+        files: the files it writes into ``--out``.
+        scene: the sub-folder of ``--out`` its synthetic scene is written to (without
+            ``--sequence``).
     """
 
     help: str
@@ -48,6 +59,8 @@ class Experiment(NamedTuple):
     sequence: bool
     add_extras: Callable[[argparse.ArgumentParser], None] | None
     run: Callable[[argparse.Namespace], int]
+    files: tuple[str, ...]
+    scene: str = "scene"
 
 
 def _steps(args: argparse.Namespace) -> Callable[[str], None] | None:
@@ -59,7 +72,21 @@ def _written(files) -> str:
     return "wrote " + ", ".join(str(path) for path in files)
 
 
+def _check_paths(args: argparse.Namespace, inputs: list | None = None) -> None:
+    """Refuses a bad ``--out`` (or one over an input) before the experiment starts."""
+    experiment = EXPERIMENTS[args.experiment]
+    files = list(experiment.files)
+    sequence = getattr(args, "sequence", None)
+    if sequence is None:
+        files += [f"{experiment.scene}/{name}" for name in SCENE_FILES]
+    inputs = list(inputs or [])
+    if sequence is not None:
+        inputs += sequence_inputs(sequence)
+    check_outputs(output_folder("--out", args.out, files), inputs)
+
+
 def _context_ablation(args: argparse.Namespace) -> int:
+    _check_paths(args)
 
     result, files = run_ablation(
         args.out, args.seed, args.quick, args.sequence, progress=_steps(args)
@@ -70,6 +97,7 @@ def _context_ablation(args: argparse.Namespace) -> int:
 
 
 def _sweep_magnitudes(args: argparse.Namespace) -> int:
+    _check_paths(args)
 
     result, files = run_magnitude_sweep(
         args.out, args.seed, args.quick, args.sequence, progress=_steps(args)
@@ -84,15 +112,27 @@ def _compare_trackers_extras(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mot-root",
         metavar="DIR",
-        default=str(DEFAULT_MOT_ROOT),
-        help="folder of sequence folders also compared (default: %(default)s)",
+        help=f"folder of sequence folders also compared (default: {DEFAULT_MOT_ROOT})",
     )
     parser.add_argument("--no-mot", action="store_true", help="skip the --mot-root sequences")
 
 
 def _compare_trackers(args: argparse.Namespace) -> int:
-
-    mot_root = None if args.quick or args.no_mot else args.mot_root
+    if args.quick or args.no_mot:
+        refuse_ignored(args, ["mot_root"], "is not compared with --quick or --no-mot")
+    mot_root = None if args.quick or args.no_mot else args.mot_root or str(DEFAULT_MOT_ROOT)
+    inputs = []
+    if mot_root is not None:
+        root = Path(mot_root)
+        folders = (
+            sorted(p for p in root.iterdir() if (p / "seqinfo.ini").is_file())
+            if root.is_dir()
+            else []
+        )
+        if not folders:
+            raise InputError(f"{root}: no sequence folders (with seqinfo.ini) found")
+        inputs = benchmark_inputs(mot_root, folders)
+    _check_paths(args, inputs)
     rows, files = run_comparison(
         args.out, args.seed, args.quick, args.sequence, mot_root, progress=not args.quiet
     )
@@ -103,21 +143,21 @@ def _compare_trackers(args: argparse.Namespace) -> int:
 
 def _gradient_tuning_extras(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--pets",
-        default=str(DEFAULT_PETS),
-        metavar="SEQ_DIR",
-        help="PETS09-S2L1 folder (default: %(default)s)",
+        "--pets", metavar="SEQ_DIR", help=f"PETS09-S2L1 folder (default: {DEFAULT_PETS})"
     )
     parser.add_argument("--no-pets", action="store_true", help="only the synthetic scene")
 
 
 def _gradient_tuning(args: argparse.Namespace) -> int:
-
+    if args.no_pets:
+        refuse_ignored(args, ["pets"], "is not used with --no-pets")
+    pets = None if args.no_pets else args.pets or str(DEFAULT_PETS)
+    _check_paths(args, [] if pets is None else sequence_inputs(pets))
     result = gradient_tuning_experiment(
         args.out,
         args.seed,
         args.quick,
-        None if args.no_pets else args.pets,
+        pets,
         progress=not args.quiet,
     )
     print(markdown_table(result["summary"], SUMMARY_COLUMNS))
@@ -151,6 +191,7 @@ examples:
         sequence=True,
         add_extras=None,
         run=_context_ablation,
+        files=("ablation.csv", "ablation.png", "summary.md"),
     ),
     "sweep-magnitudes": Experiment(
         help="magnitude sweep (PHD-context Fig. 15): scores against lambda_r and lambda_s",
@@ -173,6 +214,7 @@ examples:
         sequence=True,
         add_extras=None,
         run=_sweep_magnitudes,
+        files=("sweep.csv", "sweep.png", "sweep_mota.png", "summary.md"),
     ),
     "compare-trackers": Experiment(
         help="tracker comparison (PHD-context Fig. 16): PHD-GM, PHD-UM, Kalman, SORT-like",
@@ -193,6 +235,7 @@ examples:
         sequence=True,
         add_extras=_compare_trackers_extras,
         run=_compare_trackers,
+        files=("comparison.csv", "comparison.png", "summary.md"),
     ),
     "gradient-tuning": Experiment(
         help="gradient tuning of the magnitudes vs an 8 x 8 grid sweep (synthetic, PETS)",
@@ -213,6 +256,8 @@ examples:
         sequence=False,
         add_extras=_gradient_tuning_extras,
         run=_gradient_tuning,
+        files=("summary.csv", "steps.csv", "goals.csv", "summary.md", "gradient_tuning.png"),
+        scene="synthetic",
     ),
 }
 

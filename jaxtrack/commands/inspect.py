@@ -9,12 +9,16 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.commands.arguments import add_frames, add_json
+from jaxtrack.commands.arguments import add_frames, add_json, refuse_ignored
 from jaxtrack.io import load_sequence
 from jaxtrack.metrics.detection import detection_precision_recall
+
+#: IoU threshold of a match (default of --iou).
+DEFAULT_IOU = 0.5
 
 
 def register(subparsers) -> None:
@@ -27,13 +31,15 @@ def register(subparsers) -> None:
     parser.add_argument("sequence", metavar="SEQ_DIR", help="folder with seqinfo.ini, det/, gt/")
     add_frames(parser)
     parser.add_argument(
-        "--iou", type=float, default=0.5, help="IoU threshold for a detection to match (0.5)"
+        "--iou",
+        type=float,
+        help="IoU threshold for a detection to match the ground truth (default 0.5)",
     )
     add_json(parser)
     parser.set_defaults(func=run)
 
 
-def summarise(sequence_dir, frames=None, iou_threshold: float = 0.5) -> dict:
+def summarise(sequence_dir, frames=None, iou_threshold: float = DEFAULT_IOU) -> dict:
     """Statistics of a sequence folder, as printed by ``jaxtrack inspect --json``."""
     seq = load_sequence(sequence_dir, frames=frames)
     counts = np.bincount(seq.det_table.frames - seq.first_frame, minlength=seq.num_frames)
@@ -73,7 +79,10 @@ def summarise(sequence_dir, frames=None, iou_threshold: float = 0.5) -> dict:
 
 
 def run(args) -> int:
-    summary = summarise(args.sequence, args.frames, args.iou)
+    if not (Path(args.sequence) / "gt" / "gt.txt").exists():
+        refuse_ignored(args, ["iou"], "needs ground truth, and SEQ_DIR has no gt/gt.txt")
+    iou = DEFAULT_IOU if args.iou is None else args.iou
+    summary = summarise(args.sequence, args.frames, iou)
     if args.json:
         print(json.dumps(summary))
         return 0
@@ -93,7 +102,7 @@ def run(args) -> int:
             f"ground truth  {summary['gt_boxes']} boxes ({summary['gt_ignored_boxes']} ignored),"
             f" {summary['gt_ids']} ids",
             f"detector      precision {summary['precision']:.4f}  recall {summary['recall']:.4f}"
-            f"  (IoU >= {args.iou}, one-to-one per frame, ignored gt excluded)",
+            f"  (IoU >= {iou}, one-to-one per frame, ignored gt excluded)",
         ]
     print("\n".join(lines))
     return 0

@@ -8,6 +8,14 @@ from pathlib import Path
 import numpy as np
 
 from jaxtrack.commands.arguments import add_frames, add_out, add_seed
+from jaxtrack.commands.paths import (
+    check_outputs,
+    file_input,
+    output_file,
+    same_path,
+    sequence_inputs,
+    video_input,
+)
 from jaxtrack.context.clutter_labels import choose_frames, load_clutter_labels
 from jaxtrack.errors import InputError
 from jaxtrack.io import load_sequence
@@ -100,6 +108,16 @@ def register(subparsers) -> None:
 def run(args) -> int:
 
     out = Path(args.out)
+    # --resume continues a labels file: it may be --out itself (updated in place)
+    continued = args.resume is not None and same_path(args.resume, out)
+    check_outputs(
+        [output_file("--out", args.out)],
+        [
+            *sequence_inputs(args.sequence),
+            *video_input(args.video, f"the frames --video {args.video}"),
+            *([] if continued else file_input(args.resume, f"the labels --resume {args.resume}")),
+        ],
+    )
     resume = None
     if args.resume is not None:
         given = [
@@ -124,7 +142,7 @@ def run(args) -> int:
         if args.frames is None:
             raise InputError("--frames A:B is required (or --resume LABELS.json)")
         span = args.frames
-    if out.exists() and (resume is None or out.resolve() != args.resume.resolve()):
+    if out.exists() and not continued:
         raise InputError(f"{out} exists; continue it with --resume {out} or choose another --out")
     sequence = load_sequence(args.sequence, frames=span)
     info = sequence.info

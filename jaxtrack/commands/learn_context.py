@@ -9,7 +9,22 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from jaxtrack.commands.arguments import add_frames, add_json, add_out, add_quiet, add_seed
+from jaxtrack.commands.arguments import (
+    add_frames,
+    add_json,
+    add_out,
+    add_quiet,
+    add_seed,
+    refuse_ignored,
+)
+from jaxtrack.commands.paths import (
+    check_outputs,
+    file_input,
+    output_file,
+    output_folder,
+    sequence_inputs,
+    video_input,
+)
 from jaxtrack.context.io import save_context
 from jaxtrack.context.learn import BIRTH_EPOCHS, CLUTTER_EPOCHS
 from jaxtrack.context.samples import WARMUP_FRAMES
@@ -58,6 +73,10 @@ examples:
   jaxtrack detect vtest.avi --out det.txt
   jaxtrack learn-context vtest.avi --detections det.txt --gt gt.txt --fps 7 \
       --frames 1:400 --out ctx.npz"""
+
+
+#: The figures ``--plot DIR`` writes (:func:`jaxtrack.plot.context.save_context_plots`).
+PLOT_FILES = ("intensities.png", "birth_evolution.png", "clutter_evolution.png")
 
 
 def register(subparsers) -> None:
@@ -159,8 +178,13 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.sequence} is a video: give its detections with --detections")
     if (args.gt or args.fps) and not args.detections:
         raise InputError("--gt and --fps apply to a video given with --detections")
+    if "gt" not in (args.birth_from, clutter_from):
+        refuse_ignored(args, ["gt"], "is read only for --birth-from gt or --clutter-from gt")
+    if not args.plot:
+        refuse_ignored(args, ["video"], "needs --plot (its frame is drawn under the heat maps)")
     if args.video is not None and not Path(args.video).exists():
         raise InputError(f"--video {args.video}: not found")
+    check_outputs([output_file("--out", args.out), *_plot_outputs(args.plot)], _inputs(args))
 
     start = time.perf_counter()
     # steps: loading, (tracking,) collecting events, birth density, clutter density, (plots)
@@ -212,6 +236,27 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         print(f"  figures: {', '.join(str(path) for path in paths)}")
     return 0
+
+
+def _plot_outputs(folder: str | None) -> list:
+    """The ``--plot`` folder and the figures written into it."""
+    return [] if folder is None else output_folder("--plot", folder, PLOT_FILES)
+
+
+def _inputs(args: argparse.Namespace) -> list:
+    """What the run reads: the sequence (or the video and its files) and the options' files."""
+    if args.detections:
+        inputs = [
+            *video_input(args.sequence, f"the video {args.sequence}"),
+            *file_input(args.detections, f"the detections --detections {args.detections}"),
+            *file_input(args.gt, f"the ground truth --gt {args.gt}"),
+        ]
+    else:
+        inputs = sequence_inputs(args.sequence)
+    if args.clutter_from not in ("gt", "tracks"):
+        labels = args.clutter_from
+        inputs += file_input(labels, f"the clutter labels --clutter-from {labels}")
+    return inputs + video_input(args.video, f"the frames --video {args.video}")
 
 
 def _video_sequence(args: argparse.Namespace):

@@ -7,7 +7,8 @@ import dataclasses
 import json
 from pathlib import Path
 
-from jaxtrack.commands.arguments import add_out, add_seed
+from jaxtrack.commands.arguments import add_out, add_seed, refuse_ignored
+from jaxtrack.commands.paths import SCENE_FILES, check_outputs, file_input, output_folder
 from jaxtrack.datasets.scene_config import SceneConfig, config_from_dict, config_to_dict
 from jaxtrack.datasets.synthetic import generate_scene, write_scene
 from jaxtrack.errors import InputError
@@ -101,6 +102,10 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--num-frames must be >= 1, got {args.num_frames}")
         config = dataclasses.replace(config, num_frames=args.num_frames)
     if args.print_config:
+        reason = "does nothing with --print-config (it only prints the configuration)"
+        refuse_ignored(args, ("out", "name", "preview_frame"), reason)
+        if args.seed:
+            raise InputError(f"--seed {reason}")
         print(json.dumps(config_to_dict(config), indent=2))
         return 0
     if args.out is None:
@@ -110,8 +115,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--seed must be >= 0, got {args.seed}")
     if args.preview_frame is not None and not 1 <= args.preview_frame <= config.num_frames:
         raise InputError(f"--preview-frame must lie in 1..{config.num_frames}")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
+    check_outputs(
+        output_folder("--out", args.out, SCENE_FILES),
+        file_input(args.scene_config, f"the scene configuration {args.scene_config}"),
+    )
     name = args.name or config.name or out.resolve().name
     config = dataclasses.replace(config, name=name)
 

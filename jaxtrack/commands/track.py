@@ -44,6 +44,7 @@ from pathlib import Path
 import jax
 
 from jaxtrack.commands.arguments import (
+    DEFAULT_VARIANT,
     add_config,
     add_context_arguments,
     add_frames,
@@ -52,7 +53,20 @@ from jaxtrack.commands.arguments import (
     add_quiet,
     add_seed,
     add_tracker,
+    context_variant,
     load_config,
+    refuse_ignored,
+)
+from jaxtrack.commands.paths import (
+    benchmark_inputs,
+    check_outputs,
+    figure_output,
+    file_input,
+    output_file,
+    output_folder,
+    sequence_inputs,
+    side_file,
+    video_input,
 )
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
@@ -135,34 +149,50 @@ def track_sequence(
 def run(args) -> int:
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
+    if args.benchmark is not None:
+        options = ("frames", "context", "variant", "figure", "figure_frame", "video")
+        refuse_ignored(args, options, "applies to one sequence, not to --benchmark")
+    if args.figure is None:
+        refuse_ignored(args, ["figure_frame", "video"], "needs --figure (it is only read for it)")
     config = _config(args)
-    if args.sequence is not None:
-        start = time.perf_counter()
-        rows, frames = track_sequence(
-            args.sequence,
-            args.out,
-            config,
-            args.seed,
-            args.frames,
-            args.context,
-            args.variant,
-        )
-        seconds = time.perf_counter() - start
-        summary = {"out": str(args.out), "rows": rows, "frames": frames, "seconds": seconds}
+    variant = context_variant(args) or DEFAULT_VARIANT
+    if args.sequence is None:
+        return _benchmark(args, config)
+    check_outputs(
+        [
+            output_file("--out", args.out),
+            side_file("--out", args.out, ".config.json"),
+            *([figure_output("--figure", args.figure)] if args.figure else []),
+        ],
+        [
+            *sequence_inputs(args.sequence),
+            *file_input(args.config, f"the tracker configuration --config {args.config}"),
+            *file_input(args.context, f"the context --context {args.context}"),
+            *video_input(args.video, f"the frames --video {args.video}"),
+        ],
+    )
+    start = time.perf_counter()
+    rows, frames = track_sequence(
+        args.sequence,
+        args.out,
+        config,
+        args.seed,
+        args.frames,
+        args.context,
+        variant,
+    )
+    seconds = time.perf_counter() - start
+    summary = {"out": str(args.out), "rows": rows, "frames": frames, "seconds": seconds}
+    if not args.json:
+        print(f"wrote {args.out} ({rows} boxes, {seconds:.1f} s)")
+    if args.figure:
+        path, frame = _figure(args, config, variant)
+        summary.update(figure=str(path), figure_frame=frame)
         if not args.json:
-            print(f"wrote {args.out} ({rows} boxes, {seconds:.1f} s)")
-        if args.figure:
-            path, frame = _figure(args, config)
-            summary.update(figure=str(path), figure_frame=frame)
-            if not args.json:
-                print(f"wrote {path} (frame {frame})")
-        if args.json:
-            print(json.dumps(summary))
-        return 0
-    for option in ("frames", "context", "figure"):
-        if getattr(args, option) is not None:
-            raise InputError(f"--{option} applies to one sequence, not to --benchmark")
-    return _benchmark(args, config)
+            print(f"wrote {path} (frame {frame})")
+    if args.json:
+        print(json.dumps(summary))
+    return 0
 
 
 def _config(args) -> TrackerConfig:
@@ -189,6 +219,14 @@ def _benchmark(args, config: TrackerConfig) -> int:
     if not folders:
         raise InputError(f"{root}: no sequence folders (with seqinfo.ini) found")
     out = Path(args.out)
+    names = [f"{folder.name}{suffix}" for folder in folders for suffix in (".txt", ".config.json")]
+    check_outputs(
+        output_folder("--out", args.out, names),
+        [
+            *benchmark_inputs(root, folders),
+            *file_input(args.config, f"the tracker configuration --config {args.config}"),
+        ],
+    )
     out.mkdir(parents=True, exist_ok=True)
     sequences = [load_sequence(folder) for folder in folders]
     start = time.perf_counter()
@@ -230,7 +268,7 @@ def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
     Path(f"{Path(out_path).with_suffix('')}.config.json").write_text(json.dumps(used, indent=2))
 
 
-def _figure(args, config: TrackerConfig) -> tuple[Path, int]:
+def _figure(args, config: TrackerConfig, variant: str) -> tuple[Path, int]:
     """Draws ``--figure`` (PHD-context Fig. 3) for the span tracked; its path and frame."""
     seq = load_sequence(args.sequence, frames=args.frames)
     frame = args.figure_frame or (seq.first_frame + seq.last_frame) // 2
@@ -244,7 +282,7 @@ def _figure(args, config: TrackerConfig) -> tuple[Path, int]:
     if source is not None:
         with VideoReader(source) as reader:
             image = reader.read(frame)
-    filt, params = build_tracker(config, seq.info, load_tracker_context(args.context), args.variant)
+    filt, params = build_tracker(config, seq.info, load_tracker_context(args.context), variant)
     snapshot = phd_frame_snapshot(
         filt, jax.random.PRNGKey(args.seed), params, seq.detections, frame - seq.first_frame
     )

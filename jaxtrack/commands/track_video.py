@@ -12,13 +12,24 @@ import numpy as np
 from tqdm import tqdm
 
 from jaxtrack.commands.arguments import (
+    DEFAULT_VARIANT,
     add_config,
     add_context_arguments,
     add_frames,
     add_out,
     add_quiet,
     add_seed,
+    context_variant,
     load_config,
+    refuse_ignored,
+)
+from jaxtrack.commands.paths import (
+    check_outputs,
+    file_input,
+    frames_output,
+    output_file,
+    side_file,
+    video_input,
 )
 from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
@@ -60,6 +71,8 @@ examples:
 
 #: Centres of the feet drawn behind each track by --annotate (default).
 DEFAULT_TRAIL = 20
+#: Detector of --method (default).
+DEFAULT_METHOD = "horprasert"
 
 
 def register(subparsers) -> None:
@@ -76,9 +89,7 @@ def register(subparsers) -> None:
     add_out(parser, "results to write", metavar="RES.txt")
     add_frames(parser)
     parser.add_argument("--fps", type=float, metavar="F", help="frame rate (overrides the file's)")
-    parser.add_argument(
-        "--method", choices=METHODS, default="horprasert", help="detector (default horprasert)"
-    )
+    parser.add_argument("--method", choices=METHODS, help=f"detector (default {DEFAULT_METHOD})")
     parser.add_argument(
         "--detections", metavar="DET.txt", help="track these detections instead of detecting"
     )
@@ -95,7 +106,6 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--trail",
         type=int,
-        default=DEFAULT_TRAIL,
         metavar="N",
         help=f"trail length in frames for --annotate (default {DEFAULT_TRAIL})",
     )
@@ -122,10 +132,38 @@ def run(args: argparse.Namespace) -> int:
         InputError: a bad argument, an unreadable video, detections, context or gt file.
     """
 
-    if args.trail < 0:
+    if args.trail is not None and args.trail < 0:
         raise InputError("--trail must be >= 0")
-    if args.overlay and not (args.context and args.annotate):
+    if args.detections is not None:
+        refuse_ignored(
+            args,
+            ("method", "no_split", "save_detections"),
+            "applies when detecting, not with --detections",
+        )
+    if args.annotate is None:
+        refuse_ignored(
+            args, ("trail", "overlay"), "needs --annotate (it only changes the annotated frames)"
+        )
+    if args.overlay and not args.context:
         raise InputError("--overlay needs --context and --annotate")
+    variant = context_variant(args)
+    trail = DEFAULT_TRAIL if args.trail is None else args.trail
+    method = args.method or DEFAULT_METHOD
+    outputs = [output_file("--out", args.out), side_file("--out", args.out, ".config.json")]
+    if args.save_detections:
+        outputs.append(output_file("--save-detections", args.save_detections))
+    if args.annotate:
+        outputs.append(frames_output("--annotate", args.annotate))
+    check_outputs(
+        outputs,
+        [
+            *video_input(args.video, f"the video {args.video}"),
+            *file_input(args.detections, f"the detections --detections {args.detections}"),
+            *file_input(args.config, f"the tracker configuration --config {args.config}"),
+            *file_input(args.context, f"the context --context {args.context}"),
+            *file_input(args.gt, f"the ground truth --gt {args.gt}"),
+        ],
+    )
     config = load_config(args.config)
     context = load_tracker_context(args.context)
     start = time.perf_counter()
@@ -135,14 +173,14 @@ def run(args: argparse.Namespace) -> int:
         if args.detections:
             detections = read_mot_file(args.detections, "det", reader.num_frames)
         else:
-            config_detect = DetectorConfig(method=args.method, split=not args.no_split)
+            config_detect = DetectorConfig(method=method, split=not args.no_split)
             found = detect_video(reader, span, config_detect, progress=not args.quiet)
             detections = found.table
             if args.save_detections:
                 write_mot_file(args.save_detections, detections)
         detect_seconds = time.perf_counter() - start
         sequence = video_sequence(args.video, detections, span, info)
-        _, params = build_tracker(config, info, context, args.variant)
+        _, params = build_tracker(config, info, context, variant or DEFAULT_VARIANT)
         (rows,) = track_sequences([sequence], config, args.seed, [params], progress=not args.quiet)
         elapsed = time.perf_counter() - start
         write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
@@ -152,8 +190,8 @@ def run(args: argparse.Namespace) -> int:
             "video": str(args.video),
             "frames": list(span),
             "fps": info.frame_rate,
-            "detector": "file" if args.detections else args.method,
-            "variant": args.variant if context is not None else "UM",
+            "detector": "file" if args.detections else method,
+            "variant": variant or "UM",
         }
         if args.context:
             used["context"] = str(args.context)
@@ -177,7 +215,7 @@ def run(args: argparse.Namespace) -> int:
                 sequence.det_table,
                 span,
                 args.annotate,
-                args.trail,
+                trail,
                 overlay,
                 progress=not args.quiet,
             )

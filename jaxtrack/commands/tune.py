@@ -15,6 +15,13 @@ from jaxtrack.commands.arguments import (
     add_seed,
     load_config,
 )
+from jaxtrack.commands.paths import (
+    check_outputs,
+    file_input,
+    output_file,
+    sequence_inputs,
+    side_file,
+)
 from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import TUNABLE
 from jaxtrack.io import load_sequence
@@ -126,8 +133,13 @@ def run(args) -> int:
     out = Path(args.out)
     if out.suffix != ".json":
         raise InputError(f"--out must be a .json file, got {out}")
-    if out.parent and not out.parent.is_dir():
-        raise InputError(f"{out.parent}: folder not found")
+    check_outputs(
+        [output_file("--out", args.out), side_file("--out", args.out, ".tuning.json")],
+        [
+            *sequence_inputs(args.sequence),
+            *file_input(args.config, f"the tracker configuration --config {args.config}"),
+        ],
+    )
     base = load_config(args.config)
     names = [name.strip() for name in args.tune.split(",") if name.strip()]
     sequence = load_sequence(args.sequence, frames=args.frames)
@@ -146,6 +158,7 @@ def run(args) -> int:
         estimator=args.estimator,
         progress=not args.quiet,
     )
+    out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(tuning.config.overrides(), indent=2) + "\n")
     report_path = out.with_suffix(".tuning.json")
     report_path.write_text(json.dumps(tuning.report, indent=2) + "\n")
