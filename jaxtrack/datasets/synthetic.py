@@ -81,8 +81,8 @@ MIN_BOX_SIDE = 2.0
 #: targets) at 10^6 pairs and the ground truth at ``MAX_TARGETS`` rows per frame, and a scene
 #: above it is refused (``InputError`` naming ``birth_rate``) before its births are drawn.
 MAX_TARGETS = 1000
-#: Box pairs per block of :func:`occluded_fraction` (a few MB of float64 pair arrays).
-OCCLUSION_PAIRS_PER_BLOCK = 1 << 20
+#: Box pairs per block of :func:`occluded_fraction` (2 MB per float64 pair array).
+OCCLUSION_PAIRS_PER_BLOCK = 1 << 18
 #: Decimals kept in written boxes (pixels) and scores.
 BOX_DECIMALS = 3
 SCORE_DECIMALS = 4
