@@ -94,12 +94,14 @@ def test_help_describes_the_outputs(run_cli, capsys):
             "unknown field",
         ),
         (["--seed", 0, "--out", "{tmp}/file.txt"], "not a folder"),
+        (["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/crowd.json"], "birth_rate"),
     ],
 )
 def test_bad_arguments_exit_2_with_a_message(run_cli, tmp_path, capsys, args, message):
     (tmp_path / "bad.json").write_text("{not json")
     (tmp_path / "unknown.json").write_text('{"speed": 3}')
     (tmp_path / "file.txt").write_text("")
+    (tmp_path / "crowd.json").write_text('{"birth_rate": 1000}')  # > MAX_TARGETS in view
     argv = [str(a).replace("{tmp}", str(tmp_path)) for a in args]
     assert run_cli(*argv) == 2
     error = capsys.readouterr().err

@@ -63,6 +63,7 @@ from jaxtrack.boxes import cxcywh_to_xywh
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.context.io import save_context
 from jaxtrack.datasets.scene_config import EntryZone, SceneConfig, config_to_dict
+from jaxtrack.errors import InputError
 from jaxtrack.io.motchallenge import (
     MotTable,
     SequenceInfo,
@@ -75,6 +76,13 @@ from jaxtrack.types import Detections, GroundTruth
 
 #: Smallest box side a generated box can have before clipping, pixels.
 MIN_BOX_SIDE = 2.0
+#: Most targets in view at once (burn-in included). Pedestrian scenes have at most a few
+#: hundred people in view; the limit keeps the per-frame occlusion test (every pair of
+#: targets) at 10^6 pairs and the ground truth at ``MAX_TARGETS`` rows per frame, and a scene
+#: above it is refused (``InputError`` naming ``birth_rate``) before its births are drawn.
+MAX_TARGETS = 1000
+#: Box pairs per block of :func:`occluded_fraction` (2 MB per float64 pair array).
+OCCLUSION_PAIRS_PER_BLOCK = 1 << 18
 #: Decimals kept in written boxes (pixels) and scores.
 BOX_DECIMALS = 3
 SCORE_DECIMALS = 4
@@ -334,7 +342,9 @@ def occluded_fraction(boxes: np.ndarray) -> np.ndarray:
     """Largest share of each box's area covered by one box nearer the camera.
 
     A box is nearer when its bottom row ``y + h`` is larger (the camera looks down on a
-    ground plane).
+    ground plane). Every pair of boxes is compared, in blocks of boxes so that the
+    ``[block, n]`` pair arrays hold about :data:`OCCLUSION_PAIRS_PER_BLOCK` pairs (each box's
+    value comes from one block, so blocking does not change it).
 
     Args:
         boxes: ``(x, y, w, h)`` boxes, ``[n, 4]``.
@@ -342,13 +352,26 @@ def occluded_fraction(boxes: np.ndarray) -> np.ndarray:
     Returns:
         ``[n]`` fractions in ``[0, 1]``.
     """
+    num_boxes = boxes.shape[0]
+    block = max(1, OCCLUSION_PAIRS_PER_BLOCK // max(num_boxes, 1))
+    parts = [
+        _covered_fraction(boxes[start : start + block], boxes)
+        for start in range(0, num_boxes, block)
+    ]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _covered_fraction(rows: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """:func:`occluded_fraction` of the boxes ``rows`` among all the ``boxes``."""
     x1, y1 = boxes[:, 0], boxes[:, 1]
     x2, y2 = x1 + boxes[:, 2], y1 + boxes[:, 3]
-    width = np.minimum(x2[:, None], x2[None]) - np.maximum(x1[:, None], x1[None])
-    height = np.minimum(y2[:, None], y2[None]) - np.maximum(y1[:, None], y1[None])
+    row_x1, row_y1 = rows[:, 0], rows[:, 1]
+    row_x2, row_y2 = row_x1 + rows[:, 2], row_y1 + rows[:, 3]
+    width = np.minimum(row_x2[:, None], x2[None]) - np.maximum(row_x1[:, None], x1[None])
+    height = np.minimum(row_y2[:, None], y2[None]) - np.maximum(row_y1[:, None], y1[None])
     overlap = np.clip(width, 0, None) * np.clip(height, 0, None)
-    nearer = y2[None, :] > y2[:, None]
-    area = boxes[:, 2] * boxes[:, 3]
+    nearer = y2[None, :] > row_y2[:, None]
+    area = rows[:, 2] * rows[:, 3]
     covered = np.where(nearer, overlap, 0.0) / area[:, None]
     return covered.max(axis=1, initial=0.0)
 
@@ -394,7 +417,7 @@ class _Simulator:
         if self.state.shape[0]:
             self._propagate()
             self._remove(self._leaving())
-        new_zones = self._birth()
+        new_zones = self._birth(frame)
         if frame >= 1:
             self._record(frame, new_zones)
 
@@ -439,11 +462,17 @@ class _Simulator:
         self.age = self.age[keep]
         self.gt_id = self.gt_id[keep]
 
-    def _birth(self) -> np.ndarray:
+    def _birth(self, frame: int) -> np.ndarray:
         config, rng = self.config, self.rng
         count = rng.poisson(config.birth_rate) if config.zones else 0
         if count == 0:
             return np.zeros(0, np.int64)
+        if self.state.shape[0] + count > MAX_TARGETS:
+            raise InputError(
+                f"scene config: {self.state.shape[0] + count} targets in view at frame {frame} "
+                f"(frames up to 0 are burn-in), above the limit of {MAX_TARGETS} simultaneous "
+                f"targets; lower birth_rate (now {config.birth_rate:g})"
+            )
         zones = rng.choice(len(config.zones), size=count, p=self.zone_probs)
         latent = rng.normal(size=(count, 6))
         states = self.zone_means[zones] + np.einsum("nij,nj->ni", self.zone_factors[zones], latent)

@@ -98,16 +98,60 @@ def draw_births(
     )
     states = jnp.zeros((measured.shape[0], 6), measurements.dtype)
     states = states.at[:, MEASURED].set(measured).at[:, VELOCITY].set(velocity)
-
-    residual = (measured[:, None, :] - measurements[None]) / std[None]
-    log_gauss = -0.5 * jnp.sum(residual**2, axis=-1) - jnp.sum(jnp.log(std), axis=-1)[None]
-    log_gauss = log_gauss - 2 * math.log(2 * math.pi)
     return BirthDraws(
         states=states,
-        log_mixture=jax.nn.logsumexp(jnp.where(mask[None], log_gauss, LOG_ZERO), axis=-1),
+        log_mixture=log_mixture_density(measured, measurements, std, mask),
         log_velocity_volume=jnp.sum(jnp.log(velocity_upper - velocity_lower)),
         real=jnp.repeat(mask, births_per_detection),
     )
+
+
+#: Point x detection pairs per block of :func:`log_mixture_density`: its ``[block,
+#: max_detections]`` intermediates take a few MB whatever the number of detections.
+PAIRS_PER_BLOCK = 1 << 18
+
+
+def log_mixture_density(
+    points: Float[Array, "num_points 4"],
+    measurements: Float[Array, "max_detections 4"],
+    std: Float[Array, "max_detections 4"],
+    mask: Bool[Array, " max_detections"],
+    block_size: int | None = None,
+) -> Float[Array, " num_points"]:
+    """``log sum_z N(p; z, diag(std_z^2))`` over the real detections ``z``, for each point.
+
+    Every point meets every detection, and births are ``births_per_detection`` points per
+    detection slot, so the pairs grow with the square of the detection capacity. They are
+    reduced in blocks of ``block_size`` points (``lax.map``, each block recomputed in the
+    backward pass by ``jax.checkpoint``); a block holds the whole ``[block, max_detections]``
+    reduction of its points, so blocking does not change any point's sum.
+
+    Args:
+        points: ``(y1, y2, w, h)`` of each point.
+        measurements: detections ``(y1, y2, w, h)``.
+        std: each detection's measurement noise standard deviations.
+        mask: True for real detections.
+        block_size: points per block (static); None for ``PAIRS_PER_BLOCK // max_detections``.
+
+    Returns:
+        The log-density of each point (about ``LOG_ZERO`` when no detection is real).
+    """
+    num_points, num_slots = points.shape[0], measurements.shape[0]
+    block = block_size or max(1, PAIRS_PER_BLOCK // max(num_slots, 1))
+    log_norm = jnp.sum(jnp.log(std), axis=-1)
+
+    def block_density(block_points):
+        residual = (block_points[:, None, :] - measurements[None]) / std[None]
+        log_gauss = -0.5 * jnp.sum(residual**2, axis=-1) - log_norm[None]
+        log_gauss = log_gauss - 2 * math.log(2 * math.pi)
+        return jax.nn.logsumexp(jnp.where(mask[None], log_gauss, LOG_ZERO), axis=-1)
+
+    if num_points <= block:
+        return block_density(points)
+    num_blocks = -(-num_points // block)
+    padded = jnp.pad(points, ((0, num_blocks * block - num_points), (0, 0)), mode="edge")
+    blocks = jax.lax.map(jax.checkpoint(block_density), padded.reshape(num_blocks, block, -1))
+    return blocks.reshape(-1)[:num_points]
 
 
 def birth_log_weights(

@@ -331,12 +331,15 @@ def phd_update(
     with scores, up to ``sum_z log p(s_z | clutter)``, which does not depend on the tracker).
 
     The sums over particles and over detections run over blocks of ``block_size`` particles
-    (``lax.map``; the last block overlaps its predecessor when ``block_size`` does not divide
+    (``lax.scan``; the last block overlaps its predecessor when ``block_size`` does not divide
     ``num_particles``) in two passes that recompute ``log psi`` per block: the first sums
     ``C(z)``; the second updates the weights and reduces the parts of the extraction (the
-    detection parts' masses and mean states, the particles' expected scores). No
-    ``[max_detections, num_particles]`` array is written, so memory grows with the block,
-    and on CPU it runs an order of magnitude faster at 1e6 particles. The parts carry no
+    detection parts' masses and mean states, the particles' expected scores). The sums over
+    particles of each detection (``C(z)``, the parts' state sums) are carried from block to
+    block. No ``[max_detections, num_particles]`` array is written, nor a
+    ``[num_blocks, max_detections]`` one, so memory grows with the block and the inputs
+    (with ``max_detections`` large, the number of blocks grows with it too), and on CPU it
+    runs an order of magnitude faster at 1e6 particles. The parts carry no
     gradient; outputs a caller does not use are dropped by XLA.
 
     Args:
@@ -369,25 +372,33 @@ def phd_update(
         )
         return log_psi, block_particles, block_log_weights, fresh
 
-    def block_log_c(index):
+    def add_block_log_c(log_c, index):
         log_psi, _, block_log_weights, fresh = block_log_psi(index)
         masked_log_weights = jnp.where(fresh, block_log_weights, LOG_ZERO)
-        return jax.nn.logsumexp(log_psi + masked_log_weights[None], axis=-1)
+        block_log_c = jax.nn.logsumexp(log_psi + masked_log_weights[None], axis=-1)
+        return jnp.logaddexp(log_c, block_log_c), None
 
-    log_c = jax.nn.logsumexp(jax.lax.map(block_log_c, jnp.arange(num_blocks)), axis=0)
+    log_c, _ = jax.lax.scan(
+        add_block_log_c, jnp.full(num_slots, LOG_ZERO, log_weights.dtype), jnp.arange(num_blocks)
+    )
     log_ratio = score_log_ratio(scores, params.score_weight)
     log_kappa = log_intensity(params.clutter_intensity, measurements)
     log_denominator = jnp.logaddexp(log_kappa - log_ratio, log_c)
 
-    def block_update(index):
+    def block_update(state_sums, index):
         log_psi, block_particles, block_log_weights, fresh = block_log_psi(index)
         terms = jnp.where(mask[:, None], log_psi - log_denominator[:, None], LOG_ZERO)
         log_factor = jnp.logaddexp(log_missed, jax.nn.logsumexp(terms, axis=0))
         updated = jnp.maximum(block_log_weights + log_factor, LOG_ZERO)
         stopped = jax.lax.stop_gradient((log_psi, block_particles, block_log_weights, terms))
-        return updated, *_block_parts(*stopped, jax.lax.stop_gradient(log_c), fresh, scores, mask)
+        block_sums, particle_scores = _block_parts(
+            *stopped, jax.lax.stop_gradient(log_c), fresh, scores, mask
+        )
+        return state_sums + block_sums, (updated, particle_scores)
 
-    updated, state_sums, particle_scores = jax.lax.map(block_update, jnp.arange(num_blocks))
+    state_sums, (updated, particle_scores) = jax.lax.scan(
+        block_update, jnp.zeros((num_slots, STATE_DIM), particles.dtype), jnp.arange(num_blocks)
+    )
     log_likelihood_k = (
         -params.detection_prob * jnp.sum(jnp.exp(log_weights))
         - params.clutter_intensity.magnitude
@@ -398,7 +409,7 @@ def phd_update(
         log_weights=_unblock(updated, num_particles),
         log_likelihood=log_likelihood_k,
         detection_log_masses=jnp.where(mask, detection_log_masses, LOG_ZERO),
-        detection_states=jnp.sum(state_sums, axis=0),
+        detection_states=state_sums,
         particle_scores=_unblock(particle_scores, num_particles),
     )
 

@@ -16,9 +16,20 @@ from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.kalman import KalmanParams
-from jaxtrack.filters.kalman_tracker import KalmanConfig, build_kalman, kalman_properties
+from jaxtrack.filters.kalman_tracker import (
+    KalmanConfig,
+    build_kalman,
+    kalman_memory_estimate,
+    kalman_properties,
+)
 from jaxtrack.filters.phd import PHDParams
-from jaxtrack.filters.phd_tracker import PHDConfig, build_phd, phd_properties
+from jaxtrack.filters.phd_tracker import (
+    PHDConfig,
+    build_phd,
+    phd_memory_estimate,
+    phd_properties,
+)
+from jaxtrack.resources import MemoryEstimate
 from jaxtrack.types import SequenceInfo
 
 
@@ -31,6 +42,8 @@ class TrackerEntry(NamedTuple):
         build: ``(config, info, context=None, variant="GM") -> (Filter, params)``.
         properties: ``params -> properties tree``.
         takes_context: whether it uses a learned context (``--context``).
+        memory: ``(config, capacity, chunk_frames) -> MemoryEstimate``, the memory of a run
+            with ``capacity`` detection slots per frame, from the sizes (no compile).
     """
 
     config_type: type[TrackerConfig]
@@ -38,12 +51,15 @@ class TrackerEntry(NamedTuple):
     build: Callable[..., tuple[Filter, Any]]
     properties: Callable[[Any], Any]
     takes_context: bool
+    memory: Callable[[Any, int, int], MemoryEstimate]
 
 
 #: The trackers, by name.
 TRACKERS: dict[str, TrackerEntry] = {
-    "phd": TrackerEntry(PHDConfig, PHDParams, build_phd, phd_properties, True),
-    "kalman": TrackerEntry(KalmanConfig, KalmanParams, build_kalman, kalman_properties, False),
+    "phd": TrackerEntry(PHDConfig, PHDParams, build_phd, phd_properties, True, phd_memory_estimate),
+    "kalman": TrackerEntry(
+        KalmanConfig, KalmanParams, build_kalman, kalman_properties, False, kalman_memory_estimate
+    ),
 }
 
 

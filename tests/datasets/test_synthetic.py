@@ -24,10 +24,16 @@ from jaxtrack.datasets import (
     clutter_intensity,
     generate_scene,
     load_context_truth,
+    synthetic,
     write_scene,
 )
-from jaxtrack.datasets.synthetic import nominal_size, occluded_fraction, zone_birth_gaussian
-from jaxtrack.errors import FileFormatError
+from jaxtrack.datasets.synthetic import (
+    MAX_TARGETS,
+    nominal_size,
+    occluded_fraction,
+    zone_birth_gaussian,
+)
+from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.io import load_sequence
 
 SHORT = dataclasses.replace(SceneConfig(), num_frames=120)
@@ -292,6 +298,23 @@ def test_occluded_fraction_simple_cases():
     # Box 1 is nearer (bottom 15 > 10) and covers a quarter of box 0; nothing covers the rest.
     np.testing.assert_allclose(occluded_fraction(boxes), [0.25, 0.0, 0.0])
     assert occluded_fraction(np.zeros((0, 4))).shape == (0,)
+
+
+def test_occluded_fraction_in_blocks_equals_one_block(monkeypatch):
+    """Blocks of 2 boxes (300 boxes, 150 blocks) give each box the same value, bit for bit."""
+    rng = np.random.default_rng(3)
+    boxes = np.concatenate([rng.uniform(0, 500, (300, 2)), rng.uniform(10, 150, (300, 2))], 1)
+    whole = occluded_fraction(boxes)
+    monkeypatch.setattr(synthetic, "OCCLUSION_PAIRS_PER_BLOCK", 600)
+    np.testing.assert_array_equal(occluded_fraction(boxes), whole)
+    assert np.count_nonzero(whole) > 100
+
+
+def test_too_many_simultaneous_targets_name_birth_rate():
+    """Births that would put more than MAX_TARGETS targets in view are refused before they
+    are drawn (the occlusion test compares every pair of targets of a frame)."""
+    with pytest.raises(InputError, match=rf"above the limit of {MAX_TARGETS} .*lower birth_rate"):
+        generate_scene(0, dataclasses.replace(SHORT, birth_rate=1000.0))
 
 
 @pytest.fixture(scope="module")
