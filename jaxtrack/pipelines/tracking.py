@@ -28,11 +28,12 @@ from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
-from jaxtrack.filters.base import Filter, run
+from jaxtrack.filters.base import Filter, plan_chunks, run
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
 from jaxtrack.filters.phd_tracker import Context
-from jaxtrack.filters.registry import build_tracker
+from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence
+from jaxtrack.resources import check_memory
 from jaxtrack.types import PAD_BOX, Detections, MotTable, Tracks
 
 #: Default number of previous frames in a track's trail (:func:`phd_frame_snapshot`).
@@ -67,7 +68,10 @@ def track_sequences(
 
     Raises:
         InputError: a configuration of no registered tracker.
+        ResourceError: a sequence's run would need more memory than the machine has
+            (:func:`check_tracking_memory`), before anything runs.
     """
+    check_tracking_memory(sequences, config, chunk_frames)
     # The filter is the same for every sequence; default params are built only when needed.
     built = [
         build_tracker(config, seq.info) for seq in (sequences if params is None else sequences[:1])
@@ -92,6 +96,31 @@ def track_sequences(
         )
         results.append(output_rows(info, config, seq.first_frame))
     return results
+
+
+def check_tracking_memory(
+    sequences: Sequence[MotSequence], config: TrackerConfig, chunk_frames: int = 128
+) -> None:
+    """Refuses, before any work, a run whose estimated peak memory the machine lacks.
+
+    For each sequence, the tracker's estimate (the registry's ``memory``, no compile) at the
+    largest chunk capacity :func:`~jaxtrack.filters.base.plan_chunks` gives it, over its
+    frames, is compared with :func:`~jaxtrack.resources.available_memory_bytes`.
+
+    Raises:
+        ResourceError: naming the sequence, the bytes needed and available, and the options
+            that lower them.
+    """
+    memory = tracker_entry(config.tracker).memory
+    for seq in sequences:
+        counts = np.asarray(seq.detections.mask).sum(axis=1)
+        capacity = max(chunk.capacity for chunk in plan_chunks(counts, chunk_frames))
+        check_memory(
+            memory(config, capacity, chunk_frames).run_bytes(seq.num_frames),
+            f"tracking {seq.info.name} ({seq.num_frames} frames, up to {capacity} detection "
+            f"slots) with the {config.tracker} tracker",
+            "--config num_particles or births_per_detection, or a shorter --frames span",
+        )
 
 
 class TrackOutputs(NamedTuple):

@@ -131,3 +131,14 @@ def test_fit_capacity_run_equals_an_unchunked_run_on_fitted_detections(campus):
     )
     with pytest.raises(ValueError, match="fit_capacity needs chunk_frames"):
         run(filt, key, params, campus.detections, fit_capacity=True)
+
+
+def test_tracking_is_refused_up_front_when_memory_is_short(campus, monkeypatch):
+    from jaxtrack import resources
+    from jaxtrack.pipelines.tracking import check_tracking_memory
+    from jaxtrack.resources import ResourceError
+
+    check_tracking_memory([campus], CONFIG)  # this machine has the few MB it needs
+    monkeypatch.setattr(resources, "available_memory_bytes", lambda: 10**4)
+    with pytest.raises(ResourceError, match=r"tracking TUD-Campus .* num_particles"):
+        track_sequences([campus], CONFIG, seed=0)
