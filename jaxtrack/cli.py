@@ -2,7 +2,9 @@
 
 Each command module defines ``register(subparsers)`` which adds its parser and sets
 ``func(args) -> int`` as the parser default. Bad input (any :class:`jaxtrack.InputError`)
-is printed as ``jaxtrack <command>: error: <message>`` without a traceback, exit status 2.
+is printed as ``jaxtrack <command>: error: <message>`` without a traceback, exit status 2; an
+:class:`jaxtrack.errors.InputWarning` (a legal but suspicious value) as one line
+``jaxtrack <command>: warning: <message>`` on stderr, and the command goes on.
 """
 
 from __future__ import annotations
@@ -10,9 +12,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 
 from jaxtrack import __version__
-from jaxtrack.errors import InputError
+from jaxtrack.errors import InputError, InputWarning
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
 COMMANDS = (
@@ -50,13 +53,28 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warnings(args.command, warnings.showwarning)
+            return int(args.func(args) or 0)
     except InputError as err:
         print(f"jaxtrack {args.command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"jaxtrack {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _one_line_warnings(command: str, show):
+    """``warnings.showwarning`` that prints an InputWarning as ``jaxtrack CMD: warning: ...``
+    (one line on stderr) and leaves other warnings to ``show``."""
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, InputWarning):
+            print(f"jaxtrack {command}: warning: {message}", file=sys.stderr)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
 
 
 if __name__ == "__main__":

@@ -220,7 +220,7 @@ def _video_sequence(args: argparse.Namespace):
     with VideoReader(args.sequence, fps=args.fps) as reader:
         info = video_info(reader)
     span = parse_frame_span(args.frames, info.seq_length)
-    detections = read_mot_file(args.detections, "det", info.seq_length)
+    detections = read_mot_file(args.detections, "det", info=info)
     return video_sequence(args.sequence, detections, span, info, args.gt), None
 
 

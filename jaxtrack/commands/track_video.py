@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         info = video_info(reader)
         span = parse_frame_span(args.frames, reader.num_frames)
         if args.detections:
-            detections = read_mot_file(args.detections, "det", reader.num_frames)
+            detections = read_mot_file(args.detections, "det", info=info)
         else:
             config_detect = DetectorConfig(method=args.method, split=not args.no_split)
             found = detect_video(reader, span, config_detect, progress=not args.quiet)
