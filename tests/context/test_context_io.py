@@ -107,7 +107,7 @@ def test_missing_and_corrupt_files(tmp_path):
             lambda a: a.update(metadata_json=np.asarray('{"format_version": 99}')),
             "format_version 99",
         ),
-        (lambda a: a.update(birth_means=a["birth_means"][:, :4]), "birth intensity: means"),
+        (lambda a: a.update(birth_means=a["birth_means"][:, :4]), "birth_means has shape"),
         (lambda a: a.update(clutter_lower=np.zeros((2, 2))), "lower must be 1-D"),
         (lambda a: a.update(clutter_weights=np.zeros(0)), "non-empty"),
         (lambda a: a.update(clutter_magnitude=np.asarray(np.nan)), "finite"),
