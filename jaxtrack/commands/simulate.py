@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from jaxtrack.commands.arguments import add_out, add_seed
-from jaxtrack.datasets.scene_config import SceneConfig, config_from_dict, config_to_dict
+from jaxtrack.datasets.scene_config import SceneConfig, config_to_dict, load_scene_config
 from jaxtrack.datasets.synthetic import generate_scene, write_scene
 from jaxtrack.errors import InputError
 from jaxtrack.plot.scene import save_scene_preview
@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = SceneConfig()
     if args.scene_config is not None:
-        config = config_from_dict(_read_json(args.scene_config), config)
+        config = load_scene_config(args.scene_config, config)
     if args.num_frames is not None:
         if args.num_frames < 1:
             raise InputError(f"--num-frames must be >= 1, got {args.num_frames}")
@@ -133,19 +133,3 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"  clutter {stats['clutter_per_frame']:.2f}/frame ({by_source})")
     return 0
-
-
-def _read_json(path: Path) -> dict:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"--scene-config {path}: cannot read ({err.strerror})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise InputError(
-            f"--scene-config {path}, line {err.lineno}: invalid JSON ({err.msg})"
-        ) from None
-    if not isinstance(data, dict):
-        raise InputError(f"--scene-config {path}: expected a JSON object of configuration fields")
-    return data
