@@ -155,8 +155,8 @@ class Rule:
 
 
 def _bound(value: float) -> str:
-    """A bound as written in an interval: integers in full below 10^7, others with ``%g``."""
-    if float(value).is_integer() and abs(value) < 1e7:
+    """A bound as written in an interval: integers in full (below 2^53), others with ``%g``."""
+    if float(value).is_integer() and abs(value) < 2**53:
         return str(int(value))
     return f"{value:g}"
 

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.commands.arguments import add_frames, add_json
+from jaxtrack.commands.arguments import DISTANCE, IOU, OSPA_ORDER, add_frames, add_json, ranged
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
@@ -90,14 +90,14 @@ def register(subparsers) -> None:
     add_json(parser)
     parser.add_argument(
         "--iou-threshold",
-        type=float,
+        type=ranged(IOU),
         default=0.5,
         metavar="T",
         help="minimum IoU of a match for CLEAR, identity and MODA/MODP (default 0.5)",
     )
     parser.add_argument(
         "--centre-threshold",
-        type=float,
+        type=ranged(DISTANCE),
         metavar="PIXELS",
         help="match by box-centre distance instead of IoU: boxes match when their centres are "
         "at most PIXELS apart (similarity 1 - d / (2 PIXELS); for point-like data)",
@@ -110,13 +110,17 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--ospa-c",
-        type=float,
+        type=ranged(DISTANCE),
         default=1.0,
         metavar="C",
         help="OSPA/GOSPA cut-off, in units of --ospa-distance (default 1)",
     )
     parser.add_argument(
-        "--ospa-p", type=float, default=1.0, metavar="P", help="OSPA/GOSPA order (default 1)"
+        "--ospa-p",
+        type=ranged(OSPA_ORDER),
+        default=1.0,
+        metavar="P",
+        help="OSPA/GOSPA order (default 1)",
     )
     parser.add_argument(
         "--ospa-distance",

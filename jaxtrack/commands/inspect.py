@@ -12,7 +12,7 @@ import json
 
 import numpy as np
 
-from jaxtrack.commands.arguments import add_frames, add_json
+from jaxtrack.commands.arguments import IOU, add_frames, add_json, ranged
 from jaxtrack.io import load_sequence
 from jaxtrack.metrics.detection import detection_precision_recall
 
@@ -27,7 +27,7 @@ def register(subparsers) -> None:
     parser.add_argument("sequence", metavar="SEQ_DIR", help="folder with seqinfo.ini, det/, gt/")
     add_frames(parser)
     parser.add_argument(
-        "--iou", type=float, default=0.5, help="IoU threshold for a detection to match (0.5)"
+        "--iou", type=ranged(IOU), default=0.5, help="IoU threshold for a detection to match (0.5)"
     )
     add_json(parser)
     parser.set_defaults(func=run)

@@ -7,10 +7,11 @@ import dataclasses
 import json
 from pathlib import Path
 
-from jaxtrack.commands.arguments import add_out, add_seed
+from jaxtrack.commands.arguments import add_out, add_seed, ranged
 from jaxtrack.datasets.scene_config import SceneConfig, config_to_dict, load_scene_config
 from jaxtrack.datasets.synthetic import generate_scene, write_scene
 from jaxtrack.errors import InputError
+from jaxtrack.limits import FRAME_COUNT, FRAME_NUMBER
 from jaxtrack.plot.scene import save_scene_preview
 
 DESCRIPTION = """\
@@ -53,7 +54,7 @@ def register(subparsers) -> None:
     add_out(parser, "sequence folder to write (required; created if needed)", False, "DIR")
     parser.add_argument(
         "--num-frames",
-        type=int,
+        type=ranged(FRAME_COUNT),
         metavar="T",
         help="number of frames (default: the configuration's, 800)",
     )
@@ -68,7 +69,7 @@ def register(subparsers) -> None:
     parser.add_argument("--name", help="sequence name in seqinfo.ini (default: the folder's name)")
     parser.add_argument(
         "--preview-frame",
-        type=int,
+        type=ranged(FRAME_NUMBER),
         metavar="K",
         help="frame drawn in preview.png (default: the first frame with the most targets)",
     )

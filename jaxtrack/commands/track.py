@@ -53,6 +53,7 @@ from jaxtrack.commands.arguments import (
     add_seed,
     add_tracker,
     load_config,
+    ranged,
 )
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
@@ -60,6 +61,7 @@ from jaxtrack.filters.kalman import KALMAN_PRESETS
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import load_sequence, write_results
 from jaxtrack.io.video import VideoReader, find_frame_source
+from jaxtrack.limits import FRAME_NUMBER
 from jaxtrack.pipelines.tracking import (
     load_tracker_context,
     phd_frame_snapshot,
@@ -94,7 +96,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--figure-frame",
-        type=int,
+        type=ranged(FRAME_NUMBER),
         metavar="N",
         help="MOT frame number of --figure (default: the middle of the span)",
     )

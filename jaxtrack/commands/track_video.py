@@ -12,6 +12,7 @@ import numpy as np
 from tqdm import tqdm
 
 from jaxtrack.commands.arguments import (
+    FRAMES_OR_NONE,
     add_config,
     add_context_arguments,
     add_frames,
@@ -19,6 +20,7 @@ from jaxtrack.commands.arguments import (
     add_quiet,
     add_seed,
     load_config,
+    ranged,
 )
 from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
@@ -27,6 +29,7 @@ from jaxtrack.errors import InputError
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
+from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.pipelines.tracking import load_tracker_context, track_sequences, tracker_description
 from jaxtrack.plot.context import position_map
@@ -75,7 +78,9 @@ def register(subparsers) -> None:
     parser.add_argument("video", metavar="VIDEO", help="video file or folder of images")
     add_out(parser, "results to write", metavar="RES.txt")
     add_frames(parser)
-    parser.add_argument("--fps", type=float, metavar="F", help="frame rate (overrides the file's)")
+    parser.add_argument(
+        "--fps", type=ranged(FRAME_RATE), metavar="F", help="frame rate (overrides the file's)"
+    )
     parser.add_argument(
         "--method", choices=METHODS, default="horprasert", help="detector (default horprasert)"
     )
@@ -94,7 +99,7 @@ def register(subparsers) -> None:
     parser.add_argument("--annotate", metavar="OUT.mp4", help="write the annotated frames")
     parser.add_argument(
         "--trail",
-        type=int,
+        type=ranged(FRAMES_OR_NONE),
         default=DEFAULT_TRAIL,
         metavar="N",
         help=f"trail length in frames for --annotate (default {DEFAULT_TRAIL})",
