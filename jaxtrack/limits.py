@@ -122,8 +122,8 @@ class Rule:
         if isinstance(value, bool) or not isinstance(value, int if integer else int | float):
             kind = "an integer" if integer else "a number"
             raise InputError(f"{key} must be {kind}, got {_short(value)}")
+        given = value
         if not integer:
-            given = value
             try:
                 value = float(value)
             except OverflowError:
@@ -137,7 +137,7 @@ class Rule:
             value >= self.upper if self.upper_open else value > self.upper
         )
         if low_bad or high_bad:
-            raise InputError(f"{key} must lie in {self.interval()}, got {_short(value)}")
+            raise InputError(f"{key} must lie in {self.interval()}, got {_short(given)}")
         if not integer and float32_trouble(value):
             raise InputError(
                 f"{key} = {value!r} is not representable in float32 "
@@ -284,6 +284,12 @@ RULES: tuple[Limit, ...] = (
         "padded slots), unique within a frame",
     ),
     Limit(
+        "no detections",
+        "det.txt of a sequence folder",
+        "the file, or the --frames span, holds no detection: tracking gives no tracks",
+        "warning",
+    ),
+    Limit(
         "seqLength far beyond the data",
         "seqinfo.ini with det.txt",
         "no detection or gt row in the second half of 1..seqLength: tracking runs over empty "
@@ -318,7 +324,10 @@ RULES: tuple[Limit, ...] = (
     Limit(
         "other numeric options",
         "every command",
-        "each option's range, named in the error (jaxtrack.commands.arguments)",
+        "each option's range (jaxtrack.commands.arguments: IoU in (0, 1], distances and "
+        "OSPA cut-off in (0, 2^20], OSPA order in [1, 10], epochs in [1, 10^4], steps in "
+        "[1, 10^6], keys in [1, 1024], learning rate in (0, 100], particles as the tracker "
+        "configuration's); the error names the option",
     ),
 )
 

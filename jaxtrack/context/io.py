@@ -20,13 +20,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.context.intensity import Intensity
-from jaxtrack.errors import FileFormatError
-from jaxtrack.limits import FLOAT32_MAX, MAX_COORDINATE, float32_trouble
+from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.limits import FLOAT32_MAX, MAX_COORDINATE, Rule, float32_trouble
 from jaxtrack.linalg import cholesky
 
 #: Largest magnitude (events per frame) of a context part: the tracker configuration's limit
 #: on its rates (:data:`jaxtrack.filters.phd_tracker.MAX_RATE`, 10^4).
 MAX_CONTEXT_MAGNITUDE = 1e4
+#: The rule of a magnitude recorded in the metadata (the A3-A5 variants track with it).
+MAGNITUDE = Rule("events per frame", float, 0.0, MAX_CONTEXT_MAGNITUDE)
 
 #: Version written into the metadata; :func:`load_context` reads versions up to this one.
 FORMAT_VERSION = 1
@@ -75,8 +77,9 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
     Raises:
         FileFormatError: naming the file and the field, when the file is missing, not an
             ``.npz`` archive, lacks a field, holds invalid metadata, a newer format version, or
-            an invalid intensity. The rules: arrays of real numbers with consistent shapes,
-            finite and within float32; magnitude in ``[0, 1e4]`` events per frame (0 or a
+            an invalid intensity. The rules: a magnitude recorded in the metadata (``birth`` or
+            ``clutter`` ``magnitude``) in ``[0, 1e4]``; arrays of real numbers with consistent
+            shapes, finite and within float32; magnitude in ``[0, 1e4]`` events per frame (0 or a
             normal float32); ``pi_u`` in ``[0, 1]``; ``lower``, ``upper`` and ``means`` within
             ``+-2^20``; ``upper > lower`` on every axis in float32; weights ``>= 0`` with the
             live ones summing to one; every covariance symmetric and positive definite in
@@ -103,6 +106,13 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
         raise FileFormatError(
             path, None, f"unsupported format_version {version!r} (this reader: {FORMAT_VERSION})"
         )
+    for prefix in PREFIXES:
+        recorded = metadata.get(prefix)
+        if isinstance(recorded, dict) and "magnitude" in recorded:
+            try:
+                MAGNITUDE.check(f"metadata_json {prefix}.magnitude", recorded["magnitude"])
+            except InputError as err:
+                raise FileFormatError(path, None, str(err)) from None
     intensities = []
     for prefix in PREFIXES:
         fields = {}
