@@ -12,10 +12,15 @@ The limits are chosen to be general, not tuned to one data set:
 
 * frames: at most :data:`MAX_FRAMES` (10^6, about 9 hours at 30 frames/s), because padded
   arrays are sized by the number of frames;
-* images: integer sides in ``[MIN_IMAGE_SIZE, MAX_IMAGE_SIZE]`` = ``[2, 65536]`` pixels (the
-  uniform intensities span box sizes ``1..W``, which needs ``W >= 2``);
-* frame rates: ``[MIN_FRAME_RATE, MAX_FRAME_RATE]`` = ``[0.1, 1000]`` frames per second (a
-  frame every 10 s to a high-speed camera; the birth velocity range is derived from it);
+* images: integer sides in ``[MIN_IMAGE_SIZE, MAX_IMAGE_SIZE]`` = ``[16, 65536]`` pixels
+  (smaller is no frame a detector runs on; the uniform intensities span box sizes ``1..W``);
+  more than :data:`MAX_ASPECT_RATIO` = 10 times wider than high (or higher than wide) is legal
+  but suspicious (the property test finds empty results for such shapes);
+* frame rates: ``[MIN_FRAME_RATE, MAX_FRAME_RATE]`` = ``[1, 1000]`` frames per second: the
+  tracker's birth velocity range is ``0.4 * H / frame_rate`` pixels per frame, so below one
+  frame per second targets could cross most of the image between two frames, which
+  frame-to-frame tracking cannot follow (a property test finds empty results there), and
+  1000 is a high-speed camera;
 * box coordinates: within :data:`MAX_COORDINATE` = 2^20 pixels (16 times the largest image;
   float32 still resolves 1/8 pixel there), and within :data:`IMAGE_FACTOR` image sizes of the
   image when its size is known; widths and heights of detections and ground truth at least
@@ -42,11 +47,13 @@ from jaxtrack.errors import InputError
 #: Largest frame number and number of frames of a sequence, a video or a simulation.
 MAX_FRAMES = 1_000_000
 #: Smallest image width or height, pixels.
-MIN_IMAGE_SIZE = 2
+MIN_IMAGE_SIZE = 16
 #: Largest image width or height, pixels (2^16).
 MAX_IMAGE_SIZE = 65_536
-#: Smallest frame rate, frames per second (one frame every 10 s).
-MIN_FRAME_RATE = 0.1
+#: A wider (or higher) image than this ratio gives a warning.
+MAX_ASPECT_RATIO = 10
+#: Smallest frame rate, frames per second (birth velocities up to 0.4 image heights per frame).
+MIN_FRAME_RATE = 1.0
 #: Largest frame rate, frames per second.
 MAX_FRAME_RATE = 1000.0
 #: Largest ``|x|``, ``|y|``, ``w``, ``h`` of a box, pixels (2^20 = 16 * MAX_IMAGE_SIZE).
@@ -233,6 +240,12 @@ RULES: tuple[Limit, ...] = (
         "image width, height",
         "seqinfo.ini imWidth, imHeight; video frame size; scene image_width, image_height",
         f"integer in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}] pixels",
+    ),
+    Limit(
+        "image aspect ratio",
+        "seqinfo.ini imWidth, imHeight",
+        f"more than {MAX_ASPECT_RATIO} times wider than high, or higher than wide",
+        "warning",
     ),
     Limit(
         "frame rate",

@@ -28,13 +28,13 @@ def test_float32_trouble():
 @pytest.mark.parametrize(
     ("rule", "value", "message"),
     [
-        (FRAME_RATE, 1e300, r"x must lie in \[0\.1, 1000\], got 1e\+300"),
+        (FRAME_RATE, 1e300, r"x must lie in \[1, 1000\], got 1e\+300"),
         (FRAME_RATE, 10**400, r"x must be finite, got 10000000000+\.\.\.\(401 characters\)"),
         (FRAME_RATE, -(10**400), "x must be finite"),
         (FRAME_RATE, math.nan, "x must be finite, got nan"),
         (FRAME_RATE, "25", "x must be a number"),
         (FRAME_RATE, True, "x must be a number"),
-        (IMAGE_SIZE, 10**400, r"x must lie in \[2, 65536\], got 10000000000000000000000000000"),
+        (IMAGE_SIZE, 10**400, r"x must lie in \[16, 65536\], got 10000000000000000000000000000"),
         (IMAGE_SIZE, 640.0, "x must be an integer"),
         (SEED, -1, r"x must lie in \[0, 4294967295\]"),
         (Rule("rate", float, 0.0, 1.0, lower_open=True), 1e-300, "not representable in float32"),

@@ -15,8 +15,8 @@ per frame. A configuration round-trips through JSON with :func:`config_to_dict` 
 Every numeric field has one rule (:data:`SCENE_RULES`, :data:`ZONE_RULES`,
 :data:`SOURCE_RULES`; :class:`jaxtrack.limits.Rule`: finite, float32-representable, in its
 range). The ranges keep a simulation finite and its output readable by jaxtrack's own readers:
-``num_frames`` and frame counts at most 10^6, image sides ``2..65536``, frame rate
-``0.1..1000``, ``birth_rate <= 10`` births per frame, false detections at most 100 per frame
+``num_frames`` and frame counts at most 10^6, image sides ``16..65536``, frame rate
+``1..1000``, ``birth_rate <= 10`` births per frame, false detections at most 100 per frame
 (uniform and sources together), at most 100 zones and 100 sources, coordinates within
 ``+-2^20`` pixels, standard deviations at least 1/1000 (the written boxes are rounded to
 1/1000 pixel), box sizes at least 1 pixel and ``max_box_size`` (and the perspective law's

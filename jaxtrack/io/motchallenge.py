@@ -26,6 +26,7 @@ from jaxtrack.limits import (
     FRAME_RATE,
     IMAGE_FACTOR,
     IMAGE_SIZE,
+    MAX_ASPECT_RATIO,
     MAX_COORDINATE,
     MAX_FRAMES,
     MAX_ID,
@@ -74,8 +75,10 @@ def read_seqinfo(path: str | Path) -> SequenceInfo:
     """Parses a ``seqinfo.ini`` file.
 
     Rules (:mod:`jaxtrack.limits`): ``seqLength`` an integer in ``[1, MAX_FRAMES]``
-    (10^6), ``imWidth`` and ``imHeight`` integers in ``[2, 65536]``, ``frameRate`` (optional)
-    a number in ``[0.1, 1000]``.
+    (10^6), ``imWidth`` and ``imHeight`` integers in ``[16, 65536]``, ``frameRate`` (optional)
+    a number in ``[1, 1000]``; the first bad line is reported. An image more than
+    :data:`~jaxtrack.limits.MAX_ASPECT_RATIO` (10) times wider than high, or higher than wide,
+    gives an :class:`~jaxtrack.errors.InputWarning`.
 
     Args:
         path: path of the file.
@@ -127,12 +130,25 @@ def read_seqinfo(path: str | Path) -> SequenceInfo:
     for key in ("seqLength", "imWidth", "imHeight"):
         if key not in values:
             raise FileFormatError(path, None, f"missing key {key!r} in [Sequence]")
-    seq_length = checked("seqLength", FRAME_COUNT, int)
-    im_width = checked("imWidth", IMAGE_SIZE, int)
-    im_height = checked("imHeight", IMAGE_SIZE, int)
-    frame_rate = checked("frameRate", FRAME_RATE, float) if "frameRate" in values else None
+    rules = {
+        "seqLength": (FRAME_COUNT, int),
+        "imWidth": (IMAGE_SIZE, int),
+        "imHeight": (IMAGE_SIZE, int),
+        "frameRate": (FRAME_RATE, float),
+    }
+    present = sorted((key for key in rules if key in values), key=lambda key: values[key][1])
+    parsed = {key: checked(key, *rules[key]) for key in present}  # the first bad line first
+    width, height = parsed["imWidth"], parsed["imHeight"]
+    if max(width, height) > MAX_ASPECT_RATIO * min(width, height):
+        warnings.warn(
+            InputWarning(
+                f"{path}: a {width}x{height} image is more than {MAX_ASPECT_RATIO} times wider "
+                "than high (or higher than wide); are imWidth and imHeight right?"
+            ),
+            stacklevel=2,
+        )
     name = values["name"][0] if "name" in values else path.parent.name
-    return SequenceInfo(name, seq_length, im_width, im_height, frame_rate)
+    return SequenceInfo(name, parsed["seqLength"], width, height, parsed.get("frameRate"))
 
 
 def write_seqinfo(path: str | Path, info: SequenceInfo) -> None:

@@ -49,9 +49,9 @@ class VideoReader:
     Raises:
         FileFormatError: the path does not exist, is not a decodable video, holds no frames
             or more than :data:`~jaxtrack.limits.MAX_FRAMES`, has frames outside the image-size
-            rule (``2..65536`` pixels a side), or (folder) holds no images or an unreadable
+            rule (``16..65536`` pixels a side), or (folder) holds no images or an unreadable
             first image.
-        InputError: ``fps`` breaks the frame-rate rule (``[0.1, 1000]``).
+        InputError: ``fps`` breaks the frame-rate rule (``[1, 1000]``).
 
     Warns:
         InputWarning: the video's own frame rate breaks the frame-rate rule; it is then

@@ -150,18 +150,18 @@ SEQINFO = (
     "[Sequence]\nname=s\nframeRate={rate}\nseqLength={length}\nimWidth={width}\nimHeight={height}\n"
 )
 SEQINFO_RULES = {
-    "rate_1e300": ({"rate": "1e300"}, 3, r"frameRate must lie in \[0\.1, 1000\], got 1e\+300"),
-    "rate_1e-300": ({"rate": "1e-300"}, 3, r"frameRate must lie in \[0\.1, 1000\]"),
+    "rate_1e300": ({"rate": "1e300"}, 3, r"frameRate must lie in \[1, 1000\], got 1e\+300"),
+    "rate_1e-300": ({"rate": "1e-300"}, 3, r"frameRate must lie in \[1, 1000\]"),
     "rate_zero": ({"rate": "0"}, 3, "frameRate must lie in"),
     "rate_nan": ({"rate": "nan"}, 3, "frameRate must be finite"),
     "rate_inf": ({"rate": "inf"}, 3, "frameRate must be finite"),
-    "rate_text": ({"rate": "fast"}, 3, r"frameRate must be a number in \[0\.1, 1000\]"),
+    "rate_text": ({"rate": "fast"}, 3, r"frameRate must be a number in \[1, 1000\]"),
     "length_1e8": ({"length": "100000000"}, 4, r"seqLength must lie in \[1, 1000000\]"),
     "length_zero": ({"length": "0"}, 4, "seqLength must lie in"),
     "length_float": ({"length": "71.0"}, 4, r"seqLength must be an integer in \[1, 1000000\]"),
     "length_huge": ({"length": "9" * 5000}, 4, "seqLength must be an integer"),
-    "width_1e8": ({"width": "100000000"}, 5, r"imWidth must lie in \[2, 65536\]"),
-    "width_one": ({"width": "1"}, 5, "imWidth must lie in"),
+    "width_1e8": ({"width": "100000000"}, 5, r"imWidth must lie in \[16, 65536\]"),
+    "width_15": ({"width": "15"}, 5, "imWidth must lie in"),
     "height_big": ({"height": str(MAX_IMAGE_SIZE + 1)}, 6, "imHeight must lie in"),
     "height_exp": ({"height": "1e3"}, 6, "imHeight must be an integer"),
 }
@@ -180,14 +180,33 @@ def test_seqinfo_rules_name_file_line_and_key(tmp_path, case):
 
 def test_seqinfo_at_the_limits(tmp_path):
     path = tmp_path / "seqinfo.ini"
-    path.write_text(SEQINFO.format(rate=0.1, length=MAX_FRAMES, width=2, height=MAX_IMAGE_SIZE))
+    path.write_text(SEQINFO.format(rate=1, length=MAX_FRAMES, width=16, height=160))
     info = read_seqinfo(path)
     assert (info.frame_rate, info.seq_length, info.im_width, info.im_height) == (
-        0.1,
+        1.0,
         MAX_FRAMES,
-        2,
-        MAX_IMAGE_SIZE,
+        16,
+        160,
     )
+
+
+def test_seqinfo_largest_image_and_aspect_ratio_warning(tmp_path):
+    path = tmp_path / "seqinfo.ini"
+    path.write_text(SEQINFO.format(rate=25, length=10, width=MAX_IMAGE_SIZE, height=MAX_IMAGE_SIZE))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert read_seqinfo(path).im_width == MAX_IMAGE_SIZE
+    path.write_text(SEQINFO.format(rate=25, length=10, width=16, height=3960))
+    with pytest.warns(InputWarning, match="a 16x3960 image is more than 10 times wider than high"):
+        assert read_seqinfo(path).im_height == 3960
+
+
+def test_seqinfo_reports_the_first_bad_line(tmp_path):
+    path = tmp_path / "seqinfo.ini"
+    path.write_text("[Sequence]\nimHeight=0\nframeRate=0\nseqLength=0\nimWidth=0\n")
+    with pytest.raises(FileFormatError, match="imHeight must lie in") as info:
+        read_seqinfo(path)
+    assert info.value.line == 2
 
 
 def write_sequence(folder, det_rows, length=50, width=640, height=480, gt_rows=None):
@@ -286,6 +305,6 @@ def test_any_seqinfo_values_load_within_the_rules_or_raise(tmp_path, rate, lengt
     except FileFormatError as err:
         assert err.path == str(path) and err.line in (3, 4, 5, 6)
         return
-    assert 0.1 <= info.frame_rate <= 1000
+    assert 1 <= info.frame_rate <= 1000
     assert 1 <= info.seq_length <= MAX_FRAMES
-    assert 2 <= info.im_width <= MAX_IMAGE_SIZE and 2 <= info.im_height <= MAX_IMAGE_SIZE
+    assert 16 <= info.im_width <= MAX_IMAGE_SIZE and 16 <= info.im_height <= MAX_IMAGE_SIZE
