@@ -312,10 +312,11 @@ RULES: tuple[Limit, ...] = (
     Limit(
         "learned context (.npz)",
         "--context; context_truth.npz",
-        f"magnitude in [0, 1e4] events/frame; uniform_weight in [0, 1]; lower, upper, means "
-        f"within +-2^20, upper > lower in float32; weights >= 0 summing to 1; every "
-        f"covariance symmetric and positive definite (Cholesky in float64 and float32); "
-        f"every value {_F32}",
+        "arrays of real numbers, finite, |v| <= 3.4e38; magnitude in [0, 1e4] events/frame "
+        "(0 or >= 1.2e-38), also the magnitudes recorded in its metadata; uniform_weight in "
+        "[0, 1]; lower, upper, means within +-2^20, upper > lower in float32; weights >= 0 "
+        "summing to 1; every covariance symmetric and positive definite (Cholesky in float64 "
+        "and, as the filters factor it, in float32); the error names the field",
     ),
     Limit(
         "tracker configuration",
