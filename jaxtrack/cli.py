@@ -1,8 +1,11 @@
 """The ``jaxtrack`` command: one sub-command per module in :mod:`jaxtrack.commands`.
 
 Each command module defines ``register(subparsers)`` which adds its parser and sets
-``func(args) -> int`` as the parser default. Bad input (any :class:`jaxtrack.InputError`)
-is printed as ``jaxtrack <command>: error: <message>`` without a traceback, exit status 2.
+``func(args) -> int`` as the parser default. Bad input (any :class:`jaxtrack.InputError`,
+a bad command line included: an unknown option, an invalid choice, a number out of its range)
+is printed as ``jaxtrack <command>: error: <message>`` without a traceback, exit status 2; an
+:class:`jaxtrack.errors.InputWarning` (a legal but suspicious value) as one line
+``jaxtrack <command>: warning: <message>`` on stderr, and the command goes on.
 """
 
 from __future__ import annotations
@@ -10,9 +13,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 
 from jaxtrack import __version__
-from jaxtrack.errors import InputError
+from jaxtrack.commands.arguments import CommandParser, UsageError
+from jaxtrack.errors import InputError, InputWarning
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
 COMMANDS = (
@@ -31,7 +36,7 @@ COMMANDS = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="jaxtrack",
         description=(
             "Context-aware multi-object tracking in JAX: particle PHD filter with learned "
@@ -40,7 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     parser.add_argument("--version", action="version", version=f"jaxtrack {__version__}")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    subparsers = parser.add_subparsers(
+        dest="command", metavar="COMMAND", required=True, parser_class=CommandParser
+    )
     for name in COMMANDS:
         importlib.import_module(f"jaxtrack.commands.{name}").register(subparsers)
     return parser
@@ -48,15 +55,34 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        args = parser.parse_args(argv)
+    except UsageError as err:
+        print(f"{err.prog}: error: {err}", file=sys.stderr)
+        return 2
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warnings(args.command, warnings.showwarning)
+            return int(args.func(args) or 0)
     except InputError as err:
         print(f"jaxtrack {args.command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"jaxtrack {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _one_line_warnings(command: str, show):
+    """``warnings.showwarning`` that prints an InputWarning as ``jaxtrack CMD: warning: ...``
+    (one line on stderr) and leaves other warnings to ``show``."""
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, InputWarning):
+            print(f"jaxtrack {command}: warning: {message}", file=sys.stderr)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
 
 
 if __name__ == "__main__":

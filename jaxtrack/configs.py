@@ -7,91 +7,21 @@ JSON (:meth:`TrackerConfig.to_dict` / :meth:`TrackerConfig.from_dict` /
 :func:`load_config_file`) and are validated once, when built: a bad value is an
 :class:`~jaxtrack.errors.InputError` naming the key (and the file, when read from one).
 
-Rules, one per kind of value:
-
-* ``int``: an integer (not a bool) within the field's ``[lower, upper]``;
-* ``float``: a finite number (an int is accepted) within the field's bounds (each bound
-  inclusive or exclusive, as the field says);
-* ``str``: one of the field's choices;
-* ``tuple``: a list of exactly ``length`` floats, each following the float rule.
+Each field's :class:`~jaxtrack.limits.Rule` says its type and range; floats must also be
+finite and representable in float32 (no overflow, no flush to zero), ints are compared exactly
+(a 400-digit integer is an error naming the key, not an OverflowError). NaN and Infinity in a
+file, deeply nested JSON and non-UTF-8 text are errors naming the file.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from pathlib import Path
 from typing import Any, ClassVar, Self
 
 from jaxtrack.errors import FileFormatError, InputError
-
-
-@dataclasses.dataclass(frozen=True)
-class Rule:
-    """The rule of one configuration field (see the module docstring).
-
-    Attributes:
-        doc: what the value means, in words (shown by ``--help`` and in errors).
-        kind: ``int``, ``float``, ``str`` or ``tuple``.
-        lower: smallest allowed value (None: unbounded).
-        upper: largest allowed value (None: unbounded).
-        lower_open: the lower bound itself is excluded.
-        upper_open: the upper bound itself is excluded.
-        choices: the allowed strings (``str`` fields).
-        length: the number of items (``tuple`` fields).
-    """
-
-    doc: str
-    kind: type
-    lower: float | None = None
-    upper: float | None = None
-    lower_open: bool = False
-    upper_open: bool = False
-    choices: tuple[str, ...] = ()
-    length: int = 0
-
-    def check(self, key: str, value: Any) -> Any:
-        """``value`` converted to the field's type.
-
-        Raises:
-            InputError: naming ``key``, when the value breaks the rule.
-        """
-        if self.kind is str:
-            if value not in self.choices:
-                raise InputError(f"{key} must be one of {', '.join(self.choices)}, got {value!r}")
-            return value
-        if self.kind is tuple:
-            if not isinstance(value, list | tuple) or len(value) != self.length:
-                raise InputError(f"{key} must be a list of {self.length} numbers, got {value!r}")
-            return tuple(self._number(f"{key}[{i}]", item) for i, item in enumerate(value))
-        return self._number(key, value)
-
-    def _number(self, key: str, value: Any) -> int | float:
-        integer = self.kind is int
-        if isinstance(value, bool) or not isinstance(value, int if integer else int | float):
-            kind = "an integer" if integer else "a number"
-            raise InputError(f"{key} must be {kind}, got {value!r}")
-        if not math.isfinite(value):
-            raise InputError(f"{key} must be finite, got {value!r}")
-        low_bad = self.lower is not None and (
-            value <= self.lower if self.lower_open else value < self.lower
-        )
-        high_bad = self.upper is not None and (
-            value >= self.upper if self.upper_open else value > self.upper
-        )
-        if low_bad or high_bad:
-            raise InputError(f"{key} must lie in {self.interval()}, got {value!r}")
-        return int(value) if integer else float(value)
-
-    def interval(self) -> str:
-        """The allowed range in interval notation, e.g. ``(0, 1]``."""
-        low = "-inf" if self.lower is None else f"{self.lower:g}"
-        high = "inf" if self.upper is None else f"{self.upper:g}"
-        left = "(" if self.lower_open or self.lower is None else "["
-        right = ")" if self.upper_open or self.upper is None else "]"
-        return f"{left}{low}, {high}{right}"
-
+from jaxtrack.limits import Rule
 
 #: The output rule every tracker configuration shares (``output``).
 OUTPUT = Rule(
@@ -168,16 +98,20 @@ def load_config_file(path: str | Path, config_type: type[TrackerConfig]) -> Trac
     """Reads a configuration JSON file (keys not in the file keep their defaults).
 
     Raises:
-        FileFormatError: a missing or unreadable file, invalid JSON (with its line), or a bad
-            key or value (named).
+        FileFormatError: a missing or unreadable file, invalid JSON (with its line), NaN or
+            Infinity, JSON nested too deeply, or a bad key or value (named).
     """
     file = Path(path)
     if not file.is_file():
         raise FileFormatError(file, None, "file not found")
     try:
         values = json.loads(file.read_text(encoding="utf-8"), parse_constant=_no_constant)
+    except OSError as err:
+        raise FileFormatError(file, None, f"cannot read ({err.strerror})") from None
     except UnicodeDecodeError:
         raise FileFormatError(file, None, "not a UTF-8 text file") from None
+    except RecursionError:
+        raise FileFormatError(file, None, "JSON nested too deeply") from None
     except json.JSONDecodeError as err:
         raise FileFormatError(file, err.lineno, f"not valid JSON ({err.msg})") from None
     except ValueError as err:

@@ -1,8 +1,9 @@
-"""Exceptions for bad user input.
+"""Exceptions and warnings for bad user input.
 
 Every error caused by a user's file or argument derives from :class:`InputError`; the CLI
 prints its message (which names the file and, where there is one, the line) without a
-traceback and exits with status 2.
+traceback and exits with status 2. A legal but suspicious value gives an
+:class:`InputWarning` (see :mod:`jaxtrack.limits` for every rule).
 """
 
 from __future__ import annotations
@@ -29,3 +30,11 @@ class FileFormatError(InputError):
         self.reason = reason
         where = f"{self.path}, line {line}" if line is not None else self.path
         super().__init__(f"{where}: {reason}")
+
+
+class InputWarning(UserWarning):
+    """A user-supplied value is legal but suspicious (e.g. every box lies outside the image).
+
+    Raised with :func:`warnings.warn`; the run goes on. The CLI prints it as one line,
+    ``jaxtrack <command>: warning: <message>``, on stderr.
+    """

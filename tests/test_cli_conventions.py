@@ -10,7 +10,14 @@ import pytest
 
 from jaxtrack import cli
 from jaxtrack.cli import COMMANDS, main
-from jaxtrack.commands.arguments import CONFIG_HELP, FRAMES_HELP, JSON_HELP, QUIET_HELP
+from jaxtrack.commands.arguments import (
+    CONFIG_HELP,
+    FRAMES_HELP,
+    JSON_HELP,
+    QUIET_HELP,
+    SEED_HELP,
+    SEED_TYPE,
+)
 from tests.test_cli_detect import person_box, write_synthetic_folder
 
 #: Commands that show progress bars (or step messages) and so take --quiet.
@@ -64,7 +71,7 @@ def test_shared_flags_mean_the_same(name):
     parser = PARSERS[name]
     seed = _option(parser, "--seed")
     if seed is not None:
-        assert seed.default == 0 and seed.type is int
+        assert seed.default == 0 and seed.type is SEED_TYPE and seed.help == SEED_HELP
     frames = _option(parser, "--frames")
     if frames is not None:
         # a span string, read by jaxtrack.io.parse_frame_span: never a count
@@ -83,7 +90,7 @@ def test_shared_flags_mean_the_same(name):
 def test_simulate_counts_frames_with_num_frames():
     parser = PARSERS["simulate"]
     assert _option(parser, "--frames") is None and _option(parser, "--config") is None
-    assert _option(parser, "--num-frames").type is int
+    assert _option(parser, "--num-frames").type("12") == 12
     assert _option(parser, "--scene-config") is not None
 
 

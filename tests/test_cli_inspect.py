@@ -61,7 +61,7 @@ def test_bad_detection_file_exit_2_without_traceback(mot15_root, tmp_path):
     det.write_text("1,-1,10,10,-5,20,0.9,-1,-1,-1\n")
     result = run_cli("inspect", str(seq), "--json")
     assert result.returncode == 2
-    assert f"{det}, line 1: width must be positive" in result.stderr
+    assert f"{det}, line 1: w -5 is below 1 pixel" in result.stderr
     assert "Traceback" not in result.stderr and result.stdout == ""
 
 

@@ -90,7 +90,7 @@ def test_default_backend_in_a_headless_process_exits_2(tmp_path, pets, vtest):
     [
         ([], "--frames A:B is required"),
         (["--frames", "1:900"], "frame span 1:900 must satisfy"),
-        (["--frames", "1:20", "--num-frames", "0"], "must be >= 1"),
+        (["--frames", "1:20", "--num-frames", "0"], "argument --num-frames: value must lie in"),
         (["--frames", "1:20", "--video", "{tmp}/missing.avi"], "missing.avi: video file"),
         (["--frames", "1:20", "--video", "{tud}"], "is 640x480 but seqinfo.ini says 768x576"),
         (["--frames", "1:20", "--resume", "{tmp}/none.json"], "drop --frames"),

@@ -64,7 +64,7 @@ def test_tune_supervised_and_extra_parameters_note(mot15_root, tmp_path, capsys)
     ("extra", "message"),
     [
         (["--tune", "clutter,birth_rate"], "unknown tunable parameter(s) clutter"),
-        (["--steps", "0"], "steps must be positive"),
+        (["--steps", "0"], "argument --steps: value must lie in [1, 1000000], got 0"),
         (["--frames", "50:10"], "frame"),
     ],
 )

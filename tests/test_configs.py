@@ -106,3 +106,74 @@ def test_registry_builds_every_tracker_and_shares_filters():
         tracker_entry("cmt")
     with pytest.raises(InputError, match="takes no context"):
         build_tracker(KalmanConfig(), INFO, context=object())
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"clutter_rate": 1e-50}, "clutter_rate = 1e-50 is not representable in float32"),
+        ({"detection_prob": 1e-300}, "detection_prob = 1e-300 is not representable"),
+        ({"motion_noise_std": [1e-45, 0.1, 0.1, 0.1]}, r"motion_noise_std\[0\] = 1e-45"),
+        ({"clutter_rate": 10**400}, r"clutter_rate must be finite, got 10000000000"),
+        ({"num_particles": 10**400}, r"num_particles must lie in \[1, 1048576\], got 1000"),
+        ({"max_gap": -(10**400)}, "max_gap must lie in"),
+    ],
+)
+def test_float32_and_huge_integers_are_input_errors(values, message):
+    with pytest.raises(InputError, match=message):
+        PHDConfig.from_dict(values)
+
+
+def test_config_file_nesting_and_huge_numbers(tmp_path):
+    path = tmp_path / "c.json"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(FileFormatError, match=r"c\.json: JSON nested too deeply"):
+        load_config_file(path, PHDConfig)
+    path.write_text('{"num_particles": ' + "9" * 5000 + "}")
+    with pytest.raises(FileFormatError, match=r"c\.json"):
+        load_config_file(path, PHDConfig)
+    path.write_text('{"birth_rate": 1e400}')  # JSON reads it as inf
+    with pytest.raises(FileFormatError, match="birth_rate must be finite"):
+        load_config_file(path, PHDConfig)
+    path.write_text('{"survival_prob": -Infinity}')
+    with pytest.raises(FileFormatError, match="-Infinity is not a number"):
+        load_config_file(path, PHDConfig)
+
+
+json_value = st.recursive(
+    st.one_of(
+        st.none(),
+        st.booleans(),
+        st.integers(-(10**30), 10**30),
+        st.floats(allow_nan=True, allow_infinity=True),
+        st.sampled_from([1e-46, 1e-39, 3.5e38, 1e39, 10**400, 2**31, 0.0, 1.0]),
+        st.text(max_size=4),
+    ),
+    lambda children: (
+        st.lists(children, max_size=5) | st.dictionaries(st.text(max_size=3), children, max_size=3)
+    ),
+    max_leaves=8,
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    values=st.dictionaries(
+        st.sampled_from([*sorted(PHDConfig.rules()), *sorted(KalmanConfig.rules())]), json_value
+    ),
+    tracker=st.sampled_from(sorted(TRACKERS)),
+)
+def test_any_json_config_file_loads_or_raises_file_format_error(tmp_path_factory, values, tracker):
+    """Written as JSON (NaN and Infinity included), read back: a config or FileFormatError."""
+    path = tmp_path_factory.mktemp("config") / "c.json"
+    path.write_text(json.dumps(values))
+    config_type = tracker_entry(tracker).config_type
+    try:
+        config = load_config_file(path, config_type)
+    except FileFormatError as err:
+        assert err.path == str(path)
+        return
+    for key, value in config.to_dict().items():
+        if isinstance(value, float):
+            assert math.isfinite(value) and (value == 0 or abs(value) >= 1.2e-38), key
+    assert config_type.from_dict(config.to_dict()) == config

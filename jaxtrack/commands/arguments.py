@@ -4,22 +4,96 @@
 FILE.json`` is always a tracker configuration, ``--quiet`` turns progress bars off and
 ``--json`` prints the results as one JSON object. Commands import each other's helpers only
 through this module (``load_config``, ``add_context_arguments``).
+
+Every numeric option is range-checked where it is parsed: ``type=ranged(RULE)`` with one of
+the rules below (or :mod:`jaxtrack.limits`'s ``FRAME_NUMBER``, ``FRAME_COUNT``,
+``FRAME_RATE``, ``SEED``); argparse names the option in the error and exits with status 2.
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from jaxtrack.configs import TrackerConfig, load_config_file
 from jaxtrack.errors import InputError
-from jaxtrack.filters.phd_tracker import VARIANTS
+from jaxtrack.filters.phd_tracker import MAX_BIRTHS_PER_DETECTION, MAX_PARTICLES, VARIANTS
 from jaxtrack.filters.registry import TRACKERS, tracker_entry
+from jaxtrack.limits import MAX_COORDINATE, MAX_FRAMES, SEED, Rule
+
+#: An IoU threshold (``--iou``, ``--iou-threshold``).
+IOU = Rule("IoU threshold", float, 0.0, 1.0, lower_open=True)
+#: A distance in pixels (``--centre-threshold``) or an OSPA cut-off (``--ospa-c``).
+DISTANCE = Rule("distance", float, 0.0, MAX_COORDINATE, lower_open=True)
+#: The OSPA/GOSPA order ``p`` (``--ospa-p``; ``d^p`` must stay finite).
+OSPA_ORDER = Rule("OSPA order", float, 1.0, 10.0)
+#: A number of frames that may be 0 (``--warmup``, ``--trail``).
+FRAMES_OR_NONE = Rule("frames", int, 0, MAX_FRAMES)
+#: Frames for a background model (``--train-frames``; at least 3).
+TRAIN_FRAMES = Rule("training frames", int, 3, MAX_FRAMES)
+#: Passes over learning events (``--birth-epochs``, ``--clutter-epochs``).
+EPOCHS = Rule("epochs", int, 1, 10_000)
+#: Optimiser steps (``--steps``) and patience (``--patience``, 0: never stop early).
+STEPS = Rule("steps", int, 1, 1_000_000)
+PATIENCE = Rule("steps", int, 0, 1_000_000)
+#: PRNG keys per tuning step (``--keys``).
+KEYS = Rule("keys", int, 1, 1024)
+#: Adam learning rate (``--learning-rate``).
+LEARNING_RATE = Rule("learning rate", float, 0.0, 100.0, lower_open=True)
+#: Particles (``--particles``) and birth particles per detection, as the tracker config's.
+PARTICLES = Rule("particles", int, 1, MAX_PARTICLES)
+BIRTHS_PER_DETECTION = Rule("birth particles per detection", int, 1, MAX_BIRTHS_PER_DETECTION)
+
+
+class UsageError(InputError):
+    """A bad command line (argparse's error), raised instead of printing the usage and exiting.
+
+    Attributes:
+        prog: the (sub-)command whose arguments are wrong, e.g. ``jaxtrack track``.
+    """
+
+    def __init__(self, prog: str, message: str):
+        self.prog = prog
+        super().__init__(f"{message} (see {prog} --help)")
+
+
+class CommandParser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors raise :class:`UsageError`, so that the CLI prints a bad
+    argument as one line and exits 2 like every other bad input (``--help`` still exits 0)."""
+
+    def error(self, message: str):
+        raise UsageError(self.prog, message)
+
+
+def ranged(rule: Rule) -> Callable[[str], int | float]:
+    """An argparse ``type=``: the option's text as an int or float that keeps ``rule``.
+
+    Raises (inside argparse):
+        argparse.ArgumentTypeError: not a number of the rule's kind, or out of its range;
+            argparse prints ``argument --OPTION: value must lie in [a, b], got x`` and exits 2.
+    """
+    kind = "an integer" if rule.kind is int else "a number"
+
+    def parse(text: str) -> int | float:
+        try:
+            value = int(text) if rule.kind is int else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"must be {kind} in {rule.interval()}, got {text[:40]!r}"
+            ) from None
+        try:
+            return rule.check("value", value)
+        except InputError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
+
+    parse.__name__ = rule.doc
+    return parse
+
 
 #: Help of ``--frames`` (every command).
 FRAMES_HELP = "frame span A:B (1-based, inclusive; A: or :B leave an end open)"
 #: Help of ``--seed`` (every command).
-SEED_HELP = "random seed (default 0)"
+SEED_HELP = f"random seed in [0, {SEED.upper}] (default 0)"
 #: Help of ``--config`` (every command).
 CONFIG_HELP = (
     "tracker configuration: a JSON object whose keys override the tracker's defaults "
@@ -31,6 +105,10 @@ QUIET_HELP = "no progress bars or step messages"
 JSON_HELP = "print the results as one JSON object instead of a table"
 
 
+#: The ``type=`` of ``--seed`` (every command): an integer in ``[0, 2^32 - 1]``.
+SEED_TYPE = ranged(SEED)
+
+
 def add_frames(parser: argparse.ArgumentParser) -> None:
     """Adds ``--frames A:B`` (read with :func:`jaxtrack.io.parse_frame_span`)."""
     parser.add_argument("--frames", metavar="A:B", help=FRAMES_HELP)
@@ -38,7 +116,7 @@ def add_frames(parser: argparse.ArgumentParser) -> None:
 
 def add_seed(parser: argparse.ArgumentParser) -> None:
     """Adds ``--seed N`` (default 0)."""
-    parser.add_argument("--seed", type=int, default=0, metavar="N", help=SEED_HELP)
+    parser.add_argument("--seed", type=SEED_TYPE, default=0, metavar="N", help=SEED_HELP)
 
 
 def add_out(

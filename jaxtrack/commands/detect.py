@@ -10,7 +10,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from jaxtrack.commands.arguments import add_frames, add_json, add_out, add_quiet
+from jaxtrack.commands.arguments import (
+    TRAIN_FRAMES,
+    add_frames,
+    add_json,
+    add_out,
+    add_quiet,
+    ranged,
+)
 from jaxtrack.commands.paths import (
     check_outputs,
     file_input,
@@ -22,6 +29,7 @@ from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.errors import InputError
 from jaxtrack.io import read_mot_file, write_mot_file
 from jaxtrack.io.video import VIDEO_EXTENSIONS, FrameWriter, VideoReader, annotate_frame
+from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.detection import detection_precision_recall
 
 DESCRIPTION = """\
@@ -74,13 +82,13 @@ def register(subparsers) -> None:
     add_frames(parser)
     parser.add_argument(
         "--fps",
-        type=float,
+        type=ranged(FRAME_RATE),
         metavar="F",
         help="frame rate of a --preview video (default: the input video's)",
     )
     parser.add_argument(
         "--train-frames",
-        type=int,
+        type=ranged(TRAIN_FRAMES),
         default=defaults.train_frames,
         metavar="N",
         help=f"frames for the background statistics (default {defaults.train_frames})",

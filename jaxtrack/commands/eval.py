@@ -29,7 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.commands.arguments import add_frames, add_json, refuse_ignored
+from jaxtrack.commands.arguments import (
+    DISTANCE,
+    IOU,
+    OSPA_ORDER,
+    add_frames,
+    add_json,
+    ranged,
+    refuse_ignored,
+)
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
@@ -92,13 +100,13 @@ def register(subparsers) -> None:
     add_json(parser)
     parser.add_argument(
         "--iou-threshold",
-        type=float,
+        type=ranged(IOU),
         metavar="T",
         help="minimum IoU of a match for CLEAR, identity and MODA/MODP (default 0.5)",
     )
     parser.add_argument(
         "--centre-threshold",
-        type=float,
+        type=ranged(DISTANCE),
         metavar="PIXELS",
         help="match by box-centre distance instead of IoU: boxes match when their centres are "
         "at most PIXELS apart (similarity 1 - d / (2 PIXELS); for point-like data)",
@@ -111,13 +119,17 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--ospa-c",
-        type=float,
+        type=ranged(DISTANCE),
         default=1.0,
         metavar="C",
         help="OSPA/GOSPA cut-off, in units of --ospa-distance (default 1)",
     )
     parser.add_argument(
-        "--ospa-p", type=float, default=1.0, metavar="P", help="OSPA/GOSPA order (default 1)"
+        "--ospa-p",
+        type=ranged(OSPA_ORDER),
+        default=1.0,
+        metavar="P",
+        help="OSPA/GOSPA order (default 1)",
     )
     parser.add_argument(
         "--ospa-distance",
@@ -143,11 +155,13 @@ def run(args) -> int:
     if args.benchmark or args.results:
         return _run_benchmark(args, config)
     gt_path, res_path, seqinfo_path = _single_inputs(args)
-    seq_length = read_seqinfo(seqinfo_path).seq_length if seqinfo_path else None
-    gt = read_mot_file(gt_path, "gt", seq_length)
-    result = read_mot_file(res_path, "res", seq_length)
-    last = seq_length or max(
-        int(np.max(gt.frames, initial=1)), int(np.max(result.frames, initial=1))
+    info = read_seqinfo(seqinfo_path) if seqinfo_path else None
+    gt = read_mot_file(gt_path, "gt", info=info)
+    result = read_mot_file(res_path, "res", info=info)
+    last = (
+        info.seq_length
+        if info
+        else max(int(np.max(gt.frames, initial=1)), int(np.max(result.frames, initial=1)))
     )
     first, last = parse_frame_span(args.frames, last)
     if args.frames is not None:
@@ -196,13 +210,13 @@ def _run_benchmark(args, config) -> int:
         raise FileFormatError(root, None, "no sequence folders (with seqinfo.ini) inside")
     evaluations = {}
     for name in sequences:
-        seq_length = read_seqinfo(root / name / "seqinfo.ini").seq_length
+        info = read_seqinfo(root / name / "seqinfo.ini")
         result_path = results_dir / f"{name}.txt"
         if not result_path.is_file():
             raise FileFormatError(result_path, None, f"no result file for sequence {name}")
-        gt = read_mot_file(root / name / "gt" / "gt.txt", "gt", seq_length)
-        result = read_mot_file(result_path, "res", seq_length)
-        evaluations[name] = evaluate_sequence(gt, result, (1, seq_length), config)
+        gt = read_mot_file(root / name / "gt" / "gt.txt", "gt", info=info)
+        result = read_mot_file(result_path, "res", info=info)
+        evaluations[name] = evaluate_sequence(gt, result, (1, info.seq_length), config)
     rows = {name: evaluation.scores() for name, evaluation in evaluations.items()}
     rows["COMBINED"] = combine_sequences(evaluations.values()).scores()
     if args.json:

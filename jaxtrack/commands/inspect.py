@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.commands.arguments import add_frames, add_json, refuse_ignored
+from jaxtrack.commands.arguments import IOU, add_frames, add_json, ranged, refuse_ignored
 from jaxtrack.io import load_sequence
 from jaxtrack.metrics.detection import detection_precision_recall
 
@@ -32,7 +32,7 @@ def register(subparsers) -> None:
     add_frames(parser)
     parser.add_argument(
         "--iou",
-        type=float,
+        type=ranged(IOU),
         help="IoU threshold for a detection to match the ground truth (default 0.5)",
     )
     add_json(parser)

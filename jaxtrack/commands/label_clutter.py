@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.commands.arguments import add_frames, add_out, add_seed
+from jaxtrack.commands.arguments import add_frames, add_out, add_seed, ranged
 from jaxtrack.commands.paths import (
     check_outputs,
     file_input,
@@ -20,6 +20,7 @@ from jaxtrack.context.clutter_labels import choose_frames, load_clutter_labels
 from jaxtrack.errors import InputError
 from jaxtrack.io import load_sequence
 from jaxtrack.io.video import VideoReader, find_frame_source
+from jaxtrack.limits import FRAME_COUNT
 from jaxtrack.plot.label_tool import label_interactively
 
 DEFAULT_NUM_FRAMES = 20
@@ -84,7 +85,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--num-frames",
-        type=int,
+        type=ranged(FRAME_COUNT),
         metavar="NUM",
         help=f"frames to label, drawn at random from A:B (default {DEFAULT_NUM_FRAMES})",
     )

@@ -10,11 +10,14 @@ from pathlib import Path
 from tqdm import tqdm
 
 from jaxtrack.commands.arguments import (
+    EPOCHS,
+    FRAMES_OR_NONE,
     add_frames,
     add_json,
     add_out,
     add_quiet,
     add_seed,
+    ranged,
     refuse_ignored,
 )
 from jaxtrack.commands.paths import (
@@ -33,6 +36,7 @@ from jaxtrack.detect.sequence import video_info, video_sequence
 from jaxtrack.errors import InputError
 from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.io.video import VideoReader
+from jaxtrack.limits import FRAME_RATE
 from jaxtrack.pipelines.context import learn_context
 from jaxtrack.plot.context import save_context_plots
 
@@ -102,7 +106,9 @@ def register(subparsers) -> None:
         "--detections", metavar="DET.txt", help="detections of the video given as SEQ_DIR"
     )
     parser.add_argument("--gt", metavar="GT.txt", help="ground truth of the video (gt sources)")
-    parser.add_argument("--fps", type=float, metavar="F", help="frame rate of the video")
+    parser.add_argument(
+        "--fps", type=ranged(FRAME_RATE), metavar="F", help="frame rate of the video"
+    )
     add_frames(parser)
     add_out(parser, "context file to write", metavar="CTX.npz")
     parser.add_argument(
@@ -127,21 +133,21 @@ def register(subparsers) -> None:
     add_seed(parser)
     parser.add_argument(
         "--birth-epochs",
-        type=int,
+        type=ranged(EPOCHS),
         default=BIRTH_EPOCHS,
         metavar="N",
         help=f"passes over the birth events (default {BIRTH_EPOCHS})",
     )
     parser.add_argument(
         "--clutter-epochs",
-        type=int,
+        type=ranged(EPOCHS),
         default=CLUTTER_EPOCHS,
         metavar="N",
         help=f"passes over the clutter events (default {CLUTTER_EPOCHS})",
     )
     parser.add_argument(
         "--warmup",
-        type=int,
+        type=ranged(FRAMES_OR_NONE),
         default=WARMUP_FRAMES,
         metavar="N",
         help=f"frames at the start of the span without births (default {WARMUP_FRAMES})",
@@ -265,7 +271,7 @@ def _video_sequence(args: argparse.Namespace):
     with VideoReader(args.sequence, fps=args.fps) as reader:
         info = video_info(reader)
     span = parse_frame_span(args.frames, info.seq_length)
-    detections = read_mot_file(args.detections, "det", info.seq_length)
+    detections = read_mot_file(args.detections, "det", info=info)
     return video_sequence(args.sequence, detections, span, info, args.gt), None
 
 

@@ -7,11 +7,12 @@ import dataclasses
 import json
 from pathlib import Path
 
-from jaxtrack.commands.arguments import add_out, add_seed, refuse_ignored
+from jaxtrack.commands.arguments import add_out, add_seed, ranged, refuse_ignored
 from jaxtrack.commands.paths import SCENE_FILES, check_outputs, file_input, output_folder
-from jaxtrack.datasets.scene_config import SceneConfig, config_from_dict, config_to_dict
+from jaxtrack.datasets.scene_config import SceneConfig, config_to_dict, load_scene_config
 from jaxtrack.datasets.synthetic import generate_scene, write_scene
 from jaxtrack.errors import InputError
+from jaxtrack.limits import FRAME_COUNT, FRAME_NUMBER
 from jaxtrack.plot.scene import save_scene_preview
 
 DESCRIPTION = """\
@@ -54,7 +55,7 @@ def register(subparsers) -> None:
     add_out(parser, "sequence folder to write (required; created if needed)", False, "DIR")
     parser.add_argument(
         "--num-frames",
-        type=int,
+        type=ranged(FRAME_COUNT),
         metavar="T",
         help="number of frames (default: the configuration's, 800)",
     )
@@ -69,7 +70,7 @@ def register(subparsers) -> None:
     parser.add_argument("--name", help="sequence name in seqinfo.ini (default: the folder's name)")
     parser.add_argument(
         "--preview-frame",
-        type=int,
+        type=ranged(FRAME_NUMBER),
         metavar="K",
         help="frame drawn in preview.png (default: the first frame with the most targets)",
     )
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = SceneConfig()
     if args.scene_config is not None:
-        config = config_from_dict(_read_json(args.scene_config), config)
+        config = load_scene_config(args.scene_config, config)
     if args.num_frames is not None:
         if args.num_frames < 1:
             raise InputError(f"--num-frames must be >= 1, got {args.num_frames}")
@@ -140,19 +141,3 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"  clutter {stats['clutter_per_frame']:.2f}/frame ({by_source})")
     return 0
-
-
-def _read_json(path: Path) -> dict:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"--scene-config {path}: cannot read ({err.strerror})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise InputError(
-            f"--scene-config {path}, line {err.lineno}: invalid JSON ({err.msg})"
-        ) from None
-    if not isinstance(data, dict):
-        raise InputError(f"--scene-config {path}: expected a JSON object of configuration fields")
-    return data

@@ -55,6 +55,7 @@ from jaxtrack.commands.arguments import (
     add_tracker,
     context_variant,
     load_config,
+    ranged,
     refuse_ignored,
 )
 from jaxtrack.commands.paths import (
@@ -74,6 +75,7 @@ from jaxtrack.filters.kalman import KALMAN_PRESETS
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import load_sequence, write_results
 from jaxtrack.io.video import VideoReader, find_frame_source
+from jaxtrack.limits import FRAME_NUMBER
 from jaxtrack.pipelines.tracking import (
     load_tracker_context,
     phd_frame_snapshot,
@@ -108,7 +110,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--figure-frame",
-        type=int,
+        type=ranged(FRAME_NUMBER),
         metavar="N",
         help="MOT frame number of --figure (default: the middle of the span)",
     )

@@ -13,6 +13,7 @@ from tqdm import tqdm
 
 from jaxtrack.commands.arguments import (
     DEFAULT_VARIANT,
+    FRAMES_OR_NONE,
     add_config,
     add_context_arguments,
     add_frames,
@@ -21,6 +22,7 @@ from jaxtrack.commands.arguments import (
     add_seed,
     context_variant,
     load_config,
+    ranged,
     refuse_ignored,
 )
 from jaxtrack.commands.paths import (
@@ -38,6 +40,7 @@ from jaxtrack.errors import InputError
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
+from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.pipelines.tracking import load_tracker_context, track_sequences, tracker_description
 from jaxtrack.plot.context import position_map
@@ -88,7 +91,9 @@ def register(subparsers) -> None:
     parser.add_argument("video", metavar="VIDEO", help="video file or folder of images")
     add_out(parser, "results to write", metavar="RES.txt")
     add_frames(parser)
-    parser.add_argument("--fps", type=float, metavar="F", help="frame rate (overrides the file's)")
+    parser.add_argument(
+        "--fps", type=ranged(FRAME_RATE), metavar="F", help="frame rate (overrides the file's)"
+    )
     parser.add_argument("--method", choices=METHODS, help=f"detector (default {DEFAULT_METHOD})")
     parser.add_argument(
         "--detections", metavar="DET.txt", help="track these detections instead of detecting"
@@ -105,7 +110,7 @@ def register(subparsers) -> None:
     parser.add_argument("--annotate", metavar="OUT.mp4", help="write the annotated frames")
     parser.add_argument(
         "--trail",
-        type=int,
+        type=ranged(FRAMES_OR_NONE),
         metavar="N",
         help=f"trail length in frames for --annotate (default {DEFAULT_TRAIL})",
     )
@@ -171,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
         info = video_info(reader)
         span = parse_frame_span(args.frames, reader.num_frames)
         if args.detections:
-            detections = read_mot_file(args.detections, "det", reader.num_frames)
+            detections = read_mot_file(args.detections, "det", info=info)
         else:
             config_detect = DetectorConfig(method=method, split=not args.no_split)
             found = detect_video(reader, span, config_detect, progress=not args.quiet)

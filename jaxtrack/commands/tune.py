@@ -7,6 +7,12 @@ import json
 from pathlib import Path
 
 from jaxtrack.commands.arguments import (
+    BIRTHS_PER_DETECTION,
+    KEYS,
+    LEARNING_RATE,
+    PARTICLES,
+    PATIENCE,
+    STEPS,
     add_config,
     add_frames,
     add_json,
@@ -14,6 +20,7 @@ from jaxtrack.commands.arguments import (
     add_quiet,
     add_seed,
     load_config,
+    ranged,
 )
 from jaxtrack.commands.paths import (
     check_outputs,
@@ -93,26 +100,33 @@ def register(subparsers) -> None:
         help=f"comma-separated parameters to tune, of {', '.join(TUNABLE)} "
         f"(default {','.join(CONFIG_TRAINABLE)})",
     )
-    parser.add_argument("--steps", type=int, default=60, help="most adam steps (default 60)")
-    parser.add_argument("--keys", type=int, default=2, help="PRNG keys per step (default 2)")
     parser.add_argument(
-        "--learning-rate", type=float, default=0.1, help="adam learning rate (default 0.1)"
+        "--steps", type=ranged(STEPS), default=60, help="most adam steps (default 60)"
+    )
+    parser.add_argument(
+        "--keys", type=ranged(KEYS), default=2, help="PRNG keys per step (default 2)"
+    )
+    parser.add_argument(
+        "--learning-rate",
+        type=ranged(LEARNING_RATE),
+        default=0.1,
+        help="adam learning rate (default 0.1)",
     )
     parser.add_argument(
         "--patience",
-        type=int,
+        type=ranged(PATIENCE),
         default=20,
         help="stop after this many steps without improvement (0: never; default 20)",
     )
     parser.add_argument(
         "--particles",
-        type=int,
+        type=ranged(PARTICLES),
         default=TUNING_PARTICLES,
         help=f"particles of the tuning filter (default {TUNING_PARTICLES})",
     )
     parser.add_argument(
         "--births-per-detection",
-        type=int,
+        type=ranged(BIRTHS_PER_DETECTION),
         default=TUNING_BIRTHS_PER_DETECTION,
         help=f"birth particles per detection while tuning (default {TUNING_BIRTHS_PER_DETECTION})",
     )

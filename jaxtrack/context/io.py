@@ -20,7 +20,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.context.intensity import Intensity
-from jaxtrack.errors import FileFormatError
+from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.limits import FLOAT32_MAX, MAX_COORDINATE, Rule, float32_trouble
+from jaxtrack.linalg import cholesky
+
+#: Largest magnitude (events per frame) of a context part: the tracker configuration's limit
+#: on its rates (:data:`jaxtrack.filters.phd_tracker.MAX_RATE`, 10^4).
+MAX_CONTEXT_MAGNITUDE = 1e4
+#: The rule of a magnitude recorded in the metadata (the A3-A5 variants track with it).
+MAGNITUDE = Rule("events per frame", float, 0.0, MAX_CONTEXT_MAGNITUDE)
 
 #: Version written into the metadata; :func:`load_context` reads versions up to this one.
 FORMAT_VERSION = 1
@@ -67,10 +75,15 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
         metadata dict (with ``format_version``).
 
     Raises:
-        FileFormatError: the file is missing, not an ``.npz`` archive, lacks a field, holds
-            invalid metadata, a newer format version, or an invalid intensity (inconsistent
-            shapes, non-finite values, magnitude < 0, ``pi_u`` outside ``[0, 1]``, an empty
-            volume, negative weights or live weights not summing to one).
+        FileFormatError: naming the file and the field, when the file is missing, not an
+            ``.npz`` archive, lacks a field, holds invalid metadata, a newer format version, or
+            an invalid intensity. The rules: a magnitude recorded in the metadata (``birth`` or
+            ``clutter`` ``magnitude``) in ``[0, 1e4]``; arrays of real numbers with consistent
+            shapes, finite and within float32; magnitude in ``[0, 1e4]`` events per frame (0 or a
+            normal float32); ``pi_u`` in ``[0, 1]``; ``lower``, ``upper`` and ``means`` within
+            ``+-2^20``; ``upper > lower`` on every axis in float32; weights ``>= 0`` with the
+            live ones summing to one; every covariance symmetric and positive definite in
+            float64 and in float32 (as the filters factor it).
     """
     path = Path(path)
     if not path.is_file():
@@ -93,6 +106,13 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
         raise FileFormatError(
             path, None, f"unsupported format_version {version!r} (this reader: {FORMAT_VERSION})"
         )
+    for prefix in PREFIXES:
+        recorded = metadata.get(prefix)
+        if isinstance(recorded, dict) and "magnitude" in recorded:
+            try:
+                MAGNITUDE.check(f"metadata_json {prefix}.magnitude", recorded["magnitude"])
+            except InputError as err:
+                raise FileFormatError(path, None, str(err)) from None
     intensities = []
     for prefix in PREFIXES:
         fields = {}
@@ -101,9 +121,9 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
             if name not in arrays:
                 raise FileFormatError(path, None, f"missing field {name!r}")
             fields[field] = arrays[name]
-        reason = _invalid_intensity(fields)
+        reason = _invalid_intensity(prefix, fields)
         if reason is not None:
-            raise FileFormatError(path, None, f"{prefix} intensity: {reason}")
+            raise FileFormatError(path, None, reason)
         intensities.append(
             Intensity(**{key: jnp.asarray(value, jnp.float32) for key, value in fields.items()})
         )
@@ -111,14 +131,17 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
     return birth, clutter, metadata
 
 
-def _invalid_intensity(fields: dict[str, np.ndarray]) -> str | None:
-    """Why the arrays do not form a valid :class:`Intensity`, or None when they do."""
+def _invalid_intensity(prefix: str, fields: dict[str, np.ndarray]) -> str | None:
+    """Why the arrays do not form a valid :class:`Intensity`, or None when they do.
+
+    The reason starts with the offending field's key in the file (e.g. ``birth_covs[2]``).
+    """
     lower = fields["lower"]
     if lower.ndim != 1:
-        return f"lower must be 1-D, got shape {lower.shape}"
+        return f"{prefix}_lower must be 1-D, got shape {lower.shape}"
     weights = fields["weights"]
     if weights.ndim != 1 or weights.shape[0] < 1:
-        return f"weights must be 1-D and non-empty, got shape {weights.shape}"
+        return f"{prefix}_weights must be 1-D and non-empty, got shape {weights.shape}"
     dim, num = lower.shape[0], weights.shape[0]
     expected = {
         "magnitude": (),
@@ -129,20 +152,61 @@ def _invalid_intensity(fields: dict[str, np.ndarray]) -> str | None:
     }
     for field, shape in expected.items():
         if fields[field].shape != shape:
-            return f"{field} has shape {fields[field].shape}, expected {shape} (dim {dim})"
+            return f"{prefix}_{field} has shape {fields[field].shape}, expected {shape} (dim {dim})"
     for field, value in fields.items():
-        if not np.issubdtype(value.dtype, np.number) or not np.all(np.isfinite(value)):
-            return f"{field} must be finite numbers"
-    if fields["magnitude"] < 0:
-        return "magnitude must be >= 0"
-    if not 0 <= fields["uniform_weight"] <= 1:
-        return "uniform_weight must lie in [0, 1]"
-    if not np.all(fields["upper"] > lower):
-        return "upper must exceed lower on every axis"
+        if not np.issubdtype(value.dtype, np.number) or np.iscomplexobj(value):
+            return f"{prefix}_{field} must hold real numbers, got dtype {value.dtype}"
+        if not np.all(np.isfinite(value)):
+            return f"{prefix}_{field} must be finite"
+        if np.any(np.abs(value.astype(np.float64)) > FLOAT32_MAX):
+            return f"{prefix}_{field} holds values beyond float32 (|v| > 3.4e38)"
+    fields = {field: value.astype(np.float64) for field, value in fields.items()}
+    magnitude, uniform_weight = float(fields["magnitude"]), float(fields["uniform_weight"])
+    if not 0 <= magnitude <= MAX_CONTEXT_MAGNITUDE or float32_trouble(magnitude):
+        return (
+            f"{prefix}_magnitude must lie in [0, {MAX_CONTEXT_MAGNITUDE:g}] events per frame "
+            f"(0 or >= 1.2e-38), got {magnitude:g}"
+        )
+    if not 0 <= uniform_weight <= 1:
+        return f"{prefix}_uniform_weight must lie in [0, 1], got {uniform_weight:g}"
+    for field in ("lower", "upper", "means"):
+        if np.any(np.abs(fields[field]) > MAX_COORDINATE):
+            return f"{prefix}_{field} must lie within +-2^20, got {np.abs(fields[field]).max():g}"
+    upper32, lower32 = fields["upper"].astype(np.float32), lower.astype(np.float32)
+    if not np.all(upper32 > lower32):
+        return f"{prefix}_upper must exceed {prefix}_lower on every axis (in float32)"
     if np.any(weights < 0):
-        return "weights must be >= 0"
-    if fields["uniform_weight"] < 1 and not np.isclose(weights.sum(), 1.0, atol=1e-4):
-        return f"live weights must sum to 1, got {weights.sum()}"
+        return f"{prefix}_weights must be >= 0"
+    total = fields["weights"].sum()
+    if uniform_weight < 1 and not np.isclose(total, 1.0, atol=1e-4):
+        return f"{prefix}_weights: live weights must sum to 1, got {total}"
+    for m, cov in enumerate(fields["covs"]):
+        reason = _invalid_covariance(cov)
+        if reason is not None:
+            return f"{prefix}_covs[{m}] {reason}"
+    return None
+
+
+def _invalid_covariance(cov: np.ndarray) -> str | None:
+    """Why ``cov`` is no covariance the filters can factor, or None.
+
+    It must be symmetric (to a relative 1e-5) and positive definite both in float64
+    (``numpy.linalg.cholesky``) and in float32 as the filters factor it
+    (:func:`jaxtrack.linalg.cholesky`, with a finite log-determinant).
+    """
+    scale = np.abs(cov).max()
+    if np.any(np.abs(cov - cov.T) > 1e-5 * scale):
+        return "is not symmetric"
+    try:
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        return "is not positive definite"
+    factor = np.asarray(cholesky(jnp.asarray(cov, jnp.float32)))
+    pivots = np.diagonal(factor)
+    if not (np.all(np.isfinite(factor)) and np.all(pivots > 0)):
+        return "is not positive definite in float32 (too ill-conditioned)"
+    if not np.isfinite(np.sum(np.log(pivots.astype(np.float32)))):
+        return "has a log-determinant beyond float32"
     return None
 
 

@@ -9,32 +9,118 @@ clutter, with about ten targets in view.
 
 Units: positions and sizes in pixels, velocities in pixels/frame, rates in expected events
 per frame. A configuration round-trips through JSON with :func:`config_to_dict` and
-:func:`config_from_dict` (the latter also applies partial overrides to a base config).
-Invalid values raise :class:`jaxtrack.errors.InputError`.
+:func:`config_from_dict` (the latter also applies partial overrides to a base config);
+:func:`load_scene_config` reads a JSON file.
+
+Every numeric field has one rule (:data:`SCENE_RULES`, :data:`ZONE_RULES`,
+:data:`SOURCE_RULES`; :class:`jaxtrack.limits.Rule`: finite, float32-representable, in its
+range). The ranges keep a simulation finite and its output readable by jaxtrack's own readers:
+``num_frames`` and frame counts at most 10^6, image sides ``16..65536``, frame rate
+``1..1000``, ``birth_rate <= 10`` births per frame, false detections at most 100 per frame
+(uniform and sources together), at most 100 zones and 100 sources, coordinates within
+``+-2^20`` pixels, standard deviations at least 1/1000 (the written boxes are rounded to
+1/1000 pixel), box sizes at least 1 pixel and ``max_box_size`` (and the perspective law's
+boxes at the image bottom) at most 10 image sizes, relative noises in ``[0, 1]``,
+``|size_correlation| <= 0.99`` (the birth covariances stay positive definite in float32).
+Invalid values raise :class:`jaxtrack.errors.InputError` naming the field.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import types
 import typing
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
-from jaxtrack.errors import InputError
+from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.limits import (
+    FRAME_COUNT,
+    FRAME_RATE,
+    IMAGE_FACTOR,
+    IMAGE_SIZE,
+    MAX_COORDINATE,
+    MAX_FRAMES,
+    MIN_BOX_SIZE,
+    Rule,
+)
 
 Pair = tuple[float, float]
 
 
-def _check_finite(name: str, values) -> None:
-    if not all(math.isfinite(v) for v in values):
-        raise InputError(f"{name} must be finite, got {values}")
+#: Largest expected births per frame of a scene (about 10 * the mean lifetime targets in view).
+MAX_BIRTH_RATE = 10.0
+#: Largest expected false detections per frame of a scene (uniform and sources together).
+MAX_CLUTTER_RATE = 100.0
+#: Most entry zones, and most clutter sources, of a scene.
+MAX_PARTS = 100
+#: Smallest standard deviation of a position, size or velocity: the written boxes are rounded
+#: to 1/1000 pixel, so a smaller spread is not a spread.
+MIN_STD = 1e-3
+
+_COORDINATE = Rule("pixels", float, -MAX_COORDINATE, MAX_COORDINATE)
+_COORDINATES = Rule("pixels", tuple, -MAX_COORDINATE, MAX_COORDINATE, length=2)
+_STDS = Rule("standard deviations", tuple, MIN_STD, MAX_COORDINATE, length=2)
+_FRACTION = Rule("a probability or fraction", float, 0.0, 1.0)
+_NOISES = Rule("relative noise levels", tuple, 0.0, 1.0, length=2)
+_BOX_SIZES = Rule("box width and height, pixels", tuple, MIN_BOX_SIZE, MAX_COORDINATE, length=2)
+_BETA = Rule("Beta distribution parameters", tuple, 0.01, 1000.0, length=2)
+
+#: The rule of every numeric field of :class:`EntryZone`.
+ZONE_RULES: dict[str, Rule] = {
+    "centre": _COORDINATES,
+    "position_std": _STDS,
+    "velocity": _COORDINATES,
+    "velocity_std": _STDS,
+    "weight": Rule("relative share of the births", float, 0.0, 1e6, lower_open=True),
+}
+#: The rule of every numeric field of :class:`ClutterSource`.
+SOURCE_RULES: dict[str, Rule] = {
+    "centre": _COORDINATES,
+    "position_std": _STDS,
+    "size": _BOX_SIZES,
+    "size_std": _STDS,
+    "rate": Rule("false detections per frame", float, 0.0, MAX_CLUTTER_RATE),
+}
+#: The rule of every numeric field of :class:`SceneConfig` (cross-field rules: see there).
+SCENE_RULES: dict[str, Rule] = {
+    "num_frames": FRAME_COUNT,
+    "image_width": IMAGE_SIZE,
+    "image_height": IMAGE_SIZE,
+    "frame_rate": FRAME_RATE,
+    "burn_in_frames": Rule("frames simulated before frame 1", int, 0, MAX_FRAMES),
+    "birth_rate": Rule("births per frame", float, 0.0, MAX_BIRTH_RATE),
+    "horizon_row": _COORDINATE,
+    "height_per_row": Rule("pixels of height per row", float, 0.0, 100.0, lower_open=True),
+    "aspect_ratio": Rule("width / height", float, 0.01, 100.0),
+    "size_spread": Rule("relative size spread", float, 0.0, 1.0, lower_open=True),
+    "size_correlation": Rule("correlation", float, -0.99, 0.99),
+    "motion_noise": _NOISES,
+    "size_noise": _NOISES,
+    "size_reversion": _FRACTION,
+    "exit_radius": Rule("standard deviations", float, 0.0, 100.0, lower_open=True),
+    "min_exit_age": Rule("frames", int, 0, MAX_FRAMES),
+    "detection_prob": _FRACTION,
+    "occluded_detection_prob": _FRACTION,
+    "occlusion_threshold": _FRACTION,
+    "measurement_noise": _NOISES,
+    "uniform_clutter_rate": Rule("false detections per frame", float, 0.0, MAX_CLUTTER_RATE),
+    "min_box_size": _BOX_SIZES,
+    "max_box_size": _BOX_SIZES,
+    "velocity_bound": Rule("pixels per frame", float, 0.0, MAX_COORDINATE, lower_open=True),
+    "target_score": _BETA,
+    "clutter_score": _BETA,
+}
 
 
-def _check_positive(name: str, values) -> None:
-    if not all(math.isfinite(v) and v > 0 for v in values):
-        raise InputError(f"{name} must be positive, got {values}")
+def _apply_rules(instance, rules: dict[str, Rule], where: str) -> None:
+    """Checks (and normalises: ints, floats, tuples) every ruled field of a frozen dataclass."""
+    for field, rule in rules.items():
+        value = rule.check(f"{where}{field}", getattr(instance, field))
+        object.__setattr__(instance, field, value)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,12 +153,7 @@ class EntryZone:
     exit: bool = False
 
     def __post_init__(self) -> None:
-        _check_positive(f"zone {self.name!r} position_std", self.position_std)
-        _check_positive(f"zone {self.name!r} velocity_std", self.velocity_std)
-        _check_finite(f"zone {self.name!r} centre", self.centre)
-        _check_finite(f"zone {self.name!r} velocity", self.velocity)
-        if not (math.isfinite(self.weight) and self.weight > 0):
-            raise InputError(f"zone {self.name!r} weight must be positive, got {self.weight}")
+        _apply_rules(self, ZONE_RULES, f"zone {self.name!r} ")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -100,12 +181,7 @@ class ClutterSource:
     rate: float
 
     def __post_init__(self) -> None:
-        _check_finite(f"clutter source {self.name!r} centre", self.centre)
-        _check_positive(f"clutter source {self.name!r} position_std", self.position_std)
-        _check_positive(f"clutter source {self.name!r} size", self.size)
-        _check_positive(f"clutter source {self.name!r} size_std", self.size_std)
-        if not (math.isfinite(self.rate) and self.rate >= 0):
-            raise InputError(f"clutter source {self.name!r} rate must be >= 0, got {self.rate}")
+        _apply_rules(self, SOURCE_RULES, f"clutter source {self.name!r} ")
 
 
 DEFAULT_ZONES: tuple[EntryZone, ...] = (
@@ -203,46 +279,42 @@ class SceneConfig:
     clutter_score: Pair = (3.0, 3.0)
 
     def __post_init__(self) -> None:
-        for field in ("num_frames", "image_width", "image_height"):
-            if getattr(self, field) < 1:
-                raise InputError(f"{field} must be >= 1, got {getattr(self, field)}")
-        for field in ("burn_in_frames", "min_exit_age"):
-            if getattr(self, field) < 0:
-                raise InputError(f"{field} must be >= 0, got {getattr(self, field)}")
-        for field in ("frame_rate", "height_per_row", "aspect_ratio", "exit_radius"):
-            _check_positive(field, (getattr(self, field),))
-        _check_positive("size_spread", (self.size_spread,))
-        for field in ("birth_rate", "uniform_clutter_rate"):
-            value = getattr(self, field)
-            if not (math.isfinite(value) and value >= 0):
-                raise InputError(f"{field} must be >= 0, got {value}")
-        for field in (
-            "detection_prob",
-            "occluded_detection_prob",
-            "occlusion_threshold",
-            "size_reversion",
-        ):
-            value = getattr(self, field)
-            if not 0 <= value <= 1:
-                raise InputError(f"{field} must lie in [0, 1], got {value}")
-        if not -1 < self.size_correlation < 1:
-            raise InputError(f"size_correlation must lie in (-1, 1), got {self.size_correlation}")
-        for field in ("motion_noise", "size_noise", "measurement_noise"):
-            value = getattr(self, field)
-            if not all(math.isfinite(v) and v >= 0 for v in value):
-                raise InputError(f"{field} must be >= 0, got {value}")
-        for field in ("min_box_size", "max_box_size", "target_score", "clutter_score"):
-            _check_positive(field, getattr(self, field))
-        _check_positive("velocity_bound", (self.velocity_bound,))
+        _apply_rules(self, SCENE_RULES, "")
+        width, height = self.image_width, self.image_height
         if not all(lo < hi for lo, hi in zip(self.min_box_size, self.max_box_size, strict=True)):
             raise InputError(
                 f"min_box_size {self.min_box_size} must be below max_box_size {self.max_box_size}"
             )
+        if self.max_box_size[0] > IMAGE_FACTOR * width or self.max_box_size[1] > (
+            IMAGE_FACTOR * height
+        ):
+            raise InputError(
+                f"max_box_size {self.max_box_size} exceeds {IMAGE_FACTOR} times the "
+                f"{width}x{height} image"
+            )
+        bottom_height = self.height_per_row * (height - self.horizon_row)
+        if bottom_height > IMAGE_FACTOR * height or (
+            self.aspect_ratio * bottom_height > IMAGE_FACTOR * width
+        ):
+            raise InputError(
+                f"the perspective law gives {self.aspect_ratio * bottom_height:g}x"
+                f"{bottom_height:g} boxes at the image bottom, more than {IMAGE_FACTOR} times "
+                f"the {width}x{height} image; lower height_per_row or the horizon_row"
+            )
+        if self.total_clutter_rate > MAX_CLUTTER_RATE:
+            raise InputError(
+                f"uniform_clutter_rate plus the clutter sources' rates is "
+                f"{self.total_clutter_rate:g} false detections per frame; at most "
+                f"{MAX_CLUTTER_RATE:g}"
+            )
+        for field in ("zones", "clutter_sources"):
+            if len(getattr(self, field)) > MAX_PARTS:
+                raise InputError(f"{field}: at most {MAX_PARTS}, got {len(getattr(self, field))}")
         if not self.zones and self.birth_rate > 0:
             raise InputError("birth_rate > 0 needs at least one entry zone")
         for zone in self.zones:
             y1, y2 = zone.centre
-            if not (0 <= y1 <= self.image_width and 0 <= y2 <= self.image_height):
+            if not (0 <= y1 <= width and 0 <= y2 <= height):
                 raise InputError(f"zone {zone.name!r} centre {zone.centre} lies outside the image")
             if self.height_per_row * (y2 - self.horizon_row) < self.min_box_size[1]:
                 raise InputError(
@@ -288,6 +360,51 @@ def config_from_dict(overrides: Mapping[str, Any], base: SceneConfig | None = No
         InputError: an unknown field, a value of the wrong type or shape, or an invalid value.
     """
     return _from_plain(SceneConfig, overrides, base or SceneConfig(), "config")
+
+
+def load_scene_config(path: str | Path, base: SceneConfig | None = None) -> SceneConfig:
+    """Reads a JSON object of scene fields (``simulate --scene-config``) over ``base``.
+
+    Args:
+        path: the JSON file.
+        base: the configuration overridden; default: ``SceneConfig()``.
+
+    Returns:
+        The validated configuration.
+
+    Raises:
+        FileFormatError: naming the file (and the line of a JSON error), for a missing or
+            unreadable file, invalid JSON, NaN or Infinity, JSON nested too deeply, something
+            other than an object, or a field breaking its rule (named).
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
+    except OSError as err:
+        raise FileFormatError(path, None, f"cannot read ({err.strerror})") from None
+    except UnicodeDecodeError:
+        raise FileFormatError(path, None, "not a UTF-8 text file") from None
+    except RecursionError:
+        raise FileFormatError(path, None, "JSON nested too deeply") from None
+    except json.JSONDecodeError as err:
+        raise FileFormatError(path, err.lineno, f"invalid JSON ({err.msg})") from None
+    except ValueError as err:
+        raise FileFormatError(path, None, str(err)) from None
+    if not isinstance(data, dict):
+        raise FileFormatError(path, None, "expected a JSON object of scene configuration fields")
+    try:
+        return config_from_dict(data, base)
+    except InputError as err:
+        raise FileFormatError(path, None, str(err)) from None
+
+
+def _no_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a number a scene configuration accepts")
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:30]}...({len(text)} characters)"
 
 
 def _to_plain(value):
@@ -343,17 +460,15 @@ def _convert(annotation, raw, where: str):
             raise InputError(f"{where} must be true or false, got {raw!r}")
         return raw
     if annotation is int:
-        if (
-            isinstance(raw, bool)
-            or not isinstance(raw, (int, float))
-            or not float(raw).is_integer()
-        ):
-            raise InputError(f"{where} must be an integer, got {raw!r}")
-        return int(raw)
+        if isinstance(raw, float) and math.isfinite(raw) and raw.is_integer():
+            return int(raw)
+        if isinstance(raw, bool) or not isinstance(raw, int):
+            raise InputError(f"{where} must be an integer, got {_short(raw)}")
+        return raw
     if annotation is float:
         if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-            raise InputError(f"{where} must be a number, got {raw!r}")
-        return float(raw)
+            raise InputError(f"{where} must be a number, got {_short(raw)}")
+        return raw  # the field's rule checks the range (and finiteness)
     if annotation is str:
         if not isinstance(raw, str):
             raise InputError(f"{where} must be a string, got {raw!r}")

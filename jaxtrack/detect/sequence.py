@@ -51,7 +51,7 @@ def video_sequence(
     ground_truth = None
     if gt is not None:
         if not isinstance(gt, MotTable):
-            gt = read_mot_file(gt, "gt", info.seq_length)
+            gt = read_mot_file(gt, "gt", info=info)
         gt_table = gt.frame_span(first, last)
         ground_truth = pad_ground_truth(gt_table, first, num_frames)
     return MotSequence(

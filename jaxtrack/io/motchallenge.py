@@ -14,12 +14,27 @@ into the fixed-capacity PyTrees of :mod:`jaxtrack.types` that a ``lax.scan`` con
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Sequence as SequenceABC
 from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.errors import FileFormatError, InputError, InputWarning
+from jaxtrack.limits import (
+    FRAME_COUNT,
+    FRAME_RATE,
+    IMAGE_FACTOR,
+    IMAGE_SIZE,
+    MAX_ASPECT_RATIO,
+    MAX_COORDINATE,
+    MAX_FRAMES,
+    MAX_ID,
+    MAX_SCORE,
+    MIN_BOX_SIZE,
+    Rule,
+    float32_trouble,
+)
 from jaxtrack.types import PAD_BOX, Detections, GroundTruth, MotTable, SequenceInfo
 
 MIN_COLUMNS = 7
@@ -59,6 +74,12 @@ class MotSequence:
 def read_seqinfo(path: str | Path) -> SequenceInfo:
     """Parses a ``seqinfo.ini`` file.
 
+    Rules (:mod:`jaxtrack.limits`): ``seqLength`` an integer in ``[1, MAX_FRAMES]``
+    (10^6), ``imWidth`` and ``imHeight`` integers in ``[16, 65536]``, ``frameRate`` (optional)
+    a number in ``[1, 1000]``; the first bad line is reported. An image more than
+    :data:`~jaxtrack.limits.MAX_ASPECT_RATIO` (10) times wider than high, or higher than wide,
+    gives an :class:`~jaxtrack.errors.InputWarning`.
+
     Args:
         path: path of the file.
 
@@ -66,8 +87,9 @@ def read_seqinfo(path: str | Path) -> SequenceInfo:
         The sequence information.
 
     Raises:
-        FileFormatError: the file is missing, has no ``[Sequence]`` section, a malformed line,
-            or a missing / non-numeric / non-positive ``seqLength``, ``imWidth``, ``imHeight``.
+        FileFormatError: naming the file (and the line), when the file is missing, has no
+            ``[Sequence]`` section, a malformed line, a missing ``seqLength``, ``imWidth`` or
+            ``imHeight``, or a value breaking its rule.
     """
     path = Path(path)
     text = _read_text(path)
@@ -91,39 +113,42 @@ def read_seqinfo(path: str | Path) -> SequenceInfo:
     if section is None and not values:
         raise FileFormatError(path, None, "no [Sequence] section")
 
-    def integer(key: str) -> int:
-        if key not in values:
-            raise FileFormatError(path, None, f"missing key {key!r} in [Sequence]")
+    def checked(key: str, rule: Rule, parse):
         value, number = values[key]
         try:
-            parsed = int(value)
+            parsed = parse(value)
         except ValueError:
+            kind = "an integer" if rule.kind is int else "a number"
             raise FileFormatError(
-                path, number, f"{key} must be a positive integer, got {value!r}"
+                path, number, f"{key} must be {kind} in {rule.interval()}, got {value[:40]!r}"
             ) from None
-        if parsed <= 0:
-            raise FileFormatError(path, number, f"{key} must be a positive integer, got {value}")
-        return parsed
-
-    frame_rate = None
-    if "frameRate" in values:
-        value, number = values["frameRate"]
         try:
-            frame_rate = float(value)
-        except ValueError:
-            raise FileFormatError(
-                path, number, f"frameRate must be a number, got {value!r}"
-            ) from None
-        if not np.isfinite(frame_rate) or frame_rate <= 0:
-            raise FileFormatError(path, number, f"frameRate must be positive, got {value}")
+            return rule.check(key, parsed)
+        except InputError as err:
+            raise FileFormatError(path, number, str(err)) from None
+
+    for key in ("seqLength", "imWidth", "imHeight"):
+        if key not in values:
+            raise FileFormatError(path, None, f"missing key {key!r} in [Sequence]")
+    rules = {
+        "seqLength": (FRAME_COUNT, int),
+        "imWidth": (IMAGE_SIZE, int),
+        "imHeight": (IMAGE_SIZE, int),
+        "frameRate": (FRAME_RATE, float),
+    }
+    present = sorted((key for key in rules if key in values), key=lambda key: values[key][1])
+    parsed = {key: checked(key, *rules[key]) for key in present}  # the first bad line first
+    width, height = parsed["imWidth"], parsed["imHeight"]
+    if max(width, height) > MAX_ASPECT_RATIO * min(width, height):
+        warnings.warn(
+            InputWarning(
+                f"{path}: a {width}x{height} image is more than {MAX_ASPECT_RATIO} times wider "
+                "than high (or higher than wide); are imWidth and imHeight right?"
+            ),
+            stacklevel=2,
+        )
     name = values["name"][0] if "name" in values else path.parent.name
-    return SequenceInfo(
-        name=name,
-        seq_length=integer("seqLength"),
-        im_width=integer("imWidth"),
-        im_height=integer("imHeight"),
-        frame_rate=frame_rate,
-    )
+    return SequenceInfo(name, parsed["seqLength"], width, height, parsed.get("frameRate"))
 
 
 def write_seqinfo(path: str | Path, info: SequenceInfo) -> None:
@@ -144,14 +169,32 @@ def read_mot_file(
     path: str | Path,
     kind: str = "det",
     seq_length: int | None = None,
+    info: SequenceInfo | None = None,
 ) -> MotTable:
     """Reads a MOTChallenge text file, validating every row.
 
+    The rules (one per column, :mod:`jaxtrack.limits`; absolute ones always, image-relative
+    ones when ``info`` gives the image size):
+
+    * frame: an integer in ``[1, MAX_FRAMES]`` (10^6), and in ``[1, seq_length]`` when known;
+    * id: an integer; det: in ``[-1, 2^31 - 1]``; gt and res: in ``[0, 2^31 - 1]`` (-1 marks
+      padded slots), not repeated within a frame;
+    * every real column (x, y, w, h, conf, extra): finite, ``|v| <= 3.4e38`` and 0 or
+      ``|v| >= 1.2e-38`` (representable in float32, to which boxes and scores are cast);
+    * ``|x|, |y| <= 2^20``; det and gt: ``w, h`` in ``[1, 2^20]`` pixels; res: ``w, h`` in
+      ``(0, 2^20]``; ``|conf| <= 1e6``;
+    * with an image of ``W x H``: ``w <= 10 W``, ``h <= 10 H``, ``x`` in ``[-10 W, 11 W]``,
+      ``y`` in ``[-10 H, 11 H]``.
+
+    Warnings (:class:`~jaxtrack.errors.InputWarning`): every box lies outside the image; a
+    det file with scores outside ``[0, 1]``.
+
     Args:
         path: ``det.txt``, ``gt.txt`` or a tracker result file.
-        kind: ``"det"``, ``"gt"`` or ``"res"``. Ground truth and results must not repeat an id
-            within a frame.
+        kind: ``"det"``, ``"gt"`` or ``"res"``.
         seq_length: when given, every frame number must lie in ``1..seq_length``.
+        info: the sequence (or video) information: its ``seq_length`` (unless
+            ``seq_length`` is given) and image size apply.
 
     Returns:
         The rows as a :class:`MotTable`, in file order.
@@ -159,11 +202,12 @@ def read_mot_file(
     Raises:
         FileFormatError: naming the file and line, for a missing file, a row with fewer than 7
             or more than 10 columns (or a different count than the first row), a non-numeric
-            field, NaN or inf, a non-integer frame or id, a non-positive width or height, a frame
-            outside ``1..seq_length``, or (gt/res) a repeated ``(frame, id)``.
+            field, or a value breaking its rule.
     """
     if kind not in ("det", "gt", "res"):
         raise ValueError(f"kind must be 'det', 'gt' or 'res', got {kind!r}")
+    if seq_length is None and info is not None:
+        seq_length = info.seq_length
     path = Path(path)
     text = _read_text(path)
     rows: list[list[float]] = []
@@ -196,7 +240,7 @@ def read_mot_file(
             bad = next(f for f in fields if not _is_float(f))
             column = fields.index(bad) + 1
             raise FileFormatError(
-                path, number, f"column {column} is not a number: {bad!r}"
+                path, number, f"column {column} is not a number: {bad[:40]!r}"
             ) from None
         rows.append(values)
         line_numbers.append(number)
@@ -204,6 +248,17 @@ def read_mot_file(
     data = np.array(rows, dtype=np.float64).reshape(len(rows), num_columns or MAX_COLUMNS)
     lines = np.array(line_numbers, dtype=np.int64)
     _validate_rows(path, data, lines, kind, seq_length)
+    if info is not None:
+        _validate_image(path, data, lines, info)
+    if kind == "det" and np.any((data[:, 6] < 0) | (data[:, 6] > 1)):
+        i = int(np.argmax((data[:, 6] < 0) | (data[:, 6] > 1)))
+        warnings.warn(
+            InputWarning(
+                f"{path}, line {lines[i]}: detection score {data[i, 6]:g} outside [0, 1] "
+                "(the trackers' score thresholds assume probabilities)"
+            ),
+            stacklevel=2,
+        )
     return MotTable(
         frames=data[:, 0].astype(np.int64),
         ids=data[:, 1].astype(np.int64),
@@ -215,24 +270,75 @@ def read_mot_file(
     )
 
 
+_COLUMN_NAMES = ("frame", "id", "x", "y", "w", "h", "conf")
+
+
+def _fail(path, data, lines, bad: np.ndarray, reason) -> None:
+    """Raises for the first row (in file order) where ``bad`` holds; ``reason(i)`` says why."""
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise FileFormatError(path, int(lines[i]), reason(i))
+
+
 def _validate_rows(path, data, lines, kind, seq_length) -> None:
-    def fail(bad: np.ndarray, reason) -> None:
-        if np.any(bad):
-            i = int(np.argmax(bad))
-            raise FileFormatError(path, int(lines[i]), reason(i))
+    """The absolute rules of :func:`read_mot_file` (see there)."""
+
+    def fail(bad, reason):
+        _fail(path, data, lines, bad, reason)
 
     fail(~np.isfinite(data).all(axis=1), lambda i: f"NaN or inf value in {_row_text(data[i])}")
-    fail(
-        data[:, 0] != np.round(data[:, 0]),
-        lambda i: f"frame must be an integer, got {data[i, 0]:g}",
+    frames, ids = data[:, 0], data[:, 1]
+    last = MAX_FRAMES if seq_length is None else min(seq_length, MAX_FRAMES)
+    limit = (
+        "seqLength"
+        if seq_length is not None and seq_length <= MAX_FRAMES
+        else f"at most {MAX_FRAMES:,} frames"
     )
-    fail(data[:, 1] != np.round(data[:, 1]), lambda i: f"id must be an integer, got {data[i, 1]:g}")
-    fail(data[:, 4] <= 0, lambda i: f"width must be positive, got {data[i, 4]:g}")
-    fail(data[:, 5] <= 0, lambda i: f"height must be positive, got {data[i, 5]:g}")
-    upper = np.inf if seq_length is None else seq_length
+    fail(frames != np.round(frames), lambda i: f"frame must be an integer, got {frames[i]:g}")
     fail(
-        (data[:, 0] < 1) | (data[:, 0] > upper),
-        lambda i: f"frame {data[i, 0]:g} outside 1..{seq_length if seq_length else 'inf'}",
+        (frames < 1) | (frames > last),
+        lambda i: f"frame {frames[i]:g} outside 1..{last} ({limit})",
+    )
+    fail(ids != np.round(ids), lambda i: f"id must be an integer, got {ids[i]:g}")
+    lowest_id = -1 if kind == "det" else 0
+    fail(
+        (ids < lowest_id) | (ids > MAX_ID),
+        lambda i: f"{kind} id must lie in [{lowest_id}, {MAX_ID}] (int32), got {ids[i]:g}",
+    )
+    trouble = float32_trouble(data[:, 2:])
+    fail(
+        trouble.any(axis=1),
+        lambda i: (
+            f"{_column_name(2 + int(np.argmax(trouble[i])))} = "
+            f"{data[i, 2 + int(np.argmax(trouble[i]))]:g} is not representable in float32 "
+            "(|v| <= 3.4e38 and 0 or |v| >= 1.2e-38)"
+        ),
+    )
+    for column in (4, 5):
+        name = _COLUMN_NAMES[column]
+        if kind == "res":
+            fail(
+                data[:, column] <= 0,
+                lambda i, c=column, n=name: f"{n} must be positive, got {data[i, c]:g}",
+            )
+        else:
+            fail(
+                data[:, column] < MIN_BOX_SIZE,
+                lambda i, c=column, n=name: (
+                    f"{n} {data[i, c]:g} is below {MIN_BOX_SIZE:g} pixel "
+                    "(boxes are in pixels, not normalised)"
+                ),
+            )
+    for column in (2, 3, 4, 5):
+        fail(
+            np.abs(data[:, column]) > MAX_COORDINATE,
+            lambda i, c=column: (
+                f"{_COLUMN_NAMES[c]} {data[i, c]:g} is beyond 2^20 = {MAX_COORDINATE:.0f} pixels"
+            ),
+        )
+    fail(
+        np.abs(data[:, 6]) > MAX_SCORE,
+        lambda i: f"conf {data[i, 6]:g} outside [-{MAX_SCORE:g}, {MAX_SCORE:g}]",
     )
     if kind in ("gt", "res") and data.shape[0]:
         keys = data[:, 0].astype(np.int64) * (2**32) + (data[:, 1].astype(np.int64) % (2**32))
@@ -248,6 +354,36 @@ def _validate_rows(path, data, lines, kind, seq_length) -> None:
                 f"id {int(data[i, 1])} appears twice in frame {int(data[i, 0])} "
                 f"(also on line {int(first)})",
             )
+
+
+def _validate_image(path, data, lines, info: SequenceInfo) -> None:
+    """The image-relative rules of :func:`read_mot_file`, and the all-outside warning."""
+    x, y, w, h = data[:, 2], data[:, 3], data[:, 4], data[:, 5]
+    width, height, factor = info.im_width, info.im_height, IMAGE_FACTOR
+    image = f"the {width}x{height} image"
+
+    def fail(bad, reason):
+        _fail(path, data, lines, bad, reason)
+
+    fail(w > factor * width, lambda i: f"w {w[i]:g} exceeds {factor} times {image}")
+    fail(h > factor * height, lambda i: f"h {h[i]:g} exceeds {factor} times {image}")
+    fail(
+        (x < -factor * width) | (x > (factor + 1) * width),
+        lambda i: f"x {x[i]:g} lies more than {factor} image widths outside {image}",
+    )
+    fail(
+        (y < -factor * height) | (y > (factor + 1) * height),
+        lambda i: f"y {y[i]:g} lies more than {factor} image heights outside {image}",
+    )
+    outside = (x >= width) | (y >= height) | (x + w <= 0) | (y + h <= 0)
+    if data.shape[0] and np.all(outside):
+        warnings.warn(
+            InputWarning(
+                f"{path}: all {data.shape[0]} boxes lie outside {image} (seqinfo.ini or video "
+                "size); wrong image size or coordinates?"
+            ),
+            stacklevel=3,
+        )
 
 
 def write_mot_file(path: str | Path, table: MotTable) -> None:
@@ -361,7 +497,9 @@ def load_sequence(
     """Loads a MOTChallenge sequence folder.
 
     Reads ``seqinfo.ini``, ``det/det.txt`` and, when present, ``gt/gt.txt``, validating every
-    row (see :func:`read_mot_file`).
+    row against the rules of :func:`read_mot_file` with the sequence's length and image size.
+    Warns (:class:`~jaxtrack.errors.InputWarning`) when ``det.txt`` is empty, holds nothing
+    in the span, or when no det or gt row lies in the second half of ``1..seqLength``.
 
     Args:
         path: the sequence folder.
@@ -381,14 +519,21 @@ def load_sequence(
         raise FileFormatError(path, None, "sequence folder not found")
     info = read_seqinfo(path / "seqinfo.ini")
     first, last = parse_frame_span(frames, info.seq_length)
-    det_table = read_mot_file(path / "det" / "det.txt", "det", info.seq_length)
-    det_table = det_table.frame_span(first, last)
+    det_path = path / "det" / "det.txt"
+    det_file = read_mot_file(det_path, "det", info=info)
     gt_path = path / "gt" / "gt.txt"
-    gt_table = None
-    ground_truth = None
+    gt_file = read_mot_file(gt_path, "gt", info=info) if gt_path.exists() else None
+    _warn_about_coverage(det_path, det_file, gt_file, info)
+    det_table = det_file.frame_span(first, last)
+    if len(det_file) and not len(det_table):
+        warnings.warn(
+            InputWarning(f"{det_path} holds no detections in frames {first}..{last}"),
+            stacklevel=2,
+        )
     num_frames = last - first + 1
-    if gt_path.exists():
-        gt_table = read_mot_file(gt_path, "gt", info.seq_length).frame_span(first, last)
+    gt_table = None if gt_file is None else gt_file.frame_span(first, last)
+    ground_truth = None
+    if gt_table is not None:
         ground_truth = pad_ground_truth(gt_table, first, num_frames, max_objects)
     return MotSequence(
         path=path,
@@ -400,6 +545,25 @@ def load_sequence(
         detections=pad_detections(det_table, first, num_frames, max_detections),
         ground_truth=ground_truth,
     )
+
+
+def _warn_about_coverage(det_path, det: MotTable, gt: MotTable | None, info) -> None:
+    """Warns when a det file is empty, or when no row lies in the second half of the frames."""
+    if len(det) == 0:
+        warnings.warn(
+            InputWarning(f"{det_path} holds no detections: tracking it gives no tracks"),
+            stacklevel=3,
+        )
+        return
+    last = max(int(det.frames.max()), 0 if gt is None or len(gt) == 0 else int(gt.frames.max()))
+    if 2 * last < info.seq_length:
+        warnings.warn(
+            InputWarning(
+                f"seqLength is {info.seq_length} but the last row of {det_path}"
+                f"{'' if gt is None else ' and gt.txt'} is on frame {last}: is seqLength right?"
+            ),
+            stacklevel=3,
+        )
 
 
 def parse_frame_span(frames, seq_length: int) -> tuple[int, int]:
@@ -449,6 +613,11 @@ def _is_float(text: str) -> bool:
 
 def _format_number(value: float) -> str:
     return np.format_float_positional(float(value), trim="-")
+
+
+def _column_name(index: int) -> str:
+    name = _COLUMN_NAMES[index] if index < len(_COLUMN_NAMES) else "extra"
+    return f"column {index + 1} ({name})"
 
 
 def _row_text(row: np.ndarray) -> str:

@@ -13,12 +13,14 @@ from __future__ import annotations
 import math
 import numbers
 import re
+import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.errors import FileFormatError, InputError, InputWarning
+from jaxtrack.limits import FRAME_COUNT, FRAME_RATE, IMAGE_SIZE, MAX_FRAMES
 
 #: File extensions (lower case) of the images an image folder may hold.
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
@@ -45,15 +47,21 @@ class VideoReader:
         fps: frames per second (the override, else the video's), or None when unknown.
 
     Raises:
-        FileFormatError: the path does not exist, is not a decodable video, holds no frames,
-            or (folder) holds no images or an unreadable first image.
-        InputError: ``fps`` is not a positive finite number.
+        FileFormatError: the path does not exist, is not a decodable video, holds no frames
+            or more than :data:`~jaxtrack.limits.MAX_FRAMES`, has frames outside the image-size
+            rule (``16..65536`` pixels a side), or (folder) holds no images or an unreadable
+            first image.
+        InputError: ``fps`` breaks the frame-rate rule (``[1, 1000]``).
+
+    Warns:
+        InputWarning: the video's own frame rate breaks the frame-rate rule; it is then
+            unknown (None).
     """
 
     def __init__(self, path: str | Path, fps: float | None = None):
         self.path = Path(path)
-        if fps is not None and not (math.isfinite(fps) and fps > 0):
-            raise InputError(f"fps must be a positive number, got {fps}")
+        if fps is not None:
+            fps = FRAME_RATE.check("fps", fps)
         self._capture: cv2.VideoCapture | None = None
         self._images: list[Path] = []
         self._next_index = 0
@@ -66,8 +74,10 @@ class VideoReader:
             self.num_frames = len(self._images)
             self.height, self.width = self._read_image(0).shape[:2]
             self.fps = fps
+            self._check_size()
         elif self.path.is_file():
             self._open_video()
+            self._check_size()
             self.fps = fps if fps is not None else self._video_fps()
         else:
             raise FileFormatError(self.path, None, "video file or image folder not found")
@@ -83,18 +93,41 @@ class VideoReader:
             self.close()
             raise FileFormatError(self.path, None, "video holds no decodable frame")
         self.height, self.width = first.shape[:2]
-        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        reported = capture.get(cv2.CAP_PROP_FRAME_COUNT)
+        count = int(reported) if math.isfinite(reported) and reported <= MAX_FRAMES + 1 else -1
         if count <= 0:
             count = 1
-            while capture.grab():
+            while count <= MAX_FRAMES and capture.grab():
                 count += 1
         self.num_frames = count
         capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
         self._next_index = 0
 
+    def _check_size(self) -> None:
+        """The frame count and frame size rules (:mod:`jaxtrack.limits`)."""
+        for key, value, rule in (
+            ("number of frames", self.num_frames, FRAME_COUNT),
+            ("frame width", self.width, IMAGE_SIZE),
+            ("frame height", self.height, IMAGE_SIZE),
+        ):
+            try:
+                rule.check(key, int(value))
+            except InputError as err:
+                self.close()
+                raise FileFormatError(self.path, None, str(err)) from None
+
     def _video_fps(self) -> float | None:
         rate = float(self._capture.get(cv2.CAP_PROP_FPS))
-        return rate if math.isfinite(rate) and rate > 0 else None
+        if rate == 0:
+            return None
+        try:
+            return FRAME_RATE.check("frame rate", rate)
+        except InputError as err:
+            warnings.warn(
+                InputWarning(f"{self.path}: ignoring the video's {err}; give --fps"),
+                stacklevel=3,
+            )
+            return None
 
     def read(self, frame: int) -> np.ndarray:
         """Returns one frame.

@@ -107,7 +107,7 @@ def test_missing_and_corrupt_files(tmp_path):
             lambda a: a.update(metadata_json=np.asarray('{"format_version": 99}')),
             "format_version 99",
         ),
-        (lambda a: a.update(birth_means=a["birth_means"][:, :4]), "birth intensity: means"),
+        (lambda a: a.update(birth_means=a["birth_means"][:, :4]), "birth_means has shape"),
         (lambda a: a.update(clutter_lower=np.zeros((2, 2))), "lower must be 1-D"),
         (lambda a: a.update(clutter_weights=np.zeros(0)), "non-empty"),
         (lambda a: a.update(clutter_magnitude=np.asarray(np.nan)), "finite"),
@@ -126,4 +126,82 @@ def test_invalid_contents(tmp_path, learned, mutate, message):
     mutate(arrays)
     write_raw(path, arrays)
     with pytest.raises(FileFormatError, match=message):
+        load_context(path)
+
+
+def _set_cov(arrays, key, index, cov):
+    covs = np.array(arrays[key], dtype=np.float64)
+    covs[index] = cov
+    arrays[key] = covs
+
+
+def _skewed(arrays):
+    cov = np.diag([4.0, 9.0, 1.0, 1.0])
+    cov[0, 1] = 1.0  # the lower triangle (read by the filters) says 0
+    _set_cov(arrays, "clutter_covs", 2, cov)
+
+
+def _indefinite(arrays):
+    _set_cov(arrays, "clutter_covs", 1, np.diag([4.0, -1.0, 1.0, 1.0]))
+
+
+def _float32_singular(arrays):
+    # positive definite in float64 (eigenvalues 2 and 1e-9) but singular once cast to float32
+    block = np.array([[1.0, 1.0 - 1e-9], [1.0 - 1e-9, 1.0]])
+    cov = np.eye(4)
+    cov[:2, :2] = block
+    assert np.all(np.linalg.eigvalsh(cov) > 0)
+    _set_cov(arrays, "clutter_covs", 0, cov)
+
+
+def _tiny_volume(arrays):
+    lower = np.array(arrays["clutter_lower"], dtype=np.float64)
+    upper = np.array(arrays["clutter_upper"], dtype=np.float64)
+    upper[3] = lower[3] + 1e-12  # exceeds in float64, not in float32
+    arrays["clutter_upper"] = upper
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (_skewed, r"clutter_covs\[2\] is not symmetric"),
+        (_indefinite, r"clutter_covs\[1\] is not positive definite"),
+        (_float32_singular, r"clutter_covs\[0\] is not positive definite in float32"),
+        (_tiny_volume, "clutter_upper must exceed clutter_lower on every axis"),
+        (lambda a: a.update(birth_magnitude=np.asarray(2e4)), r"birth_magnitude must lie in"),
+        (lambda a: a.update(birth_magnitude=np.asarray(1e-40)), r"birth_magnitude must lie in"),
+        (lambda a: a.update(clutter_means=a["clutter_means"] + 2e6), "clutter_means must lie"),
+        (lambda a: a.update(birth_lower=a["birth_lower"] - 1e7), "birth_lower must lie within"),
+        (lambda a: a.update(clutter_covs=np.float64(1e300) * a["clutter_covs"]), "beyond float32"),
+        (lambda a: a.update(birth_weights=a["birth_weights"] + 0j), "real numbers"),
+        (lambda a: a.update(birth_means=np.full_like(a["birth_means"], np.inf)), "birth_means"),
+    ],
+)
+def test_covariances_bounds_and_magnitudes_are_checked_by_key(tmp_path, learned, mutate, message):
+    arrays = valid_arrays(learned)
+    mutate(arrays)
+    path = tmp_path / "bad.npz"
+    write_raw(path, arrays)
+    with pytest.raises(FileFormatError, match=message) as info:
+        load_context(path)
+    assert info.value.path == str(path)
+
+
+def test_dead_components_and_zero_magnitude_load(tmp_path, learned):
+    """A learned context with dead components, and a context without clutter, are valid."""
+    birth, clutter = learned
+    path = tmp_path / "ok.npz"
+    save_context(path, birth, clutter._replace(magnitude=jnp.asarray(0.0)))
+    _, loaded, _ = load_context(path)
+    assert float(loaded.magnitude) == 0.0
+
+
+@pytest.mark.parametrize("value", ["NaN", "1e300", '"many"', "-1"])
+def test_recorded_magnitudes_are_checked(tmp_path, learned, value):
+    metadata = f'{{"format_version": 1, "clutter": {{"magnitude": {value}}}}}'
+    arrays = valid_arrays(learned)
+    arrays["metadata_json"] = np.asarray(metadata)
+    path = tmp_path / "meta.npz"
+    write_raw(path, arrays)
+    with pytest.raises(FileFormatError, match=r"metadata_json clutter\.magnitude must"):
         load_context(path)
