@@ -46,6 +46,13 @@ from jaxtrack.errors import InputError
 
 #: Largest frame number and number of frames of a sequence, a video or a simulation.
 MAX_FRAMES = 1_000_000
+#: Most detections (or ground-truth / result rows) in one frame of a file. Crowded MOT
+#: sequences have a few hundred per frame. A frame's detections are padded to a power of two
+#: in the tracker (crowded frames run in chunks of their own, :func:`~jaxtrack.filters.base.
+#: plan_chunks`), and one PHD frame at 4096 slots takes about 10 s on a CPU core and draws
+#: 131,072 birth particles; a file with more rows in a frame is refused, naming the file and
+#: the frame (:func:`jaxtrack.resources.check_rows_per_frame`).
+MAX_DETECTIONS_PER_FRAME = 4096
 #: Smallest image width or height, pixels.
 MIN_IMAGE_SIZE = 16
 #: Largest image width or height, pixels (2^16).

@@ -32,16 +32,9 @@ from typing import NamedTuple
 import numpy as np
 
 from jaxtrack.errors import InputError
+from jaxtrack.limits import MAX_DETECTIONS_PER_FRAME, MAX_FRAMES
 
-#: Most frames in a sequence (``seqLength``; the reader refuses more). A million frames is
-#: about ten hours of 25 fps video; the per-frame outputs of a run are held on the host.
-MAX_FRAMES = 10**6
-#: Most detections (or ground-truth rows) in one frame. Crowded MOT sequences have a few
-#: hundred per frame; every tracker pads each frame to the largest count of the sequence, so
-#: one frame with more rows makes every frame cost as much (host arrays
-#: ``frames x capacity``, the PHD's births ``births_per_detection x capacity`` per frame).
-#: A file with more rows in a frame is refused, naming the file and the frame.
-MAX_DETECTIONS_PER_FRAME = 4096
+__all__ = ["MAX_DETECTIONS_PER_FRAME", "MAX_FRAMES"]  # the limits, re-exported beside the checks
 
 #: Bytes per padded slot of :class:`~jaxtrack.types.Detections` (float32 box and score,
 #: bool mask) and of :class:`~jaxtrack.types.GroundTruth` (float32 box, int32 id, two bools).
@@ -153,6 +146,7 @@ def check_rows_per_frame(
     source: str | os.PathLike | None,
     what: str = "detections",
     limit: int = MAX_DETECTIONS_PER_FRAME,
+    lines: np.ndarray | None = None,
 ) -> None:
     """Refuses a table with more than ``limit`` rows in one frame.
 
@@ -161,10 +155,12 @@ def check_rows_per_frame(
         source: the file the rows came from (named in the message), or None.
         what: what the rows are, in words.
         limit: the most rows a frame may hold.
+        lines: the line of each row in ``source``; the message then names the line of the
+            frame's first row above the limit.
 
     Raises:
-        ResourceError: ``"{source}: frame F has N {what}, above the limit of L per frame"``,
-            naming the first frame with the most rows.
+        ResourceError: ``"{source}[, line L]: frame F has N {what}, above the limit of L per
+            frame"``, naming the first frame with the most rows.
     """
     frames = np.asarray(frames, np.int64)
     if frames.size == 0:
@@ -173,9 +169,12 @@ def check_rows_per_frame(
     worst = int(np.argmax(counts))
     if counts[worst] > limit:
         where = f"{os.fspath(source)}: " if source is not None else ""
+        if source is not None and lines is not None:
+            line = np.asarray(lines)[np.flatnonzero(frames == values[worst])[limit]]
+            where = f"{os.fspath(source)}, line {int(line)}: "
         raise ResourceError(
             f"{where}frame {values[worst]} has {counts[worst]} {what}, above the limit of "
-            f"{limit} per frame (jaxtrack.resources.MAX_DETECTIONS_PER_FRAME); keep fewer "
+            f"{limit} per frame (jaxtrack.limits.MAX_DETECTIONS_PER_FRAME); keep fewer "
             "rows per frame (e.g. drop low-score detections)"
         )
 

@@ -223,6 +223,12 @@ REFUSED = [
     # simulate
     ("simulate --out {tmp}/file.txt", "--out {tmp}/file.txt exists and is not a folder"),
     (
+        "simulate --out {seq}",
+        "--out {seq} holds a sequence that jaxtrack simulate did not write (no "
+        "context_truth.npz); its seqinfo.ini, det/det.txt and gt/gt.txt would be overwritten: "
+        "give another folder",
+    ),
+    (
         "simulate --out {tmp}/file.txt/scene",
         "--out {tmp}/file.txt/scene cannot be written: {tmp}/file.txt is not a folder",
     ),

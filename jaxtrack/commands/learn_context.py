@@ -170,11 +170,6 @@ def run(args: argparse.Namespace) -> int:
         InputError: a bad argument, file or span, a missing source, or no events.
     """
 
-    for name in ("birth_epochs", "clutter_epochs"):
-        if getattr(args, name) < 1:
-            raise InputError(f"--{name.replace('_', '-')} must be >= 1")
-    if args.warmup < 0:
-        raise InputError("--warmup must be >= 0")
     clutter_from = args.clutter_from
     if clutter_from not in ("gt", "tracks") and not Path(clutter_from).is_file():
         raise InputError(

@@ -99,8 +99,6 @@ def run(args: argparse.Namespace) -> int:
     if args.scene_config is not None:
         config = load_scene_config(args.scene_config, config)
     if args.num_frames is not None:
-        if args.num_frames < 1:
-            raise InputError(f"--num-frames must be >= 1, got {args.num_frames}")
         config = dataclasses.replace(config, num_frames=args.num_frames)
     if args.print_config:
         reason = "does nothing with --print-config (it only prints the configuration)"
@@ -112,14 +110,18 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         raise InputError("--out DIR is required")
     out = Path(args.out)
-    if args.seed < 0:
-        raise InputError(f"--seed must be >= 0, got {args.seed}")
     if args.preview_frame is not None and not 1 <= args.preview_frame <= config.num_frames:
         raise InputError(f"--preview-frame must lie in 1..{config.num_frames}")
     check_outputs(
         output_folder("--out", args.out, SCENE_FILES),
         file_input(args.scene_config, f"the scene configuration {args.scene_config}"),
     )
+    if (out / "seqinfo.ini").is_file() and not (out / "context_truth.npz").is_file():
+        raise InputError(
+            f"--out {args.out} holds a sequence that jaxtrack simulate did not write (no "
+            "context_truth.npz); its seqinfo.ini, det/det.txt and gt/gt.txt would be "
+            "overwritten: give another folder"
+        )
     name = args.name or config.name or out.resolve().name
     config = dataclasses.replace(config, name=name)
 

@@ -137,8 +137,6 @@ def run(args: argparse.Namespace) -> int:
         InputError: a bad argument, an unreadable video, detections, context or gt file.
     """
 
-    if args.trail is not None and args.trail < 0:
-        raise InputError("--trail must be >= 0")
     if args.detections is not None:
         refuse_ignored(
             args,

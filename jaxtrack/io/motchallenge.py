@@ -35,6 +35,7 @@ from jaxtrack.limits import (
     Rule,
     float32_trouble,
 )
+from jaxtrack.resources import check_memory, check_rows_per_frame, padded_sequence_bytes
 from jaxtrack.types import PAD_BOX, Detections, GroundTruth, MotTable, SequenceInfo
 
 MIN_COLUMNS = 7
@@ -248,6 +249,8 @@ def read_mot_file(
     data = np.array(rows, dtype=np.float64).reshape(len(rows), num_columns or MAX_COLUMNS)
     lines = np.array(line_numbers, dtype=np.int64)
     _validate_rows(path, data, lines, kind, seq_length)
+    what = {"det": "detections", "gt": "objects"}.get(kind, "rows")
+    check_rows_per_frame(data[:, 0], path, what, lines=lines)
     if info is not None:
         _validate_image(path, data, lines, info)
     if kind == "det" and np.any((data[:, 6] < 0) | (data[:, 6] > 1)):
@@ -532,6 +535,15 @@ def load_sequence(
         )
     num_frames = last - first + 1
     gt_table = None if gt_file is None else gt_file.frame_span(first, last)
+    check_memory(
+        padded_sequence_bytes(
+            num_frames,
+            _largest_count(det_table),
+            0 if gt_table is None else _largest_count(gt_table),
+        ),
+        f"loading {path} (frames {first}..{last})",
+        "a shorter --frames span",
+    )
     ground_truth = None
     if gt_table is not None:
         ground_truth = pad_ground_truth(gt_table, first, num_frames, max_objects)
@@ -545,6 +557,11 @@ def load_sequence(
         detections=pad_detections(det_table, first, num_frames, max_detections),
         ground_truth=ground_truth,
     )
+
+
+def _largest_count(table: MotTable) -> int:
+    """The most rows any frame of ``table`` holds (the padded capacity; at least 1)."""
+    return max(1, int(np.unique(table.frames, return_counts=True)[1].max(initial=0)))
 
 
 def _warn_about_coverage(det_path, det: MotTable, gt: MotTable | None, info) -> None:

@@ -17,6 +17,7 @@ frames by linear interpolation (:func:`~jaxtrack.association.offline.finalise_tr
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -28,6 +29,7 @@ from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
+from jaxtrack.errors import InputWarning
 from jaxtrack.filters.base import Filter, plan_chunks, run
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
 from jaxtrack.filters.phd_tracker import Context
@@ -64,7 +66,9 @@ def track_sequences(
         chunk_frames: frames per compiled call.
 
     Returns:
-        The result rows of each sequence.
+        The result rows of each sequence. A sequence with detections but no result rows
+        raises an :class:`~jaxtrack.errors.InputWarning` (a one-line warning in the CLI): the
+        run is legal but its empty result is most likely not what was meant.
 
     Raises:
         InputError: a configuration of no registered tracker.
@@ -94,7 +98,18 @@ def track_sequences(
             fit_capacity=True,
             frame_output=track_outputs,
         )
-        results.append(output_rows(info, config, seq.first_frame))
+        rows = output_rows(info, config, seq.first_frame)
+        if len(rows) == 0 and len(seq.det_table) > 0:
+            warnings.warn(
+                InputWarning(
+                    f"{seq.info.name}: {len(seq.det_table)} detections in frames "
+                    f"{seq.first_frame}..{seq.last_frame} gave no tracks (the {config.tracker} "
+                    "tracker confirmed none: check the boxes against the image size and "
+                    "frame rate, or the configuration)"
+                ),
+                stacklevel=2,
+            )
+        results.append(rows)
     return results
 
 

@@ -142,3 +142,15 @@ def test_tracking_is_refused_up_front_when_memory_is_short(campus, monkeypatch):
     monkeypatch.setattr(resources, "available_memory_bytes", lambda: 10**4)
     with pytest.raises(ResourceError, match=r"tracking TUD-Campus .* num_particles"):
         track_sequences([campus], CONFIG, seed=0)
+
+
+def test_detections_that_give_no_tracks_warn(campus):
+    from jaxtrack.errors import InputWarning
+
+    one = campus.det_table.select(np.arange(1))
+    lone = dataclasses.replace(
+        campus, det_table=one, detections=pad_detections(one, campus.first_frame, 40)
+    )
+    with pytest.warns(InputWarning, match=r"TUD-Campus: 1 detections in frames 1..40 gave no"):
+        (rows,) = track_sequences([lone], CONFIG, seed=0)
+    assert len(rows) == 0
