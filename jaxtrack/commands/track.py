@@ -253,7 +253,7 @@ def _benchmark(args, config: TrackerConfig) -> int:
     else:
         print(
             f"wrote {len(sequences)} result files to {out} "
-            f"({frames} frames, {seconds:.1f} s including one compile)"
+            f"({frames} frames, {seconds:.1f} s compiles included)"
         )
     return 0
 
