@@ -3,7 +3,7 @@
 One sequence:  ``jaxtrack track SEQ_DIR --out RES.txt [--frames A:B] [--config FILE]
 [--context CTX.npz [--variant GM|A1..A6]] [--figure PNG [--figure-frame N]]``
 All sequences: ``jaxtrack track --benchmark MOT_ROOT --out RES_DIR`` (one ``<SEQ>.txt`` each,
-one compile for all of them)
+one compile per detection capacity; each sequence's result is the one it gets alone)
 
 The default configuration (uniform birth and clutter intensities, UM) is the same for every
 sequence; image size and frame rate come from each ``seqinfo.ini``. ``--config FILE.json``
