@@ -104,23 +104,39 @@ def load_config_file(path: str | Path, config_type: type[TrackerConfig]) -> Trac
     file = Path(path)
     if not file.is_file():
         raise FileFormatError(file, None, "file not found")
-    try:
-        values = json.loads(file.read_text(encoding="utf-8"), parse_constant=_no_constant)
-    except OSError as err:
-        raise FileFormatError(file, None, f"cannot read ({err.strerror})") from None
-    except UnicodeDecodeError:
-        raise FileFormatError(file, None, "not a UTF-8 text file") from None
-    except RecursionError:
-        raise FileFormatError(file, None, "JSON nested too deeply") from None
-    except json.JSONDecodeError as err:
-        raise FileFormatError(file, err.lineno, f"not valid JSON ({err.msg})") from None
-    except ValueError as err:
-        raise FileFormatError(file, None, str(err)) from None
+    values = read_json_file(file, "a configuration")
     try:
         return config_type.from_dict(values)
     except InputError as err:
         raise FileFormatError(file, None, str(err)) from None
 
 
-def _no_constant(name: str) -> None:
-    raise ValueError(f"{name} is not a number a configuration accepts")
+def read_json_file(path: str | Path, what: str) -> Any:
+    """The JSON value in a UTF-8 file, for files whose numbers enter the toolkit.
+
+    Args:
+        path: the file.
+        what: what the file holds, for the messages (``"a configuration"``).
+
+    Raises:
+        FileFormatError: naming the file (and the line of a JSON error), for an unreadable
+            file, text that is not UTF-8, invalid JSON, ``NaN`` / ``Infinity`` (``"NaN is not
+            a number {what} accepts"``) or JSON nested too deeply.
+    """
+    path = Path(path)
+
+    def no_constant(name: str) -> None:
+        raise ValueError(f"{name} is not a number {what} accepts")
+
+    try:
+        return json.loads(path.read_text(encoding="utf-8"), parse_constant=no_constant)
+    except OSError as err:
+        raise FileFormatError(path, None, f"cannot read ({err.strerror})") from None
+    except UnicodeDecodeError:
+        raise FileFormatError(path, None, "not a UTF-8 text file") from None
+    except RecursionError:
+        raise FileFormatError(path, None, "JSON nested too deeply") from None
+    except json.JSONDecodeError as err:
+        raise FileFormatError(path, err.lineno, f"not valid JSON ({err.msg})") from None
+    except ValueError as err:
+        raise FileFormatError(path, None, str(err)) from None

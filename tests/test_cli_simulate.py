@@ -88,7 +88,7 @@ def test_help_describes_the_outputs(run_cli, capsys):
         (["--seed", 0], "--out"),
         (["--seed", 0, "--out", "{tmp}/x", "--preview-frame", 999, "--num-frames", 5], "preview"),
         (["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/missing.json"], "cannot read"),
-        (["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/bad.json"], "invalid JSON"),
+        (["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/bad.json"], "not valid JSON"),
         (
             ["--seed", 0, "--out", "{tmp}/x", "--scene-config", "{tmp}/unknown.json"],
             "unknown field",

@@ -28,7 +28,6 @@ Invalid values raise :class:`jaxtrack.errors.InputError` naming the field.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import types
 import typing
@@ -36,6 +35,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from jaxtrack.configs import read_json_file
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.limits import (
     FRAME_COUNT,
@@ -378,28 +378,13 @@ def load_scene_config(path: str | Path, base: SceneConfig | None = None) -> Scen
             other than an object, or a field breaking its rule (named).
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
-    except OSError as err:
-        raise FileFormatError(path, None, f"cannot read ({err.strerror})") from None
-    except UnicodeDecodeError:
-        raise FileFormatError(path, None, "not a UTF-8 text file") from None
-    except RecursionError:
-        raise FileFormatError(path, None, "JSON nested too deeply") from None
-    except json.JSONDecodeError as err:
-        raise FileFormatError(path, err.lineno, f"invalid JSON ({err.msg})") from None
-    except ValueError as err:
-        raise FileFormatError(path, None, str(err)) from None
+    data = read_json_file(path, "a scene configuration")
     if not isinstance(data, dict):
         raise FileFormatError(path, None, "expected a JSON object of scene configuration fields")
     try:
         return config_from_dict(data, base)
     except InputError as err:
         raise FileFormatError(path, None, str(err)) from None
-
-
-def _no_constant(name: str) -> None:
-    raise ValueError(f"{name} is not a number a scene configuration accepts")
 
 
 def _short(value) -> str:

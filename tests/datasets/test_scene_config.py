@@ -140,7 +140,7 @@ def test_scene_config_file_errors_name_the_file(tmp_path):
         ('{"birth_rate": NaN}', "NaN is not a number a scene configuration accepts"),
         ('{"frame_rate": Infinity}', "Infinity is not a number"),
         ("[" * 100_000, "nested too deeply"),
-        ('{\n"birth_rate": }', r"scene\.json, line 2: invalid JSON"),
+        ('{\n"birth_rate": }', r"scene\.json, line 2: not valid JSON"),
         ("[1]", "expected a JSON object"),
         ('{"birth_rate": 1000}', r"scene\.json: birth_rate must lie in \[0, 10\]"),
     ):
