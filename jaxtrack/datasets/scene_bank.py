@@ -388,10 +388,10 @@ def sparse_door(seed: int) -> SceneConfig:
 
     Tests **sparse births**: 15 births expected in the training half, and the scene is
     conditioned on 10-20 of them (:data:`CONDITIONS`), from an office door and a lift (both
-    exits too) and the open end of the corridor (a segment on the left edge). A learner has a handful of events per zone; it must
-    neither invent zones nor starve a zone it saw twice. Clutter is static and localised: a
-    screen (0.2-0.4 per frame), a potted plant (a patch, 0.2-0.4) and weak uniform clutter
-    (0.05-0.15).
+    exits too) and the open end of the corridor (a segment on the left edge). A learner has
+    a handful of events per zone; it must neither invent zones nor starve a zone it saw twice.
+    Clutter is static and localised: a screen (0.2-0.4 per frame), a potted plant (a patch,
+    0.2-0.4) and weak uniform clutter (0.05-0.15).
 
     Args:
         seed: draws the layout (door positions, speeds, rates).
