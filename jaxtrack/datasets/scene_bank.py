@@ -563,7 +563,7 @@ def flicker(seed: int) -> SceneConfig:
 def uniform(seed: int) -> SceneConfig:
     """No useful context, 768x576 at 10 frames/s: births and clutter uniform over the image.
 
-    Tests that **learned context does no harm where there is none**: every birth appears
+    Tests **that learned context does no harm where there is none**: every birth appears
     anywhere in rows 40-560 and columns 20-748 (people stepping out of occlusion, a camera
     that sees the middle of a crowd), moving in any direction (zero mean velocity, spread of
     a walking speed); all clutter is uniform (1-2 per frame). A learner should return
