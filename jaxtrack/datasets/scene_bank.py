@@ -322,7 +322,7 @@ def plaza_edges(seed: int) -> SceneConfig:
     """An open plaza entered along whole edges, 768x576 at 15 frames/s, pedestrians only.
 
     Tests **entries spread along edges**: people enter anywhere along the left, bottom and
-    right image edges and along a walkway at the far side (uniform segments 300-700 pixels
+    right image edges and along a walkway at the far side (uniform segments 420-680 pixels
     long), heading into the plaza with a wide spread of directions (lateral speed spread half
     the walking speed). Four Gaussian blobs cannot fit a segment; a learner that places few
     components concentrates births where none occur. Clutter is mostly uniform (0.8-1.2 per
