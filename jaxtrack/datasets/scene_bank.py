@@ -326,7 +326,7 @@ def plaza_edges(seed: int) -> SceneConfig:
     long), heading into the plaza with a wide spread of directions (lateral speed spread half
     the walking speed). Four Gaussian blobs cannot fit a segment; a learner that places few
     components concentrates births where none occur. Clutter is mostly uniform (0.8-1.2 per
-    frame) with a fountain patch (0.2-0.4) and a bench (0.1-0.3). About 24-36 births per half.
+    frame) with a fountain patch (0.2-0.4) and a bench (0.2). About 24-36 births per half.
 
     Args:
         seed: draws the layout (edge weights, speeds, patch positions, rates).
