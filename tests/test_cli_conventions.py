@@ -29,6 +29,7 @@ WITH_PROGRESS = (
     "detect",
     "track-video",
     "experiment context-ablation",
+    "experiment context-gap",
     "experiment sweep-magnitudes",
     "experiment compare-trackers",
     "experiment gradient-tuning",
@@ -98,7 +99,13 @@ def test_experiment_help_lists_each_experiment(capsys):
     with pytest.raises(SystemExit):
         main(["experiment", "--help"])
     text = capsys.readouterr().out
-    for name in ("context-ablation", "sweep-magnitudes", "compare-trackers", "gradient-tuning"):
+    for name in (
+        "context-ablation",
+        "context-gap",
+        "sweep-magnitudes",
+        "compare-trackers",
+        "gradient-tuning",
+    ):
         assert name in text
 
 

@@ -10,6 +10,7 @@ from matplotlib.image import imread
 
 from jaxtrack import cli
 from jaxtrack.datasets import SceneConfig, config_from_dict, load_context_truth
+from jaxtrack.datasets.scene_bank import family_config, generate_family_scene
 from jaxtrack.io import load_sequence
 
 
@@ -107,3 +108,17 @@ def test_bad_arguments_exit_2_with_a_message(run_cli, tmp_path, capsys, args, me
     error = capsys.readouterr().err
     assert error.startswith("jaxtrack simulate: error:") and message in error
     assert not (tmp_path / "x").exists()
+
+
+def test_family_writes_the_bank_scene(run_cli, tmp_path, capsys):
+    out = tmp_path / "street"
+    assert run_cli("--family", "street", "--seed", 1, "--out", out) == 0
+    sequence = load_sequence(out)
+    scene = generate_family_scene("street", 1)
+    assert sequence.info.name == "street-1" and sequence.info.seq_length == 600
+    assert (sequence.info.im_width, sequence.info.im_height) == (720, 480)
+    np.testing.assert_allclose(sequence.det_table.boxes, scene.det_table.boxes, atol=1e-9)
+    assert "seed 1," in capsys.readouterr().out
+    assert run_cli("--print-config", "--family", "flicker", "--seed", 2) == 0
+    config = config_from_dict(json.loads(capsys.readouterr().out))
+    assert config == family_config("flicker", 2)

@@ -205,3 +205,52 @@ def test_demo_quick(tmp_path, capsys):
         assert rescored["MOTA"] == pytest.approx(float(row["MOTA"]), abs=0.01)
     _, sweep_rows = _read_csv(out / "sweep.csv")
     assert len(sweep_rows) == 8
+
+
+@pytest.mark.slow
+def test_context_gap_quick_equals_single_runs(tmp_path, capsys):
+    from jaxtrack.datasets.scene_bank import generate_family_scene
+    from jaxtrack.experiments.common import (
+        QUICK_TRACKER_CONFIG,
+        evaluate_rows,
+        learn_split,
+        score_summary,
+        split_halves,
+    )
+    from jaxtrack.experiments.context_gap import GAP_COLUMNS, GAP_SUMMARY_COLUMNS
+    from jaxtrack.filters.phd_tracker import Context, phd_params
+    from jaxtrack.io import load_sequence
+    from jaxtrack.pipelines.tracking import track_sequences
+
+    out = tmp_path / "gap"
+    argv = ("--out", out, "--quick", "--quiet", "--family", "sparse-door", "--num-seeds", 1)
+    assert _experiment("context-gap", *argv) == 0
+    assert capsys.readouterr().out.startswith("| " + " | ".join(GAP_SUMMARY_COLUMNS) + " |")
+    columns, rows = _read_csv(out / "context_gap.csv")
+    assert columns == list(GAP_COLUMNS)
+    assert [(row["family"], row["seed"], row["variant"]) for row in rows] == [
+        ("sparse-door", "0", "UM"),
+        ("sparse-door", "0", "GM"),
+    ]
+    folder = out / "scenes" / "sparse-door-0"
+    scene = generate_family_scene("sparse-door", 0)
+    np.testing.assert_allclose(load_sequence(folder).det_table.boxes, scene.det_table.boxes)
+    # Each row is the single run of its variant on the test half (frames 301-600).
+    split = split_halves(folder)
+    assert (split.test.first_frame, split.test.last_frame) == (301, 600)
+    context = Context.from_learned(learn_split(split, QUICK_TRACKER_CONFIG, 0, "tracks"))
+    info = split.test.info
+    for row, params in zip(
+        rows,
+        (phd_params(QUICK_TRACKER_CONFIG, info), phd_params(QUICK_TRACKER_CONFIG, info, context)),
+        strict=True,
+    ):
+        (single,) = track_sequences([split.test], QUICK_TRACKER_CONFIG, 0, [params])
+        expected = score_summary(evaluate_rows(split.test, single))
+        assert {key: int(row[key]) for key in ("FP", "FN", "IDSW")} == {
+            key: expected[key] for key in ("FP", "FN", "IDSW")
+        }, row["variant"]
+    summary = (out / "summary.md").read_text()
+    gap = float(rows[1]["MOTA"]) - float(rows[0]["MOTA"])
+    assert f"| sparse-door | 0 | {float(rows[0]['MOTA']):.1f} |" in summary
+    assert f"| {gap:.1f} |" in summary

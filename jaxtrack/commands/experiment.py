@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from jaxtrack.commands.arguments import add_out, add_quiet, add_seed, refuse_ignored
+from jaxtrack.commands.arguments import add_out, add_quiet, add_seed, ranged, refuse_ignored
 from jaxtrack.commands.paths import (
     SCENE_FILES,
     benchmark_inputs,
@@ -23,12 +23,15 @@ from jaxtrack.commands.paths import (
     output_folder,
     sequence_inputs,
 )
+from jaxtrack.datasets.scene_bank import FAMILIES
 from jaxtrack.errors import InputError
 from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
 from jaxtrack.experiments.common import markdown_table
 from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, run_comparison
+from jaxtrack.experiments.context_gap import GAP_SUMMARY_COLUMNS, gap_summary, run_context_gap
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
+from jaxtrack.limits import MAX_SEED, Rule
 
 #: The data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -105,6 +108,42 @@ def _sweep_magnitudes(args: argparse.Namespace) -> int:
     print(files[-1].read_text())
     print(json.dumps(sweep_summary(result), indent=2))
     print(_written(files))
+    return 0
+
+
+def _context_gap_extras(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--family",
+        action="append",
+        choices=tuple(FAMILIES),
+        metavar="NAME",
+        help=f"a scene family (repeatable; default all: {', '.join(FAMILIES)})",
+    )
+    parser.add_argument(
+        "--num-seeds",
+        type=ranged(Rule("number of seeds", int, 1, 1000)),
+        default=3,
+        metavar="K",
+        help="seeds --seed .. --seed + K - 1 of each family (default 3)",
+    )
+
+
+def _context_gap(args: argparse.Namespace) -> int:
+    families = args.family or list(FAMILIES)
+    seeds = list(range(args.seed, args.seed + args.num_seeds))
+    if seeds[-1] > MAX_SEED:
+        raise InputError(f"--seed + --num-seeds - 1 must be at most {MAX_SEED}")
+    files = list(EXPERIMENTS[args.experiment].files)
+    files += [
+        f"scenes/{family}-{seed}/{name}"
+        for family in families
+        for seed in seeds
+        for name in SCENE_FILES
+    ]
+    check_outputs(output_folder("--out", args.out, files), [])
+    rows, written = run_context_gap(args.out, families, seeds, args.quick, _steps(args))
+    print(markdown_table(gap_summary(rows), GAP_SUMMARY_COLUMNS))
+    print(_written(written))
     return 0
 
 
@@ -215,6 +254,28 @@ examples:
         add_extras=None,
         run=_sweep_magnitudes,
         files=("sweep.csv", "sweep.png", "sweep_mota.png", "summary.md"),
+    ),
+    "context-gap": Experiment(
+        help="UM vs GM on the scene bank's families (learned context on held-out scenes)",
+        description="""\
+UM vs GM on the scene families of the test bank (jaxtrack.datasets.scene_bank): street,
+plaza-edges, sparse-door, layout-change, flicker, uniform.
+
+For each family and seed, writes the scene to OUT/scenes/FAMILY-SEED, learns context on its
+first half (births from a UM tracker run, clutter from the ground truth, as
+context-ablation does), tracks the second half with uniform intensities (UM) and with the
+learned ones (GM), and scores both. Writes context_gap.csv (every score) and summary.md
+(MOTA per family and seed) into --out. Logic: jaxtrack.experiments.context_gap.
+
+examples:
+  jaxtrack experiment context-gap --out /tmp/gap --quick
+  jaxtrack experiment context-gap --out /tmp/street --family street --num-seeds 1""",
+        quick_help="few particles (the scenes are the same)",
+        sequence=False,
+        add_extras=_context_gap_extras,
+        run=_context_gap,
+        files=("context_gap.csv", "summary.md"),
+        scene="scenes",
     ),
     "compare-trackers": Experiment(
         help="tracker comparison (PHD-context Fig. 16): PHD-GM, PHD-UM, Kalman, SORT-like",

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from jaxtrack.commands.arguments import add_out, add_seed, ranged, refuse_ignored
 from jaxtrack.commands.paths import SCENE_FILES, check_outputs, file_input, output_folder
+from jaxtrack.datasets.scene_bank import FAMILIES, family_config, generate_family_scene
 from jaxtrack.datasets.scene_config import SceneConfig, config_to_dict, load_scene_config
 from jaxtrack.datasets.synthetic import generate_scene, write_scene
 from jaxtrack.errors import InputError
@@ -28,14 +29,18 @@ clutter) and write it as a MOTChallenge folder:
                           (read with jaxtrack.datasets.load_context_truth)
   DIR/preview.png         one frame with boxes, clutter sources and entry zones
 
-The same seed and configuration always give the same sequence."""
+The same seed and configuration always give the same sequence. --family NAME starts from a
+scene family of the test bank instead of the default scene (jaxtrack.datasets.scene_bank:
+street, plaza-edges, sparse-door, layout-change, flicker, uniform; 600 frames each), its
+layout drawn from --seed."""
 
 EPILOG = """\
 examples:
   jaxtrack simulate --seed 0 --out data/synthetic-0
   jaxtrack simulate --seed 1 --out /tmp/short --num-frames 200
   jaxtrack simulate --print-config > scene.json   # edit, then:
-  jaxtrack simulate --seed 2 --out /tmp/custom --scene-config scene.json"""
+  jaxtrack simulate --seed 2 --out /tmp/custom --scene-config scene.json
+  jaxtrack simulate --family street --seed 1 --out /tmp/street-1"""
 
 
 def register(subparsers) -> None:
@@ -60,6 +65,13 @@ def register(subparsers) -> None:
         help="number of frames (default: the configuration's, 800)",
     )
     parser.add_argument(
+        "--family",
+        choices=tuple(FAMILIES),
+        metavar="NAME",
+        help="start from a scene family of the test bank, its layout drawn from --seed "
+        f"({', '.join(FAMILIES)}; default: the default scene)",
+    )
+    parser.add_argument(
         "--scene-config",
         type=Path,
         metavar="FILE.json",
@@ -67,7 +79,11 @@ def register(subparsers) -> None:
         "configuration; see --print-config for all fields; zones and clutter_sources replace "
         "the defaults)",
     )
-    parser.add_argument("--name", help="sequence name in seqinfo.ini (default: the folder's name)")
+    parser.add_argument(
+        "--name",
+        help="sequence name in seqinfo.ini (default: the folder's name; with --family, "
+        "FAMILY-SEED)",
+    )
     parser.add_argument(
         "--preview-frame",
         type=ranged(FRAME_NUMBER),
@@ -95,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
         InputError: a missing or invalid argument or configuration file.
     """
 
-    config = SceneConfig()
+    config = SceneConfig() if args.family is None else family_config(args.family, args.seed)
     if args.scene_config is not None:
         config = load_scene_config(args.scene_config, config)
     if args.num_frames is not None:
@@ -103,8 +119,8 @@ def run(args: argparse.Namespace) -> int:
     if args.print_config:
         reason = "does nothing with --print-config (it only prints the configuration)"
         refuse_ignored(args, ("out", "name", "preview_frame"), reason)
-        if args.seed:
-            raise InputError(f"--seed {reason}")
+        if args.seed and args.family is None:
+            raise InputError(f"--seed {reason} unless with --family")
         print(json.dumps(config_to_dict(config), indent=2))
         return 0
     if args.out is None:
@@ -125,12 +141,18 @@ def run(args: argparse.Namespace) -> int:
     name = args.name or config.name or out.resolve().name
     config = dataclasses.replace(config, name=name)
 
-    scene = generate_scene(args.seed, config)
+    if args.family is None:
+        scene = generate_scene(args.seed, config)
+    else:
+        scene = generate_family_scene(args.family, args.seed, config)
     out = write_scene(scene, out)
     save_scene_preview(scene, out / "preview.png", args.preview_frame)
     stats = scene.summary()
     by_source = ", ".join(f"{k} {v:.2f}" for k, v in stats["clutter_per_frame_by_source"].items())
-    print(f"wrote {out} ({config.num_frames} frames, seed {args.seed}, name {name})")
+    seed = f"seed {args.seed}"
+    if scene.seed != args.seed:
+        seed += f", simulated from seed {scene.seed} (the family's condition)"
+    print(f"wrote {out} ({config.num_frames} frames, {seed}, name {name})")
     print(
         f"  targets: {stats['targets']} ({stats['targets_per_frame_min']}-"
         f"{stats['targets_per_frame_max']} per frame, mean {stats['targets_per_frame_mean']:.1f}),"

@@ -1,6 +1,11 @@
-"""Datasets: seeded synthetic surveillance scenes with known birth and clutter context."""
+"""Datasets: seeded synthetic surveillance scenes with known birth and clutter context.
+
+The default scene (:mod:`jaxtrack.datasets.synthetic`) and a bank of scene families that
+differ from it as real scenes do (:mod:`jaxtrack.datasets.scene_bank`).
+"""
 
 from jaxtrack.datasets.context_truth import load_context_truth
+from jaxtrack.datasets.scene_bank import FAMILIES, generate_family_scene, write_family_scene
 from jaxtrack.datasets.scene_config import (
     ClutterSource,
     EntryZone,
@@ -17,6 +22,7 @@ from jaxtrack.datasets.synthetic import (
 )
 
 __all__ = [
+    "FAMILIES",
     "ClutterSource",
     "EntryZone",
     "SceneConfig",
@@ -25,7 +31,9 @@ __all__ = [
     "clutter_intensity",
     "config_from_dict",
     "config_to_dict",
+    "generate_family_scene",
     "generate_scene",
     "load_context_truth",
+    "write_family_scene",
     "write_scene",
 ]

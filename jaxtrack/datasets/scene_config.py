@@ -7,6 +7,13 @@ surveillance camera at 10 frames/s: four zones on the image border, a doorway in
 image, three clutter sources (waving vegetation, a bush, a window reflection) and weak uniform
 clutter, with about ten targets in view.
 
+Beyond the defaults (which the learner's own model family fits exactly), a zone can be an edge
+or a wide gateway (``extent``), give births of another object class (``height_scale``,
+``aspect_ratio``: cars beside pedestrians) and be open only during some frames
+(``active_frames``); a clutter source can cover a patch (``extent``) and flicker on and off
+(``on_frames``, ``off_frames``). :mod:`jaxtrack.datasets.scene_bank` builds scene families
+from them.
+
 Units: positions and sizes in pixels, velocities in pixels/frame, rates in expected events
 per frame. A configuration round-trips through JSON with :func:`config_to_dict` and
 :func:`config_from_dict` (the latter also applies partial overrides to a base config);
@@ -21,7 +28,9 @@ range). The ranges keep a simulation finite and its output readable by jaxtrack'
 ``+-2^20`` pixels, standard deviations at least 1/1000 (the written boxes are rounded to
 1/1000 pixel), box sizes at least 1 pixel and ``max_box_size`` (and the perspective law's
 boxes at the image bottom) at most 10 image sizes, relative noises in ``[0, 1]``,
-``|size_correlation| <= 0.99`` (the birth covariances stay positive definite in float32).
+``|size_correlation| <= 0.99`` (the birth covariances stay positive definite in float32),
+extents at least 0 (a zone's rectangle inside the image), class height scales and aspect
+ratios in ``[0.01, 100]``, flicker periods ``on_frames >= 1`` and ``off_frames`` 0 or >= 1.
 Invalid values raise :class:`jaxtrack.errors.InputError` naming the field.
 """
 
@@ -68,6 +77,11 @@ _FRACTION = Rule("a probability or fraction", float, 0.0, 1.0)
 _NOISES = Rule("relative noise levels", tuple, 0.0, 1.0, length=2)
 _BOX_SIZES = Rule("box width and height, pixels", tuple, MIN_BOX_SIZE, MAX_COORDINATE, length=2)
 _BETA = Rule("Beta distribution parameters", tuple, 0.01, 1000.0, length=2)
+_EXTENT = Rule("half-sizes of a uniform rectangle, pixels", tuple, 0.0, MAX_COORDINATE, length=2)
+_ASPECT = Rule("width / height", float, 0.01, 100.0)
+#: A frame number of a simulation: burn-in frames are numbered ``1 - burn_in_frames .. 0``.
+_SIMULATED_FRAME = Rule("frame number (burn-in frames <= 0)", int, -MAX_FRAMES, MAX_FRAMES)
+_PERIOD = Rule("mean frames", float, 0.0, MAX_FRAMES)
 
 #: The rule of every numeric field of :class:`EntryZone`.
 ZONE_RULES: dict[str, Rule] = {
@@ -76,6 +90,9 @@ ZONE_RULES: dict[str, Rule] = {
     "velocity": _COORDINATES,
     "velocity_std": _STDS,
     "weight": Rule("relative share of the births", float, 0.0, 1e6, lower_open=True),
+    "extent": _EXTENT,
+    "height_scale": Rule("height / the perspective law's height", float, 0.01, 100.0),
+    "aspect_ratio": _ASPECT,
 }
 #: The rule of every numeric field of :class:`ClutterSource`.
 SOURCE_RULES: dict[str, Rule] = {
@@ -84,6 +101,9 @@ SOURCE_RULES: dict[str, Rule] = {
     "size": _BOX_SIZES,
     "size_std": _STDS,
     "rate": Rule("false detections per frame", float, 0.0, MAX_CLUTTER_RATE),
+    "extent": _EXTENT,
+    "on_frames": Rule("mean frames", float, 1.0, MAX_FRAMES),
+    "off_frames": _PERIOD,
 }
 #: The rule of every numeric field of :class:`SceneConfig` (cross-field rules: see there).
 SCENE_RULES: dict[str, Rule] = {
@@ -95,7 +115,7 @@ SCENE_RULES: dict[str, Rule] = {
     "birth_rate": Rule("births per frame", float, 0.0, MAX_BIRTH_RATE),
     "horizon_row": _COORDINATE,
     "height_per_row": Rule("pixels of height per row", float, 0.0, 100.0, lower_open=True),
-    "aspect_ratio": Rule("width / height", float, 0.01, 100.0),
+    "aspect_ratio": _ASPECT,
     "size_spread": Rule("relative size spread", float, 0.0, 1.0, lower_open=True),
     "size_correlation": Rule("correlation", float, -0.99, 0.99),
     "motion_noise": _NOISES,
@@ -116,20 +136,30 @@ SCENE_RULES: dict[str, Rule] = {
 }
 
 
-def _apply_rules(instance, rules: dict[str, Rule], where: str) -> None:
-    """Checks (and normalises: ints, floats, tuples) every ruled field of a frozen dataclass."""
+def _apply_rules(instance, rules: dict[str, Rule], where: str, optional=()) -> None:
+    """Checks (and normalises: ints, floats, tuples) every ruled field of a frozen dataclass.
+
+    A field named in ``optional`` may also be None (not checked).
+    """
     for field, rule in rules.items():
-        value = rule.check(f"{where}{field}", getattr(instance, field))
-        object.__setattr__(instance, field, value)
+        value = getattr(instance, field)
+        if value is None and field in optional:
+            continue
+        object.__setattr__(instance, field, rule.check(f"{where}{field}", value))
 
 
 @dataclasses.dataclass(frozen=True)
 class EntryZone:
-    """An entry (and optionally exit) zone: a Gaussian birth component in position and velocity.
+    """An entry (and optionally exit) zone: where, how and what kind of targets are born.
 
-    A birth in this zone has its centre drawn from ``N(centre, diag(position_std^2))`` and its
-    centre velocity from ``N(velocity, diag(velocity_std^2))``; its size follows the
-    perspective law of :class:`SceneConfig` (see ``synthetic.zone_birth_gaussian``).
+    A birth in this zone has its centre drawn from ``N(centre, diag(position_std^2))`` plus,
+    when ``extent`` is not zero, an offset uniform over the rectangle ``[-extent, extent]``
+    (a whole image edge or a wide gateway is a segment, not a blob), and its centre velocity
+    from ``N(velocity, diag(velocity_std^2))``; its size follows the perspective law of
+    :class:`SceneConfig` scaled to the zone's object class (``height_scale``,
+    ``aspect_ratio``; see ``synthetic.zone_birth_gaussian``). A zone may be open only during
+    ``active_frames``. With the defaults of the last four fields a zone is one Gaussian
+    component of the true birth intensity, of the scene's single object class, always open.
 
     Attributes:
         name: label used in plots and metadata.
@@ -141,7 +171,19 @@ class EntryZone:
         exit: when True the zone is also an exit: a target whose centre lies within
             ``SceneConfig.exit_radius`` standard deviations of ``centre`` leaves the scene
             (once older than ``SceneConfig.min_exit_age``). Zones on the image border do not
-            need it: leaving the image ends a target anyway.
+            need it: leaving the image ends a target anyway. With an ``extent`` the exit is
+            the rectangle widened by ``exit_radius`` standard deviations.
+        extent: half-width and half-height ``(e1, e2)`` of the rectangle of uniform birth
+            centres around ``centre``, pixels; ``(0, e2)`` is a vertical segment (e.g. the
+            left image edge), ``(e1, 0)`` a horizontal one.
+        height_scale: the object class's height relative to the scene's perspective law (a
+            car is lower than a standing person: about 0.8).
+        aspect_ratio: the object class's width / height (a pedestrian about 0.4, a car seen
+            from the side about 2.5); None: the scene's ``aspect_ratio``.
+        active_frames: ``(first, last)``, the frames in which the zone gives births (inclusive;
+            burn-in frames are numbered ``1 - burn_in_frames .. 0``); None: every frame. The
+            zone's share of ``SceneConfig.birth_rate`` is simply absent outside them (the
+            other zones keep their rates). Exits work in every frame.
     """
 
     name: str
@@ -151,18 +193,49 @@ class EntryZone:
     velocity_std: Pair
     weight: float = 1.0
     exit: bool = False
+    extent: Pair = (0.0, 0.0)
+    height_scale: float = 1.0
+    aspect_ratio: float | None = None
+    active_frames: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
-        _apply_rules(self, ZONE_RULES, f"zone {self.name!r} ")
+        where = f"zone {self.name!r} "
+        _apply_rules(self, ZONE_RULES, where, optional=("aspect_ratio",))
+        if self.active_frames is not None:
+            if not isinstance(self.active_frames, list | tuple) or len(self.active_frames) != 2:
+                raise InputError(
+                    f"{where}active_frames must be a list of 2 frame numbers, "
+                    f"got {self.active_frames!r}"
+                )
+            first, last = (
+                _SIMULATED_FRAME.check(f"{where}active_frames[{i}]", frame)
+                for i, frame in enumerate(self.active_frames)
+            )
+            if first > last:
+                raise InputError(f"{where}active_frames: first {first} after last {last}")
+            object.__setattr__(self, "active_frames", (first, last))
+
+    def is_active(self, frame: int) -> bool:
+        """Whether the zone gives births in ``frame``."""
+        frames = self.active_frames
+        return frames is None or frames[0] <= frame <= frames[1]
 
 
 @dataclasses.dataclass(frozen=True)
 class ClutterSource:
     """A localised source of spatially persistent clutter (e.g. waving vegetation).
 
-    Each frame the source emits ``Poisson(rate)`` false detections, independently of the past,
-    with box ``(cx, cy, w, h)`` drawn from ``N((centre, size), diag(position_std^2,
-    size_std^2))``.
+    Each frame in which the source is on it emits ``Poisson(rate)`` false detections,
+    independently of the past, with box ``(cx, cy, w, h)`` drawn from ``N((centre, size),
+    diag(position_std^2, size_std^2))``, the centre shifted by an offset uniform over
+    ``[-extent, extent]`` when ``extent`` is not zero (a patch of vegetation rather than one
+    swaying branch).
+
+    **Flicker.** With ``off_frames > 0`` the source switches on and off (a reflection that
+    comes and goes with the sun, a blinking sign, a screen): a two-state Markov chain whose on
+    and off periods are geometric with means ``on_frames`` and ``off_frames``, started from its
+    stationary law, on a fraction ``duty_cycle = on / (on + off)`` of the frames. With
+    ``off_frames = 0`` (the default) the source is always on.
 
     Attributes:
         name: label used in plots and metadata.
@@ -170,7 +243,11 @@ class ClutterSource:
         position_std: standard deviation of the box centre, pixels.
         size: mean box ``(w, h)``, pixels.
         size_std: standard deviation of the box width and height, pixels.
-        rate: expected false detections per frame.
+        rate: expected false detections per frame while the source is on.
+        extent: half-width and half-height of the rectangle of uniform box centres around
+            ``centre``, pixels.
+        on_frames: mean length of an on period, frames (>= 1; used when ``off_frames > 0``).
+        off_frames: mean length of an off period, frames: 0 (always on) or >= 1.
     """
 
     name: str
@@ -179,9 +256,27 @@ class ClutterSource:
     size: Pair
     size_std: Pair
     rate: float
+    extent: Pair = (0.0, 0.0)
+    on_frames: float = 1.0
+    off_frames: float = 0.0
 
     def __post_init__(self) -> None:
-        _apply_rules(self, SOURCE_RULES, f"clutter source {self.name!r} ")
+        where = f"clutter source {self.name!r} "
+        _apply_rules(self, SOURCE_RULES, where)
+        if 0 < self.off_frames < 1:
+            raise InputError(
+                f"{where}off_frames must be 0 (always on) or >= 1, got {self.off_frames}"
+            )
+
+    @property
+    def duty_cycle(self) -> float:
+        """The fraction of frames the source is on, ``on_frames / (on_frames + off_frames)``."""
+        return self.on_frames / (self.on_frames + self.off_frames)
+
+    @property
+    def mean_rate(self) -> float:
+        """Expected false detections per frame averaged over on and off frames."""
+        return self.rate * self.duty_cycle
 
 
 DEFAULT_ZONES: tuple[EntryZone, ...] = (
@@ -313,12 +408,19 @@ class SceneConfig:
         if not self.zones and self.birth_rate > 0:
             raise InputError("birth_rate > 0 needs at least one entry zone")
         for zone in self.zones:
-            y1, y2 = zone.centre
-            if not (0 <= y1 <= width and 0 <= y2 <= height):
-                raise InputError(f"zone {zone.name!r} centre {zone.centre} lies outside the image")
-            if self.height_per_row * (y2 - self.horizon_row) < self.min_box_size[1]:
+            (y1, y2), (e1, e2) = zone.centre, zone.extent
+            if not (0 <= y1 - e1 and y1 + e1 <= width and 0 <= y2 - e2 and y2 + e2 <= height):
+                where = f"centre {zone.centre}"
+                if e1 or e2:
+                    where += f" +- extent {zone.extent}"
+                raise InputError(f"zone {zone.name!r} {where} lies outside the image")
+            top = y2 - e2
+            if (
+                zone.height_scale * self.height_per_row * (top - self.horizon_row)
+                < (self.min_box_size[1])
+            ):
                 raise InputError(
-                    f"zone {zone.name!r}: nominal height at row {y2} is below min_box_size; "
+                    f"zone {zone.name!r}: nominal height at row {top} is below min_box_size; "
                     "move the zone down or the horizon up"
                 )
         names = [zone.name for zone in self.zones] + [s.name for s in self.clutter_sources]
@@ -327,8 +429,16 @@ class SceneConfig:
 
     @property
     def total_clutter_rate(self) -> float:
-        """``lambda_r``: expected false detections per frame (sources + uniform)."""
+        """Expected false detections per frame while every source is on (sources + uniform).
+
+        Without flickering sources this is ``lambda_r``; see :attr:`mean_clutter_rate`.
+        """
         return self.uniform_clutter_rate + sum(s.rate for s in self.clutter_sources)
+
+    @property
+    def mean_clutter_rate(self) -> float:
+        """``lambda_r``: expected false detections per frame, averaged over the flicker."""
+        return self.uniform_clutter_rate + sum(s.mean_rate for s in self.clutter_sources)
 
 
 def config_to_dict(config: SceneConfig) -> dict[str, Any]:

@@ -22,6 +22,16 @@ target's own size. The true birth intensity is therefore exactly the Gaussian mi
 ``gamma(x) = lambda_s sum_z pi_z N(x; mu_z, Sigma_z)`` (:func:`birth_intensity`); a birth whose
 box would stick out of the image is shifted inside (rare with the default zones).
 
+Zones beyond that model (:class:`~jaxtrack.datasets.scene_config.EntryZone`): an ``extent``
+adds to the centre an offset uniform over a rectangle (an image edge, a gateway), with the
+size following the row it lands on (:func:`zone_extent_factor`); ``height_scale`` and
+``aspect_ratio`` give the zone's targets their own object class, whose nominal size
+``(rho_z h_z, h_z)``, ``h_z = s_z h_nom(y2)``, they keep for life; a zone with
+``active_frames`` adds its births ``lambda_s pi_z`` only in those frames. For such scenes the
+written true birth intensity is the sequence's average, moment-matched: one Gaussian per zone
+with the rectangle's variance ``e^2 / 3`` added, weighted by ``pi_z`` times the share of the
+frames ``1..T`` in which the zone is open.
+
 **Dynamics** (per frame, ``T = 1``). Centre and velocity follow SPEC's SDV constant-velocity
 model exactly: ``y1 += vy1 + w_{k-1} n1 / 2``, ``vy1 += w_{k-1} n1``, ``n1 ~ N(0,
 sigma_n1^2)``, and likewise ``(y2, vy2)`` with ``h_{k-1}`` and ``n2``. The size follows the
@@ -43,8 +53,13 @@ likelihood). Clutter is Poisson per frame: each source ``s`` emits ``Poisson(r_s
 and ``Poisson(r_u)`` boxes are uniform over the image and the size range. The true clutter
 intensity is ``kappa(z) = lambda_r [pi_u / V + (1 - pi_u) sum_s pi_s N(z; m_s, S_s)]`` with
 ``lambda_r = r_u + sum_s r_s``, ``pi_u = r_u / lambda_r``, ``pi_s = r_s / sum r_s``
-(:func:`clutter_intensity`). Scores are ``Beta(target_score)`` for true detections and
-``Beta(clutter_score)`` for clutter, in ``(0, 1]``.
+(:func:`clutter_intensity`). A source with an ``extent`` shifts its box centres uniformly over
+a rectangle; a flickering source (``off_frames > 0``) emits only in its on frames, a two-state
+Markov chain started from its stationary law (:attr:`SyntheticScene.clutter_source_on`);
+then ``r_s`` above is the source's mean rate ``rate * duty_cycle`` and its Gaussian is
+moment-matched (the written true intensity is the average over frames). Scores are
+``Beta(target_score)`` for true detections and ``Beta(clutter_score)`` for clutter, in
+``(0, 1]``.
 
 Written boxes are rounded to 1/1000 pixel; detection boxes are clipped to the image (which
 alters a few clutter boxes near the border relative to the intensity they were drawn from).
@@ -123,6 +138,8 @@ class SyntheticScene:
         num_target_detections: true detections per frame.
         num_clutter: clutter detections per frame and source, ``[num_frames,
             num_sources + 1]``; the last column counts uniform clutter.
+        clutter_source_on: whether each clutter source was on, ``[num_frames, num_sources]``
+            (always True for a source that does not flicker).
     """
 
     seed: int
@@ -147,6 +164,7 @@ class SyntheticScene:
     num_births: np.ndarray
     num_target_detections: np.ndarray
     num_clutter: np.ndarray
+    clutter_source_on: np.ndarray
 
     @property
     def is_clutter(self) -> np.ndarray:
@@ -184,20 +202,30 @@ class SyntheticScene:
         }
 
 
-def nominal_size(rows, config: SceneConfig) -> np.ndarray:
+def nominal_size(rows, config: SceneConfig, height_scale=1.0, aspect_ratio=None) -> np.ndarray:
     """Perspective law: nominal ``(w, h)`` of a box centred on each row.
 
-    ``h_nom(y2) = a (y2 - r0)``, ``w_nom = rho h_nom`` (may be <= 0 above the horizon).
+    ``h_nom(y2) = a (y2 - r0) s``, ``w_nom = rho h_nom`` (may be <= 0 above the horizon), with
+    an object class's height scale ``s`` (1 for the scene's own class).
 
     Args:
         rows: box-centre rows ``y2``, any shape.
         config: the scene configuration.
+        height_scale: ``s``, a number or an array broadcasting with ``rows``.
+        aspect_ratio: ``rho``, likewise; None: the scene's ``aspect_ratio``.
 
     Returns:
         ``[..., 2]`` nominal widths and heights.
     """
     height = config.height_per_row * (np.asarray(rows, np.float64) - config.horizon_row)
-    return np.stack([config.aspect_ratio * height, height], axis=-1)
+    height = height * height_scale
+    aspect = config.aspect_ratio if aspect_ratio is None else aspect_ratio
+    return np.stack([aspect * height, height], axis=-1)
+
+
+def zone_aspect_ratio(zone: EntryZone, config: SceneConfig) -> float:
+    """The width / height of a zone's object class (the scene's unless the zone sets one)."""
+    return config.aspect_ratio if zone.aspect_ratio is None else zone.aspect_ratio
 
 
 def zone_birth_gaussian(zone: EntryZone, config: SceneConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +236,10 @@ def zone_birth_gaussian(zone: EntryZone, config: SceneConfig) -> tuple[np.ndarra
     ``y1 = c1 + s1 e1``, ``vy1 = v1 + t1 e2``, ``y2 = c2 + s2 e3``, ``vy2 = v2 + t2 e4``,
     ``h = h_nom(c2) + a s2 e3 + q h_nom(c2) e6``,
     ``w = w_nom(c2) + rho a s2 e3 + q w_nom(c2) (sqrt(1 - c^2) e5 + c e6)``,
-    so ``E[w, h | y2] = (w_nom(y2), h_nom(y2))``; the covariance is ``L L^T``.
+    so ``E[w, h | y2] = (w_nom(y2), h_nom(y2))``; the covariance is ``L L^T``. For a zone of
+    another object class, ``a`` is scaled by its ``height_scale`` and ``rho`` is its aspect
+    ratio (:func:`nominal_size`). A zone's ``extent`` is added separately
+    (:func:`zone_extent_factor`).
 
     Args:
         zone: the entry zone.
@@ -219,12 +250,14 @@ def zone_birth_gaussian(zone: EntryZone, config: SceneConfig) -> tuple[np.ndarra
     """
     (c1, c2), (s1, s2) = zone.centre, zone.position_std
     (v1, v2), (t1, t2) = zone.velocity, zone.velocity_std
-    w0, h0 = nominal_size(c2, config)
-    slope, q, c = config.height_per_row, config.size_spread, config.size_correlation
+    aspect = zone_aspect_ratio(zone, config)
+    w0, h0 = nominal_size(c2, config, zone.height_scale, aspect)
+    slope = config.height_per_row * zone.height_scale
+    q, c = config.size_spread, config.size_correlation
     mean = np.array([c1, v1, c2, v2, w0, h0])
     factor = np.zeros((6, 6))
     factor[0, 0], factor[1, 1], factor[2, 2], factor[3, 3] = s1, t1, s2, t2
-    factor[4, 2] = config.aspect_ratio * slope * s2
+    factor[4, 2] = aspect * slope * s2
     factor[4, 4] = q * w0 * np.sqrt(1 - c**2)
     factor[4, 5] = q * w0 * c
     factor[5, 2] = slope * s2
@@ -232,10 +265,58 @@ def zone_birth_gaussian(zone: EntryZone, config: SceneConfig) -> tuple[np.ndarra
     return mean, factor
 
 
+def zone_extent_factor(zone: EntryZone, config: SceneConfig) -> np.ndarray:
+    """``B`` of a zone's uniform offset: a birth's state is shifted by ``B u``, ``u ~ U[-1, 1]^2``.
+
+    With the zone's extent ``(e1, e2)``: ``y1 += e1 u1``, ``y2 += e2 u2`` and the size follows
+    the row, ``h += a s e2 u2``, ``w += rho a s e2 u2`` (class height scale ``s``, aspect
+    ``rho``), so that ``E[w, h | y2]`` stays the class's nominal size. The offset's covariance
+    is ``B B^T / 3``.
+
+    Args:
+        zone: the entry zone.
+        config: the scene configuration.
+
+    Returns:
+        ``[6, 2]`` (zero for a zone without extent).
+    """
+    e1, e2 = zone.extent
+    slope = config.height_per_row * zone.height_scale
+    factor = np.zeros((6, 2))
+    factor[0, 0] = e1
+    factor[2, 1] = e2
+    factor[4, 1] = zone_aspect_ratio(zone, config) * slope * e2
+    factor[5, 1] = slope * e2
+    return factor
+
+
+def zone_active_shares(config: SceneConfig) -> np.ndarray:
+    """The share of the frames ``1..T`` in which each zone gives births (1: always open).
+
+    Args:
+        config: the scene configuration.
+
+    Returns:
+        ``[num_zones]`` fractions in ``[0, 1]``.
+    """
+    shares = []
+    for zone in config.zones:
+        if zone.active_frames is None:
+            shares.append(1.0)
+            continue
+        first, last = max(zone.active_frames[0], 1), min(zone.active_frames[1], config.num_frames)
+        shares.append(max(last - first + 1, 0) / config.num_frames)
+    return np.array(shares, np.float64)
+
+
 def birth_intensity(config: SceneConfig) -> Intensity:
     """The true birth intensity ``gamma(x) = lambda_s sum_z pi_z N(x; mu_z, Sigma_z)``.
 
-    No uniform share (``uniform_weight = 0``): every birth enters through a zone. The volume
+    No uniform share (``uniform_weight = 0``): every birth enters through a zone. A zone with
+    an extent adds ``B B^T / 3`` to its covariance (:func:`zone_extent_factor`; the Gaussian
+    then only matches the zone's mean and covariance), and a zone open in a share ``f_z`` of
+    the frames counts with ``pi_z f_z`` (the magnitude is the sequence's mean births per
+    frame, the weights are renormalised). The volume
     ``[lower, upper]`` (for comparisons with a uniform model) spans the image, velocities in
     ``[-velocity_bound, velocity_bound]`` and sizes in ``[min_box_size, max_box_size]``.
 
@@ -255,8 +336,18 @@ def birth_intensity(config: SceneConfig) -> Intensity:
         gaussians = [zone_birth_gaussian(zone, config) for zone in config.zones]
         means = np.stack([mean for mean, _ in gaussians])
         covs = np.stack([factor @ factor.T for _, factor in gaussians])
+        for index, zone in enumerate(config.zones):
+            if any(zone.extent):
+                extent = zone_extent_factor(zone, config)
+                covs[index] += extent @ extent.T / 3
         weights = _zone_probabilities(config)
-    return _intensity(config.birth_rate, 0.0, lower, upper, weights, means, covs)
+    shares = zone_active_shares(config)
+    magnitude = config.birth_rate
+    if np.any(shares < 1):
+        rates = weights * shares
+        magnitude = config.birth_rate * rates.sum()
+        weights = rates / rates.sum() if rates.sum() > 0 else weights
+    return _intensity(magnitude, 0.0, lower, upper, weights, means, covs)
 
 
 def clutter_intensity(config: SceneConfig) -> Intensity:
@@ -264,7 +355,9 @@ def clutter_intensity(config: SceneConfig) -> Intensity:
 
     ``kappa(z) = lambda_r [pi_u / V + (1 - pi_u) sum_s pi_s N(z; m_s, S_s)]`` with
     ``lambda_r = r_u + sum_s r_s``, ``pi_u = r_u / lambda_r``, ``pi_s = r_s / sum_s r_s``,
-    ``V`` = image area times the size range.
+    ``V`` = image area times the size range. ``r_s`` is a source's mean rate (``rate``
+    times its duty cycle), and a source with an extent ``e`` adds ``e^2 / 3`` to its centre
+    variances (moment matching: the average over frames of a flickering, patch-shaped source).
 
     Args:
         config: the scene configuration.
@@ -277,13 +370,17 @@ def clutter_intensity(config: SceneConfig) -> Intensity:
     lower = [0.0, 0.0, w_min, h_min]
     upper = [config.image_width, config.image_height, w_max, h_max]
     sources = config.clutter_sources
-    total = config.total_clutter_rate
-    source_total = sum(source.rate for source in sources)
+    total = config.mean_clutter_rate
+    source_total = sum(source.mean_rate for source in sources)
     if source_total > 0:
-        weights = np.array([source.rate / source_total for source in sources])
+        weights = np.array([source.mean_rate / source_total for source in sources])
         means = np.array([[*source.centre, *source.size] for source in sources])
         stds = np.array([[*source.position_std, *source.size_std] for source in sources])
-        covs = np.stack([np.diag(std**2) for std in stds])
+        variances = stds**2
+        extents = np.array([source.extent for source in sources])
+        if np.any(extents):
+            variances[:, :2] += extents**2 / 3
+        covs = np.stack([np.diag(variance) for variance in variances])
         uniform_weight = config.uniform_clutter_rate / total
     else:
         weights, means, covs = np.zeros(1), np.zeros((1, 4)), np.eye(4)[None]
@@ -382,23 +479,46 @@ class _Simulator:
     def __init__(self, config: SceneConfig, rng: np.random.Generator):
         self.config = config
         self.rng = rng
-        gaussians = [zone_birth_gaussian(zone, config) for zone in config.zones]
+        zones = config.zones
+        gaussians = [zone_birth_gaussian(zone, config) for zone in zones]
         self.zone_means = np.array([m for m, _ in gaussians]).reshape(-1, 6)
         self.zone_factors = np.array([f for _, f in gaussians]).reshape(-1, 6, 6)
+        self.zone_extents = np.array([zone_extent_factor(z, config) for z in zones]).reshape(
+            -1, 6, 2
+        )
+        self.zones_have_extent = any(any(zone.extent) for zone in zones)
+        self.zone_height_scales = np.array([zone.height_scale for zone in zones])
+        self.zone_aspect_ratios = np.array([zone_aspect_ratio(zone, config) for zone in zones])
+        self.zones_always_open = all(zone.active_frames is None for zone in zones)
         self.zone_probs = _zone_probabilities(config)
-        exits = [zone for zone in config.zones if zone.exit]
+        exits = [zone for zone in zones if zone.exit]
         self.exit_centres = np.array([zone.centre for zone in exits]).reshape(-1, 2)
         self.exit_stds = np.array([zone.position_std for zone in exits]).reshape(-1, 2)
+        self.exit_extents = np.array([zone.extent for zone in exits]).reshape(-1, 2)
         sources = config.clutter_sources
         self.source_rates = np.array([source.rate for source in sources])
         self.source_means = np.array([[*s.centre, *s.size] for s in sources]).reshape(-1, 4)
         self.source_stds = np.array([[*s.position_std, *s.size_std] for s in sources]).reshape(
             -1, 4
         )
+        self.source_extents = np.array([source.extent for source in sources]).reshape(-1, 2)
+        self.sources_have_extent = bool(np.any(self.source_extents))
+        # Flicker: per-frame probabilities of switching off (when on) and on (when off).
+        self.sources_flicker = any(source.off_frames > 0 for source in sources)
+        self.source_duty = np.array([source.duty_cycle for source in sources])
+        self.source_switch_off = np.array(
+            [1 / s.on_frames if s.off_frames > 0 else 0.0 for s in sources]
+        )
+        self.source_switch_on = np.array(
+            [1 / s.off_frames if s.off_frames > 0 else 1.0 for s in sources]
+        )
+        self.source_on = np.ones(len(sources), bool)
         # Live targets.
         self.state = np.zeros((0, 6))
         self.log_scale = np.zeros((0, 2))
         self.own_log_scale = np.zeros((0, 2))
+        self.height_scale = np.zeros(0)
+        self.aspect_ratio = np.zeros(0)
         self.age = np.zeros(0, np.int64)
         self.gt_id = np.zeros(0, np.int64)
         self.next_id = 1
@@ -411,6 +531,7 @@ class _Simulator:
         self.num_births = np.zeros(num_frames, np.int64)
         self.num_target_detections = np.zeros(num_frames, np.int64)
         self.num_clutter = np.zeros((num_frames, len(sources) + 1), np.int64)
+        self.clutter_source_on = np.ones((num_frames, len(sources)), bool)
 
     def step(self, frame: int) -> None:
         """Propagates survivors, removes leavers, adds births; records frames ``>= 1``."""
@@ -435,9 +556,13 @@ class _Simulator:
         size_noise = rng.normal(0.0, 1.0, (n, 2)) * np.asarray(config.size_noise)
         self.log_scale = self.own_log_scale + phi * (self.log_scale - self.own_log_scale)
         self.log_scale += size_noise
-        nominal = np.maximum(nominal_size(state[:, 2], config), MIN_BOX_SIDE)
+        nominal = np.maximum(self._nominal(state[:, 2]), MIN_BOX_SIDE)
         state[:, 4:6] = nominal * np.exp(self.log_scale)
         self.age += 1
+
+    def _nominal(self, rows: np.ndarray) -> np.ndarray:
+        """Nominal ``(w, h)`` of the live targets (each of its own class) at ``rows``."""
+        return nominal_size(rows, self.config, self.height_scale, self.aspect_ratio)
 
     def _leaving(self) -> np.ndarray:
         config, state = self.config, self.state
@@ -448,8 +573,9 @@ class _Simulator:
             | (boxes[:, 0] + boxes[:, 2] > config.image_width)
             | (boxes[:, 1] + boxes[:, 3] > config.image_height)
         )
-        beyond_horizon = nominal_size(state[:, 2], config)[:, 1] < MIN_BOX_SIDE
-        distance = (state[:, None, [0, 2]] - self.exit_centres[None]) / self.exit_stds[None]
+        beyond_horizon = self._nominal(state[:, 2])[:, 1] < MIN_BOX_SIDE
+        offset = np.abs(state[:, None, [0, 2]] - self.exit_centres[None])
+        distance = np.maximum(offset - self.exit_extents[None], 0.0) / self.exit_stds[None]
         in_exit = np.any(np.sum(distance**2, axis=-1) <= config.exit_radius**2, axis=1)
         exiting = in_exit & (self.age >= config.min_exit_age)
         return outside | beyond_horizon | exiting
@@ -459,12 +585,19 @@ class _Simulator:
         self.state = self.state[keep]
         self.log_scale = self.log_scale[keep]
         self.own_log_scale = self.own_log_scale[keep]
+        self.height_scale = self.height_scale[keep]
+        self.aspect_ratio = self.aspect_ratio[keep]
         self.age = self.age[keep]
         self.gt_id = self.gt_id[keep]
 
     def _birth(self, frame: int) -> np.ndarray:
         config, rng = self.config, self.rng
-        count = rng.poisson(config.birth_rate) if config.zones else 0
+        probs, rate = self.zone_probs, config.birth_rate
+        if not self.zones_always_open:
+            open_probs = probs * np.array([zone.is_active(frame) for zone in config.zones])
+            rate = config.birth_rate * open_probs.sum()
+            probs = open_probs / max(open_probs.sum(), np.finfo(np.float64).tiny)
+        count = rng.poisson(rate) if config.zones else 0
         if count == 0:
             return np.zeros(0, np.int64)
         if self.state.shape[0] + count > MAX_TARGETS:
@@ -473,18 +606,25 @@ class _Simulator:
                 f"(frames up to 0 are burn-in), above the limit of {MAX_TARGETS} simultaneous "
                 f"targets; lower birth_rate (now {config.birth_rate:g})"
             )
-        zones = rng.choice(len(config.zones), size=count, p=self.zone_probs)
+        zones = rng.choice(len(config.zones), size=count, p=probs)
         latent = rng.normal(size=(count, 6))
         states = self.zone_means[zones] + np.einsum("nij,nj->ni", self.zone_factors[zones], latent)
+        if self.zones_have_extent:
+            offsets = rng.uniform(-1.0, 1.0, size=(count, 2))
+            states += np.einsum("nij,nj->ni", self.zone_extents[zones], offsets)
         states[:, 4:6] = np.maximum(states[:, 4:6], MIN_BOX_SIDE)
         half_w, half_h = states[:, 4] / 2, states[:, 5] / 2
         states[:, 0] = np.clip(states[:, 0], half_w, config.image_width - half_w)
         states[:, 2] = np.clip(states[:, 2], half_h, config.image_height - half_h)
-        nominal = np.maximum(nominal_size(states[:, 2], config), MIN_BOX_SIDE)
-        own = np.log(states[:, 4:6] / nominal)
+        height_scale = self.zone_height_scales[zones]
+        aspect_ratio = self.zone_aspect_ratios[zones]
+        nominal = nominal_size(states[:, 2], config, height_scale, aspect_ratio)
+        own = np.log(states[:, 4:6] / np.maximum(nominal, MIN_BOX_SIDE))
         self.state = np.concatenate([self.state, states])
         self.log_scale = np.concatenate([self.log_scale, own])
         self.own_log_scale = np.concatenate([self.own_log_scale, own])
+        self.height_scale = np.concatenate([self.height_scale, height_scale])
+        self.aspect_ratio = np.concatenate([self.aspect_ratio, aspect_ratio])
         self.age = np.concatenate([self.age, np.zeros(count, np.int64)])
         self.gt_id = np.concatenate([self.gt_id, np.zeros(count, np.int64)])
         return zones
@@ -553,17 +693,39 @@ class _Simulator:
         """Clutter boxes ``(cx, cy, w, h)`` of one frame and the source of each."""
         config, rng = self.config, self.rng
         num_sources = self.source_rates.size
-        counts = np.append(rng.poisson(self.source_rates), rng.poisson(config.uniform_clutter_rate))
+        rates = self.source_rates
+        if self.sources_flicker:
+            self._switch_sources(t)
+            rates = np.where(self.source_on, rates, 0.0)
+        counts = np.append(rng.poisson(rates), rng.poisson(config.uniform_clutter_rate))
         self.num_clutter[t] = counts
         source = np.repeat(np.arange(num_sources + 1), counts)
         from_sources = source[source < num_sources]
         localised = self.source_means[from_sources] + self.source_stds[from_sources] * rng.normal(
             size=(from_sources.size, 4)
         )
+        if self.sources_have_extent:
+            offsets = rng.uniform(-1.0, 1.0, size=(from_sources.size, 2))
+            localised[:, :2] += self.source_extents[from_sources] * offsets
         lower = np.array([0.0, 0.0, *config.min_box_size])
         upper = np.array([config.image_width, config.image_height, *config.max_box_size])
         uniform = rng.uniform(lower, upper, size=(counts[-1], 4))
         return np.concatenate([localised, uniform]), source
+
+    def _switch_sources(self, t: int) -> None:
+        """Flicker: the sources' on/off states of frame ``t + 1`` (a two-state Markov chain).
+
+        Frame 1 draws the stationary law (on with probability ``duty_cycle``); later frames
+        switch an on source off with probability ``1 / on_frames`` and an off source on with
+        probability ``1 / off_frames``. A source that does not flicker stays on.
+        """
+        draws = self.rng.random(self.source_on.size)
+        if t == 0:
+            self.source_on = draws < self.source_duty
+        else:
+            switch = np.where(self.source_on, self.source_switch_off, self.source_switch_on)
+            self.source_on = self.source_on ^ (draws < switch)
+        self.clutter_source_on[t] = self.source_on
 
     def _image_boxes(self, centre_boxes: np.ndarray) -> np.ndarray:
         """Measured ``(cx, cy, w, h)`` -> rounded ``(x, y, w, h)`` clipped to the image."""
@@ -625,6 +787,7 @@ class _Simulator:
             num_births=self.num_births,
             num_target_detections=self.num_target_detections,
             num_clutter=self.num_clutter,
+            clutter_source_on=self.clutter_source_on,
         )
 
 

@@ -1,11 +1,12 @@
 """Preview of a synthetic scene: one frame's boxes over the scene's context.
 
 Drawn on a plain image-sized canvas (synthetic scenes have no pixels): entry zones (2-sigma
-ellipses with the mean entry velocity as an arrow, exits dashed), clutter sources (2-sigma
-ellipses), the centres of every clutter detection and every birth of the sequence (faint
-dots and crosses, showing where context concentrates), and the chosen frame's ground truth
-(green, with ids), true detections (blue) and clutter detections (red). Uses matplotlib's
-object-oriented API with the Agg canvas: no display and no pyplot global state.
+ellipses, widened by a zone's extent, with the mean entry velocity as an arrow, exits
+dashed), clutter sources (likewise), the centres of every clutter detection and every birth
+of the sequence (faint dots and crosses, showing where context concentrates), and the chosen
+frame's ground truth (green, with ids), true detections (blue) and clutter detections (red).
+Uses matplotlib's object-oriented API with the Agg canvas: no display and no pyplot global
+state.
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ def draw_scene_frame(ax: Axes, scene: SyntheticScene, frame: int) -> None:
     ax.scatter(births[:, 0], births[:, 2], s=14, c="tab:green", marker="x", alpha=0.5)
 
     for zone in config.zones:
-        (c1, c2), (s1, s2) = zone.centre, zone.position_std
+        (c1, c2), (s1, s2) = zone.centre, _spread(zone)
         ax.add_patch(
             Ellipse(
                 (c1, c2),
@@ -87,7 +88,7 @@ def draw_scene_frame(ax: Axes, scene: SyntheticScene, frame: int) -> None:
         )
         ax.text(c1, c2 - 2 * s2 - 4, zone.name, color="darkgreen", ha="center", fontsize=8)
     for source in config.clutter_sources:
-        (c1, c2), (s1, s2) = source.centre, source.position_std
+        (c1, c2), (s1, s2) = source.centre, _spread(source)
         ax.add_patch(Ellipse((c1, c2), 4 * s1, 4 * s2, fill=False, color="tab:red", lw=1.5))
         ax.text(
             c1,
@@ -137,3 +138,10 @@ def save_scene_preview(
     draw_scene_frame(ax, scene, frame)
     figure.tight_layout()
     figure.savefig(Path(path), dpi=dpi)
+
+
+def _spread(part) -> tuple[float, float]:
+    """Per axis, std + extent / 2: the drawn ellipse spans 2 stds plus the extent each side."""
+    return tuple(
+        std + extent / 2 for std, extent in zip(part.position_std, part.extent, strict=True)
+    )
