@@ -538,8 +538,8 @@ def load_sequence(
     check_memory(
         padded_sequence_bytes(
             num_frames,
-            _largest_count(det_table),
-            0 if gt_table is None else _largest_count(gt_table),
+            max_detections or _largest_count(det_table),
+            0 if gt_table is None else max_objects or _largest_count(gt_table),
         ),
         f"loading {path} (frames {first}..{last})",
         "a shorter --frames span",

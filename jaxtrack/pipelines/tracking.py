@@ -30,13 +30,13 @@ from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
 from jaxtrack.errors import InputWarning
-from jaxtrack.filters.base import Filter, plan_chunks, run
+from jaxtrack.filters.base import Filter, fit_detections, plan_chunks, run
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
 from jaxtrack.filters.phd_tracker import Context
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence
 from jaxtrack.resources import check_memory
-from jaxtrack.types import PAD_BOX, Detections, MotTable, Tracks
+from jaxtrack.types import Detections, MotTable, Tracks
 
 #: Default number of previous frames in a track's trail (:func:`phd_frame_snapshot`).
 DEFAULT_TRAIL = 30
@@ -180,26 +180,6 @@ def tracker_description(config: TrackerConfig) -> dict[str, Any]:
     return described
 
 
-def pad_to(detections: Detections, num_frames: int, capacity: int) -> Detections:
-    """Pads detections ``[T, D]`` with empty frames and empty slots to ``[num_frames, capacity]``.
-
-    Raises:
-        ValueError: the target shape is smaller than the detections.
-    """
-    frames, slots = detections.mask.shape
-    if num_frames < frames or capacity < slots:
-        raise ValueError(f"cannot pad [{frames}, {slots}] detections to [{num_frames}, {capacity}]")
-    extra = ((0, num_frames - frames), (0, capacity - slots))
-    boxes = np.asarray(detections.boxes)
-    padded_boxes = np.tile(np.asarray(PAD_BOX, boxes.dtype), (num_frames, capacity, 1))
-    padded_boxes[:frames, :slots] = boxes
-    return Detections(
-        boxes=padded_boxes,
-        scores=np.pad(np.asarray(detections.scores), extra),
-        mask=np.pad(np.asarray(detections.mask), extra),
-    )
-
-
 class FrameSnapshot(NamedTuple):
     """A PHD tracker on one frame of a run (for :func:`jaxtrack.plot.tracks.phd_frame_figure`).
 
@@ -234,8 +214,10 @@ def phd_frame_snapshot(
     ``0..frame_index`` (the padded arrays sliced along time); its final state is the particle
     cloud after that frame's update and resampling. The per-frame keys of ``run`` do not
     depend on the number of frames (``jax.random.split`` is prefix-stable with the default
-    partitionable Threefry), so the snapshot shows the same run as a run over the whole
-    sequence with the same key.
+    partitionable Threefry), and the detections are first brought to the capacity
+    :func:`track_sequences` gives the sequence (:func:`~jaxtrack.filters.base.fit_detections`),
+    so the snapshot shows the run ``jaxtrack track`` makes with the same key (unless the
+    sequence has crowded frames, which the tracker runs at a capacity of their own).
 
     Args:
         filt: a PHD tracker (:func:`~jaxtrack.filters.phd.phd_filter`), whose infos carry
@@ -257,7 +239,7 @@ def phd_frame_snapshot(
         )
     if trail < 0:
         raise ValueError(f"trail must be >= 0, got {trail}")
-    sliced = jax.tree.map(lambda x: x[: frame_index + 1], detections)
+    sliced = jax.tree.map(lambda x: x[: frame_index + 1], fit_detections(detections))
     state, infos = _run(filt, key, params, sliced)
     return FrameSnapshot(
         particles=np.asarray(state.particles),

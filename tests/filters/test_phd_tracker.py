@@ -1,8 +1,6 @@
-"""The tracker tool layer: variants, padding to a common shape, one compile for many spans."""
+"""The tracker tool layer: variants, the tracking capacity, one compile for many spans."""
 
 from __future__ import annotations
-
-import dataclasses
 
 import jax
 import jax.numpy as jnp
@@ -10,11 +8,12 @@ import numpy as np
 import pytest
 
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import run
+from jaxtrack.filters.base import fit_detections, run
 from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_tracker import VARIANTS, Context, PHDConfig, phd_params
 from jaxtrack.io import SequenceInfo, load_sequence
-from jaxtrack.pipelines.tracking import pad_to, track_sequences
+from jaxtrack.io.motchallenge import pad_detections
+from jaxtrack.pipelines.tracking import track_sequences
 from tests.filters.phd_scenes import walking_scene
 
 
@@ -54,21 +53,19 @@ def test_unknown_variant_and_wrong_image_size(campus):
         phd_params(PHDConfig(), campus.info, context._replace(clutter=wide), "GM")
 
 
-def test_pad_to_adds_empty_frames_and_slots(campus):
-    padded = pad_to(campus.detections, 80, campus.detections.mask.shape[1] + 3)
+def test_fit_detections_pads_and_cuts_to_the_tracking_capacity(campus):
     frames, slots = campus.detections.mask.shape
-    assert padded.mask.shape == (80, slots + 3)
-    np.testing.assert_array_equal(padded.boxes[:frames, :slots], campus.detections.boxes)
-    assert not padded.mask[frames:].any() and not padded.mask[:, slots:].any()
-    with pytest.raises(ValueError, match="cannot pad"):
-        pad_to(campus.detections, 10, slots)
+    fitted = fit_detections(campus.detections)
+    assert slots < 16 and fitted.mask.shape == (frames, 16)
+    np.testing.assert_array_equal(fitted.boxes[:, :slots], campus.detections.boxes)
+    assert not fitted.mask[:, slots:].any()
+    wide = pad_detections(campus.det_table, campus.first_frame, frames, 40)
+    np.testing.assert_array_equal(fit_detections(wide).mask, fitted.mask)
 
 
 def test_a_span_tracked_with_a_longer_one_gives_the_prefix_of_its_result(mot15_root):
     short = load_sequence(mot15_root / "TUD-Campus", frames=(1, 30))
     full = load_sequence(mot15_root / "TUD-Campus")
-    capacity = full.detections.mask.shape[1]
-    short = dataclasses.replace(short, detections=pad_to(short.detections, 30, capacity))
     config = PHDConfig(num_particles=256, births_per_detection=8, output="online")
     rows_short, rows_full = track_sequences([short, full], config, seed=3)
     assert len(rows_short.frames) > 20
