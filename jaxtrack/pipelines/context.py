@@ -11,6 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.context.clutter_labels import load_clutter_labels
@@ -25,7 +26,8 @@ from jaxtrack.context.learn import (
     uniform_volumes,
     volume_mass,
 )
-from jaxtrack.context.map_em import MixtureState, to_intensity
+from jaxtrack.context.heldout import BIRTH_CANDIDATES, CLUTTER_CANDIDATES, select_density
+from jaxtrack.context.map_em import MixtureState, map_em_learner, to_intensity
 from jaxtrack.context.samples import (
     WARMUP_FRAMES,
     EventSamples,
@@ -73,6 +75,7 @@ def learn_context(
     clutter_epochs: int = CLUTTER_EPOCHS,
     warmup_frames: int = WARMUP_FRAMES,
     tracker_config: PHDConfig | None = None,
+    heldout: bool = True,
     progress: Callable[[str], None] | None = None,
 ) -> LearnedContext:
     """Learns the birth and clutter intensities of a sequence's training span.
@@ -90,6 +93,11 @@ def learn_context(
         warmup_frames: trajectories starting in the span's first frames are not births
             (:func:`~jaxtrack.context.samples.birth_samples`).
         tracker_config: configuration of the UM tracker run (default :class:`PHDConfig`).
+        heldout: select each density's learner setting (from :data:`BIRTH_CANDIDATES` /
+            :data:`CLUTTER_CANDIDATES`, ``birth_epochs`` and ``clutter_epochs`` then being
+            ignored) and its uniform share by held-out likelihood
+            (:mod:`jaxtrack.context.heldout`); False: the paper's recursion alone, with the
+            given passes (its ``pi_u`` ends near the floor).
         progress: called with a short description before each long step.
 
     Returns:
@@ -157,19 +165,23 @@ def learn_context(
         sequence.info.im_width, sequence.info.im_height, sequence.info.frame_rate
     )
     key_birth, key_clutter = jax.random.split(jax.random.PRNGKey(seed))
-    notify(f"learning birth density ({births.count} events, {birth_epochs} passes)")
-    birth_state, birth_snapshots = learn_density(
+    birth_state, birth_snapshots, birth_check = _learn(
+        "birth",
         birth_grid(uniform_birth, _mean_size(births.values[:, 4:6])),
-        births.values,
+        births,
         birth_epochs,
+        BIRTH_CANDIDATES if heldout else None,
         key_birth,
+        notify,
     )
-    notify(f"learning clutter density ({clutter.count} events, {clutter_epochs} passes)")
-    clutter_state, clutter_snapshots = learn_density(
+    clutter_state, clutter_snapshots, clutter_check = _learn(
+        "clutter",
         clutter_grid(uniform_clutter, _mean_size(clutter.values[:, 2:4])),
-        clutter.values,
+        clutter,
         clutter_epochs,
+        CLUTTER_CANDIDATES if heldout else None,
         key_clutter,
+        notify,
     )
     key_birth_mass, key_clutter_mass = jax.random.split(jax.random.fold_in(key_birth, 1))
     birth_mass = volume_mass(to_intensity(birth_state, 1.0), key_birth_mass)
@@ -183,8 +195,8 @@ def learn_context(
         "sequence_name": sequence.info.name,
         "frames": list(span),
         "seed": seed,
-        "birth": _summary(births, birth_state, birth_epochs, birth_mass),
-        "clutter": _summary(clutter, clutter_state, clutter_epochs, clutter_mass),
+        "birth": _summary(births, birth_state, birth_check, birth_mass),
+        "clutter": _summary(clutter, clutter_state, clutter_check, clutter_mass),
         "warmup_frames": warmup_frames,
     }
     return LearnedContext(
@@ -204,7 +216,24 @@ def _mean_size(sizes: np.ndarray) -> tuple[float, float]:
     return float(mean[0]), float(mean[1])
 
 
-def _summary(events: EventSamples, state: MixtureState, epochs: int, mass: float) -> dict:
+def _learn(name, grid, events, epochs, candidates, key, notify):
+    """One density: ``(state, snapshots, summary of the settings and the held-out check)``."""
+    learner, check = None, {"epochs": epochs, "heldout": None}
+    if candidates is not None:
+        notify(f"checking {name} settings on held-out events ({len(candidates)} candidates)")
+        candidate, held = select_density(grid, events.values, events.frames, key, candidates)
+        epochs = candidate.epochs
+        learner = map_em_learner(prior_count=candidate.prior_count)
+        check = {"epochs": epochs, "prior_count": candidate.prior_count, "heldout": held.as_dict()}
+    notify(f"learning {name} density ({events.count} events, {epochs} passes)")
+    state, snapshots = learn_density(grid, events.values, epochs, key, learner)
+    if candidates is not None:
+        state = state._replace(uniform_weight=jnp.asarray(held.uniform_weight, state.weights.dtype))
+        snapshots = (*snapshots[:-1], snapshots[-1]._replace(state=state))
+    return state, snapshots, check
+
+
+def _summary(events: EventSamples, state: MixtureState, check: dict, mass: float) -> dict:
     """Metadata of one learned density."""
     return {
         "source": events.source,
@@ -212,7 +241,7 @@ def _summary(events: EventSamples, state: MixtureState, epochs: int, mass: float
         "num_frames": events.num_frames,
         "magnitude": events.magnitude,
         "volume_mass": mass,
-        "epochs": epochs,
+        **check,
         "components_alive": int(np.sum(np.asarray(state.alive))),
         "uniform_weight": float(state.uniform_weight),
     }

@@ -1,0 +1,275 @@
+"""How much a training span says: held-out likelihood, the uniform share and model selection.
+
+A density learned from 20 births or from clutter that is spread evenly over the image can be
+*worse* than the uniform one on frames it has not seen, while its in-sample fit looks
+excellent (the recursive MAP-EM of :mod:`jaxtrack.context.map_em` drives ``pi_u`` to its
+floor as soon as the Gaussians explain the training events better than ``u``, which they
+always do in sample). This module measures what the events say about *unseen* events and
+sets the uniform share and the learner's settings from that.
+
+**Folds.** The training events are cut by time into ``K`` contiguous blocks of (nearly)
+equal counts (:func:`time_folds`; :data:`NUM_FOLDS` by default). Time blocks, not a random
+split, because the question is whether what happened earlier predicts what happens later (a
+zone used only late in the span, a clutter source that switches on).
+
+**Out-of-fold densities.** For fold ``k`` the mixture's Gaussian part ``g_{-k}`` is learned
+from the other folds with the candidate settings, and every event ``x_i`` of fold ``k`` is
+scored under it: ``l_i = log g_{-k(i)}(x_i)``; the uniform scores ``log u = -log V``. The
+learner's Gaussian update does not depend on ``pi_u`` (the hierarchical update of
+:mod:`~jaxtrack.context.map_em`), so ``g`` is learned once per fold and candidate.
+
+**Uniform share.** The mixture ``p = pi_u u + (1 - pi_u) g`` is scored by the held-out
+log-likelihood per event with a Beta prior that treats the uniform as worth ``a``
+pseudo-events (the prior strength, :data:`UNIFORM_PRIOR_EVENTS`):
+
+    L(pi_u) = (1 / (n + a)) [ sum_i log(pi_u u + (1 - pi_u) g_{-k(i)}(x_i)) + a log pi_u ],
+
+and ``pi_u = argmax L`` over ``[f, 1]`` (:func:`select_uniform_weight`; ``L`` is concave in
+``pi_u``, so a fine log-spaced grid finds the maximum to within its spacing). When the
+learned Gaussians do not predict unseen events better than ``u``, the maximum is at
+``pi_u = 1``: the learned density *is* the uniform one (the fall-back). With plentiful
+evidence (``n >> a``, out-of-fold densities close to the in-sample ones) this is the ML
+share the paper's recursion (PHD-context eq. 17-18 with ``beta = 0``) converges to.
+
+**Model selection.** Each candidate setting of the learner (e.g. passes and prior
+count, :data:`BIRTH_CANDIDATES`, :data:`CLUTTER_CANDIDATES`) is scored by its
+``max L``; the best is refitted on all events and gets the selected ``pi_u``
+(:func:`select_density`). The reported held-out log-likelihoods (nats per event) are
+``L(pi_u)`` without the prior term, for the selected candidate, and ``log u`` for the
+uniform density: ``gain = learned - uniform`` is how many nats per unseen event the context
+is better than uniform (0 when it fell back). ``L`` uses the same out-of-fold scores that
+chose ``pi_u``, a one-parameter choice, so the optimism of the reported gain is small; the
+candidate choice adds a little more.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxtrack.context.intensity import log_normal
+from jaxtrack.context.map_em import (
+    UNIFORM_FLOOR,
+    MixtureState,
+    fit,
+    map_em_learner,
+)
+
+#: Time blocks of the cross-validation.
+NUM_FOLDS = 4
+#: Fewest events for which the held-out check runs (fewer: the density stays uniform).
+MIN_EVENTS = 2 * NUM_FOLDS
+#: Prior strength ``a``: the uniform density is worth this many pseudo-events.
+UNIFORM_PRIOR_EVENTS = 2.0
+#: Grid of ``pi_u`` values searched (log-spaced from the floor to 1).
+UNIFORM_GRID_SIZE = 400
+
+
+class Candidate(NamedTuple):
+    """One setting of the learner scored by held-out likelihood.
+
+    Attributes:
+        epochs: passes over the events.
+        prior_count: pseudo-samples per grid component (the learning-rate offset of
+            :func:`~jaxtrack.context.map_em.map_em_learner`).
+    """
+
+    epochs: int
+    prior_count: float
+
+
+#: Candidate settings for births (few events: more passes, gentler or stronger grid prior).
+BIRTH_CANDIDATES = (Candidate(15, 1.0), Candidate(5, 1.0), Candidate(15, 4.0))
+#: Candidate settings for clutter (many events).
+CLUTTER_CANDIDATES = (Candidate(5, 1.0), Candidate(2, 1.0), Candidate(5, 4.0))
+
+
+class HeldOut(NamedTuple):
+    """The held-out check of one density.
+
+    Attributes:
+        uniform_weight: the selected ``pi_u`` (1: fell back to uniform).
+        learned: held-out log-likelihood per event of ``pi_u u + (1 - pi_u) g``, nats.
+        uniform: held-out log-likelihood per event of ``u``, nats (``-log V``).
+        candidate: index of the selected candidate.
+        scores: ``max L`` of every candidate (nats per event, prior included).
+        num_folds: folds used (0: too few events, no check; the density is uniform).
+    """
+
+    uniform_weight: float
+    learned: float
+    uniform: float
+    candidate: int
+    scores: tuple[float, ...]
+    num_folds: int
+
+    @property
+    def gain(self) -> float:
+        """Nats per held-out event by which the learned density beats the uniform one."""
+        return self.learned - self.uniform
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable summary (saved in a context's metadata)."""
+        return {
+            "uniform_weight": self.uniform_weight,
+            "heldout_loglik": self.learned,
+            "heldout_loglik_uniform": self.uniform,
+            "heldout_gain": self.gain,
+            "candidate": self.candidate,
+            "candidate_scores": list(self.scores),
+            "num_folds": self.num_folds,
+        }
+
+
+def time_folds(frames: np.ndarray, num_folds: int = NUM_FOLDS) -> np.ndarray:
+    """Fold index of each event: ``num_folds`` contiguous time blocks of nearly equal counts.
+
+    Args:
+        frames: ``[n]`` frame of each event (any order).
+        num_folds: number of blocks (>= 2, <= n).
+
+    Returns:
+        ``[n]`` integer fold of each event; events of one frame share a fold.
+    """
+    frames = np.asarray(frames)
+    n = frames.size
+    if not 2 <= num_folds <= n:
+        raise ValueError(f"need 2 <= num_folds <= {n} events, got {num_folds}")
+    order = np.argsort(frames, kind="stable")
+    folds = np.empty(n, np.int64)
+    folds[order] = np.minimum(np.arange(n) * num_folds // n, num_folds - 1)
+    # events of the same frame go to the fold of the frame's first event
+    for frame in np.unique(frames):
+        same = frames == frame
+        folds[same] = folds[same].min()
+    return folds
+
+
+def log_gaussian_part(state: MixtureState, x: jax.Array) -> jax.Array:
+    """``log g(x)`` of the Gaussian part of a mixture state for a batch ``[n, dim]``."""
+    safe = jnp.where(state.alive, state.weights, 1.0)
+    log_components = jax.vmap(lambda m, c: log_normal(x, m, c), out_axes=-1)(
+        state.means, state.covs
+    )
+    values = jnp.where(state.alive, jnp.log(safe) + log_components, -jnp.inf)
+    return jax.nn.logsumexp(values, axis=-1)
+
+
+def log_uniform(state: MixtureState) -> float:
+    """``log u = -log V`` of a mixture state's volume."""
+    return -float(np.sum(np.log(np.asarray(state.upper, np.float64) - state.lower)))
+
+
+def select_uniform_weight(
+    log_g: np.ndarray,
+    log_u: float,
+    prior_events: float = UNIFORM_PRIOR_EVENTS,
+    floor: float = UNIFORM_FLOOR,
+    grid_size: int = UNIFORM_GRID_SIZE,
+) -> tuple[float, float, float]:
+    """``pi_u = argmax L(pi_u)`` over ``[floor, 1]`` (see the module docstring).
+
+    Args:
+        log_g: ``[n]`` out-of-fold ``log g(x_i)``.
+        log_u: ``log u``.
+        prior_events: the prior strength ``a`` (pseudo-events for the uniform).
+        floor: smallest ``pi_u``.
+        grid_size: points of the log-spaced search grid.
+
+    Returns:
+        ``(pi_u, L(pi_u), held-out log-likelihood per event at pi_u without the prior)``.
+    """
+    log_g = np.asarray(log_g, np.float64)
+    pis = np.unique(np.concatenate([np.geomspace(floor, 1.0, grid_size), [1.0]]))
+    with np.errstate(divide="ignore"):
+        per_event = np.logaddexp(
+            np.log(pis)[:, None] + log_u, np.log1p(-pis)[:, None] + log_g[None, :]
+        )
+    loglik = per_event.mean(axis=1)
+    n = log_g.size
+    objective = (n * loglik + prior_events * np.log(pis)) / (n + prior_events)
+    best = int(np.argmax(objective))
+    return float(pis[best]), float(objective[best]), float(loglik[best])
+
+
+_jit_fit = jax.jit(fit, static_argnums=(0, 4))
+_jit_log_g = jax.jit(log_gaussian_part)
+
+
+def out_of_fold_log_g(
+    grid: MixtureState,
+    samples: np.ndarray,
+    folds: np.ndarray,
+    candidate: Candidate,
+    key: jax.Array,
+) -> np.ndarray:
+    """``log g_{-k(i)}(x_i)`` of every event: each fold scored by a fit on the others.
+
+    Args:
+        grid: the starting state.
+        samples: ``[n, dim]`` events.
+        folds: ``[n]`` fold of each event (:func:`time_folds`).
+        candidate: the learner's setting.
+        key: PRNG key of the learning order.
+
+    Returns:
+        ``[n]`` out-of-fold log densities of the Gaussian part.
+    """
+    learner = map_em_learner(prior_count=candidate.prior_count)
+    n = samples.shape[0]
+    order = np.asarray(jax.random.permutation(key, n))
+    shuffled = jnp.asarray(samples[order], grid.weights.dtype)
+    points = jnp.asarray(samples, grid.weights.dtype)
+    result = np.empty(n)
+    for fold in np.unique(folds):
+        train = jnp.asarray(folds[order] != fold)
+        state = _jit_fit(learner, grid, shuffled, train, candidate.epochs)
+        held = folds == fold
+        result[held] = np.asarray(_jit_log_g(state, points))[held]
+    return result
+
+
+def select_density(
+    grid: MixtureState,
+    samples: np.ndarray,
+    frames: np.ndarray,
+    key: jax.Array,
+    candidates: tuple[Candidate, ...],
+    *,
+    num_folds: int = NUM_FOLDS,
+    prior_events: float = UNIFORM_PRIOR_EVENTS,
+    floor: float = UNIFORM_FLOOR,
+) -> tuple[Candidate, HeldOut]:
+    """The candidate setting and ``pi_u`` that predict unseen events best.
+
+    Args:
+        grid: the starting state (e.g. :func:`~jaxtrack.context.learn.birth_grid`).
+        samples: ``[n, dim]`` events (n >= 1).
+        frames: ``[n]`` frame of each event (the time folds).
+        key: PRNG key of the learning order (that of the final fit too).
+        candidates: the learner settings compared.
+        num_folds: time blocks; fewer than ``2 num_folds`` events skip the check: the first
+            candidate with ``pi_u = 1`` (the uniform density).
+        prior_events: prior strength ``a`` of :func:`select_uniform_weight`.
+        floor: smallest ``pi_u``.
+
+    Returns:
+        ``(candidate, held_out)``; the density is then learned on all events with the
+        candidate's setting and gets ``held_out.uniform_weight`` as its ``pi_u``.
+    """
+    samples = np.asarray(samples, np.float64)
+    log_u = log_uniform(grid)
+    if samples.shape[0] < max(MIN_EVENTS, 2 * num_folds):
+        return candidates[0], HeldOut(1.0, log_u, log_u, 0, (), 0)
+    folds = time_folds(frames, num_folds)
+    results = []
+    for candidate in candidates:
+        log_g = out_of_fold_log_g(grid, samples, folds, candidate, key)
+        results.append(select_uniform_weight(log_g, log_u, prior_events, floor))
+    scores = tuple(objective for _, objective, _ in results)
+    best = int(np.argmax(scores))
+    pi_u, _, loglik = results[best]
+    return candidates[best], HeldOut(pi_u, loglik, log_u, best, scores, num_folds)
