@@ -46,7 +46,14 @@ intensity gamma(x) = lambda_s p(x|b) over the state (centre, centre velocity, bo
 the clutter intensity kappa(z) = lambda_r p(z|c) over detection boxes (PHD-context Sec. IV).
 Each density is a uniform component plus a Gaussian mixture, learned by recursive MAP-EM from
 a 12x10 (birth) or 16x14 (clutter) grid; the Dirichlet prior prunes the components the data
-do not support. The magnitudes are events per frame. The uniform volumes are those of the
+do not support. The magnitudes are events per frame.
+
+Held-out check (default): the events are cut into 4 time blocks; each block is scored by a
+density learned on the others. That picks the learner's setting (passes, grid prior) and the
+uniform share pi_u: the share of events the learned Gaussians do not predict on unseen
+frames. The run prints the held-out log-likelihood per event of the learned density and of
+the uniform one; when the learned one is not better, pi_u = 1 (the uniform density: the
+context falls back to UM). --no-heldout gives the paper's recursion alone. The uniform volumes are those of the
 tracker's uniform (UM) intensities, so the result plugs into `jaxtrack track --context`.
 
 Event sources:
@@ -132,18 +139,23 @@ def register(subparsers) -> None:
     )
     add_seed(parser)
     parser.add_argument(
+        "--no-heldout",
+        dest="heldout",
+        action="store_false",
+        help="the paper's recursion alone: no held-out selection of the learner's setting "
+        "and the uniform share (pi_u then ends near its 1e-3 floor)",
+    )
+    parser.add_argument(
         "--birth-epochs",
         type=ranged(EPOCHS),
-        default=BIRTH_EPOCHS,
         metavar="N",
-        help=f"passes over the birth events (default {BIRTH_EPOCHS})",
+        help=f"with --no-heldout: passes over the birth events (default {BIRTH_EPOCHS})",
     )
     parser.add_argument(
         "--clutter-epochs",
         type=ranged(EPOCHS),
-        default=CLUTTER_EPOCHS,
         metavar="N",
-        help=f"passes over the clutter events (default {CLUTTER_EPOCHS})",
+        help=f"with --no-heldout: passes over the clutter events (default {CLUTTER_EPOCHS})",
     )
     parser.add_argument(
         "--warmup",
@@ -183,13 +195,18 @@ def run(args: argparse.Namespace) -> int:
         refuse_ignored(args, ["gt"], "is read only for --birth-from gt or --clutter-from gt")
     if not args.plot:
         refuse_ignored(args, ["video"], "needs --plot (its frame is drawn under the heat maps)")
+    if args.heldout:
+        refuse_ignored(
+            args, ["birth_epochs", "clutter_epochs"], "needs --no-heldout (else the passes are selected)"
+        )
     if args.video is not None and not Path(args.video).exists():
         raise InputError(f"--video {args.video}: not found")
     check_outputs([output_file("--out", args.out), *_plot_outputs(args.plot)], _inputs(args))
 
     start = time.perf_counter()
-    # steps: loading, (tracking,) collecting events, birth density, clutter density, (plots)
-    steps = 5 if "tracks" in (args.birth_from, clutter_from) else 4
+    # steps: loading, (tracking,) collecting events, (birth check,) birth density,
+    # (clutter check,) clutter density, (plots)
+    steps = (5 if "tracks" in (args.birth_from, clutter_from) else 4) + 2 * args.heldout
     total = steps + (1 if args.plot else 0)
     with tqdm(total=total, desc="learn-context", unit="step", disable=args.quiet) as bar:
         started: list[str] = []
@@ -207,8 +224,9 @@ def run(args: argparse.Namespace) -> int:
             birth_from=args.birth_from,
             clutter_from=clutter_from,
             seed=args.seed,
-            birth_epochs=args.birth_epochs,
-            clutter_epochs=args.clutter_epochs,
+            birth_epochs=args.birth_epochs or BIRTH_EPOCHS,
+            clutter_epochs=args.clutter_epochs or CLUTTER_EPOCHS,
+            heldout=args.heldout,
             warmup_frames=args.warmup,
             progress=progress,
         )
@@ -234,9 +252,26 @@ def run(args: argparse.Namespace) -> int:
             f"{info['num_frames']} frames -> magnitude {info['magnitude']:.4g}/frame, "
             f"{info['components_alive']} Gaussians alive, pi_u {info['uniform_weight']:.3g}"
         )
+        held = info.get("heldout")
+        if held is not None:
+            print("    " + heldout_line(held))
     if args.plot:
         print(f"  figures: {', '.join(str(path) for path in paths)}")
     return 0
+
+
+def heldout_line(held: dict) -> str:
+    """One line on a density's held-out check (:mod:`jaxtrack.context.heldout`)."""
+    if held["num_folds"] == 0:
+        return "held-out check: too few events; the density is uniform"
+    line = (
+        f"held-out log-lik {held['heldout_loglik']:.3f} vs uniform "
+        f"{held['heldout_loglik_uniform']:.3f} nats/event (gain {held['heldout_gain']:+.3f}, "
+        f"{held['num_folds']} time folds)"
+    )
+    if held["uniform_weight"] >= 1:
+        return line + ": not better than uniform, fell back to the uniform density"
+    return line
 
 
 def _plot_outputs(folder: str | None) -> list:

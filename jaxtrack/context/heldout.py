@@ -58,14 +58,18 @@ from jaxtrack.context.map_em import (
     map_em_learner,
 )
 
+#: Grid (columns, rows) of the birth background mixture ``b``.
+BIRTH_BACKGROUND_GRID = (6, 5)
+#: Grid (columns, rows) of the clutter background mixture ``b``.
+CLUTTER_BACKGROUND_GRID = (8, 7)
 #: Time blocks of the cross-validation.
 NUM_FOLDS = 4
 #: Fewest events for which the held-out check runs (fewer: the density stays uniform).
 MIN_EVENTS = 2 * NUM_FOLDS
 #: Prior strength ``a``: the uniform density is worth this many pseudo-events.
 UNIFORM_PRIOR_EVENTS = 2.0
-#: Grid of ``pi_u`` values searched (log-spaced from the floor to 1).
-UNIFORM_GRID_SIZE = 400
+#: Points per axis of the grid of shares searched (log-spaced from the floor to 1).
+SHARE_GRID_SIZE = 60
 
 
 class Candidate(NamedTuple):
@@ -92,7 +96,9 @@ class HeldOut(NamedTuple):
 
     Attributes:
         uniform_weight: the selected ``pi_u`` (1: fell back to uniform).
-        learned: held-out log-likelihood per event of ``pi_u u + (1 - pi_u) g``, nats.
+        background_weight: the selected ``pi_b``.
+        learned: held-out log-likelihood per event of ``pi_u u + pi_b b + (1 - pi_u -
+            pi_b) g``, nats.
         uniform: held-out log-likelihood per event of ``u``, nats (``-log V``).
         candidate: index of the selected candidate.
         scores: ``max L`` of every candidate (nats per event, prior included).
@@ -100,6 +106,7 @@ class HeldOut(NamedTuple):
     """
 
     uniform_weight: float
+    background_weight: float
     learned: float
     uniform: float
     candidate: int
@@ -115,6 +122,7 @@ class HeldOut(NamedTuple):
         """JSON-serialisable summary (saved in a context's metadata)."""
         return {
             "uniform_weight": self.uniform_weight,
+            "background_weight": self.background_weight,
             "heldout_loglik": self.learned,
             "heldout_loglik_uniform": self.uniform,
             "heldout_gain": self.gain,
@@ -163,36 +171,48 @@ def log_uniform(state: MixtureState) -> float:
     return -float(np.sum(np.log(np.asarray(state.upper, np.float64) - state.lower)))
 
 
-def select_uniform_weight(
+def select_shares(
     log_g: np.ndarray,
+    log_b: np.ndarray,
     log_u: float,
     prior_events: float = UNIFORM_PRIOR_EVENTS,
     floor: float = UNIFORM_FLOOR,
-    grid_size: int = UNIFORM_GRID_SIZE,
-) -> tuple[float, float, float]:
-    """``pi_u = argmax L(pi_u)`` over ``[floor, 1]`` (see the module docstring).
+    grid_size: int = SHARE_GRID_SIZE,
+) -> tuple[float, float, float, float]:
+    """``(pi_u, pi_b) = argmax L`` over ``pi_u >= f``, ``pi_b >= 0``, ``pi_u + pi_b <= 1``.
 
     Args:
-        log_g: ``[n]`` out-of-fold ``log g(x_i)``.
+        log_g: ``[n]`` out-of-fold ``log g(x_i)`` of the learned Gaussians.
+        log_b: ``[n]`` ``log b(x_i)`` of the background mixture.
         log_u: ``log u``.
-        prior_events: the prior strength ``a`` (pseudo-events for the uniform).
+        prior_events: the prior strength ``a`` (pseudo-events for the fall-back shares).
         floor: smallest ``pi_u``.
-        grid_size: points of the log-spaced search grid.
+        grid_size: points per axis of the log-spaced search grid.
 
     Returns:
-        ``(pi_u, L(pi_u), held-out log-likelihood per event at pi_u without the prior)``.
+        ``(pi_u, pi_b, L, held-out log-likelihood per event without the prior)``.
     """
     log_g = np.asarray(log_g, np.float64)
-    pis = np.unique(np.concatenate([np.geomspace(floor, 1.0, grid_size), [1.0]]))
+    log_b = np.asarray(log_b, np.float64)
+    axis = np.geomspace(floor, 1.0, grid_size)
+    pi_u, pi_b = np.meshgrid(axis, np.concatenate([[0.0], axis]), indexing="ij")
+    keep = pi_u + pi_b <= 1 + 1e-12
+    pi_u, pi_b = pi_u[keep], np.minimum(pi_b[keep], 1 - pi_u[keep])
+    pi_g = np.clip(1 - pi_u - pi_b, 0.0, 1.0)
     with np.errstate(divide="ignore"):
-        per_event = np.logaddexp(
-            np.log(pis)[:, None] + log_u, np.log1p(-pis)[:, None] + log_g[None, :]
+        terms = np.stack(
+            [
+                np.broadcast_to((np.log(pi_u) + log_u)[:, None], (pi_u.size, log_g.size)),
+                np.log(pi_b)[:, None] + log_b[None, :],
+                np.log(pi_g)[:, None] + log_g[None, :],
+            ]
         )
+    per_event = np.logaddexp.reduce(terms, axis=0)
     loglik = per_event.mean(axis=1)
     n = log_g.size
-    objective = (n * loglik + prior_events * np.log(pis)) / (n + prior_events)
+    objective = (n * loglik + prior_events * np.log(pi_u + pi_b)) / (n + prior_events)
     best = int(np.argmax(objective))
-    return float(pis[best]), float(objective[best]), float(loglik[best])
+    return float(pi_u[best]), float(pi_b[best]), float(objective[best]), float(loglik[best])
 
 
 _jit_fit = jax.jit(fit, static_argnums=(0, 4))
@@ -234,6 +254,7 @@ def out_of_fold_log_g(
 
 def select_density(
     grid: MixtureState,
+    background: MixtureState,
     samples: np.ndarray,
     frames: np.ndarray,
     key: jax.Array,
@@ -243,33 +264,65 @@ def select_density(
     prior_events: float = UNIFORM_PRIOR_EVENTS,
     floor: float = UNIFORM_FLOOR,
 ) -> tuple[Candidate, HeldOut]:
-    """The candidate setting and ``pi_u`` that predict unseen events best.
+    """The candidate setting and the shares ``(pi_u, pi_b)`` that predict unseen events best.
 
     Args:
         grid: the starting state (e.g. :func:`~jaxtrack.context.learn.birth_grid`).
+        background: the background mixture ``b`` (:func:`~jaxtrack.context.learn.background`).
         samples: ``[n, dim]`` events (n >= 1).
         frames: ``[n]`` frame of each event (the time folds).
         key: PRNG key of the learning order (that of the final fit too).
         candidates: the learner settings compared.
-        num_folds: time blocks; fewer than ``2 num_folds`` events skip the check: the first
-            candidate with ``pi_u = 1`` (the uniform density).
-        prior_events: prior strength ``a`` of :func:`select_uniform_weight`.
+        num_folds: time blocks; fewer than :data:`MIN_EVENTS` events skip the check: the
+            first candidate with ``pi_u = 1`` (the uniform density).
+        prior_events: prior strength ``a`` of :func:`select_shares`.
         floor: smallest ``pi_u``.
 
     Returns:
         ``(candidate, held_out)``; the density is then learned on all events with the
-        candidate's setting and gets ``held_out.uniform_weight`` as its ``pi_u``.
+        candidate's setting and combined with the selected shares (:func:`combine`).
     """
     samples = np.asarray(samples, np.float64)
     log_u = log_uniform(grid)
     if samples.shape[0] < max(MIN_EVENTS, 2 * num_folds):
-        return candidates[0], HeldOut(1.0, log_u, log_u, 0, (), 0)
+        return candidates[0], HeldOut(1.0, 0.0, log_u, log_u, 0, (), 0)
     folds = time_folds(frames, num_folds)
+    log_b = np.asarray(_jit_log_g(background, jnp.asarray(samples, grid.weights.dtype)))
     results = []
     for candidate in candidates:
         log_g = out_of_fold_log_g(grid, samples, folds, candidate, key)
-        results.append(select_uniform_weight(log_g, log_u, prior_events, floor))
-    scores = tuple(objective for _, objective, _ in results)
+        results.append(select_shares(log_g, log_b, log_u, prior_events, floor))
+    scores = tuple(result[2] for result in results)
     best = int(np.argmax(scores))
-    pi_u, _, loglik = results[best]
-    return candidates[best], HeldOut(pi_u, loglik, log_u, best, scores, num_folds)
+    pi_u, pi_b, _, loglik = results[best]
+    return candidates[best], HeldOut(pi_u, pi_b, loglik, log_u, best, scores, num_folds)
+
+
+def combine(state: MixtureState, background: MixtureState, held: HeldOut) -> MixtureState:
+    """``pi_u u + pi_b b + (1 - pi_u - pi_b) g`` as one state (the background's slots appended).
+
+    Args:
+        state: the learned density (its Gaussian part ``g``).
+        background: the background mixture ``b``.
+        held: the selected shares.
+
+    Returns:
+        A state with ``K + K_b`` slots and uniform weight ``pi_u``.
+    """
+    pi_u, pi_b = held.uniform_weight, held.background_weight
+    gaussian = max(1.0 - pi_u, 0.0)
+    dtype = state.weights.dtype
+    if gaussian <= 0:
+        weights_g, weights_b = state.weights * 0, background.weights * 0
+    else:
+        share_b = min(pi_b / gaussian, 1.0)
+        weights_g = jnp.where(state.alive, state.weights, 0.0) * (1 - share_b)
+        weights_b = background.weights * share_b
+    weights = jnp.concatenate([weights_g, weights_b]).astype(dtype)
+    return state._replace(
+        uniform_weight=jnp.asarray(pi_u, dtype),
+        weights=weights,
+        means=jnp.concatenate([state.means, background.means]),
+        covs=jnp.concatenate([state.covs, background.covs]),
+        alive=weights > 0,
+    )

@@ -147,13 +147,16 @@ def uniform_volumes(
     )
 
 
-def birth_grid(uniform: Intensity, mean_size: tuple[float, float]) -> MixtureState:
+def birth_grid(
+    uniform: Intensity, mean_size: tuple[float, float], grid: tuple[int, int] = (12, 10)
+) -> MixtureState:
     """The paper's 12x10 birth grid on the volume of a UM birth intensity.
 
     Args:
         uniform: a 6-D intensity over ``[0, W] x [-v, v] x [0, H] x [-v, v] x [w0, w1] x
             [h0, h1]``.
         mean_size: mean box ``(w, h)`` of the birth events.
+        grid: components along the image columns and rows.
 
     Returns:
         The starting state (:func:`~jaxtrack.context.map_em.grid_init_birth`).
@@ -163,17 +166,21 @@ def birth_grid(uniform: Intensity, mean_size: tuple[float, float]) -> MixtureSta
         float(upper[0]),
         float(upper[2]),
         mean_size,
+        grid=grid,
         max_speed=float(upper[1]),
         size_range=((float(lower[4]), float(lower[5])), (float(upper[4]), float(upper[5]))),
     )
 
 
-def clutter_grid(uniform: Intensity, mean_size: tuple[float, float]) -> MixtureState:
+def clutter_grid(
+    uniform: Intensity, mean_size: tuple[float, float], grid: tuple[int, int] = (16, 14)
+) -> MixtureState:
     """The paper's 16x14 clutter grid on the volume of a UM clutter intensity.
 
     Args:
         uniform: a 4-D intensity over ``[0, W] x [0, H] x [w0, w1] x [h0, h1]``.
         mean_size: mean box ``(w, h)`` of the clutter events.
+        grid: components along the image columns and rows.
 
     Returns:
         The starting state (:func:`~jaxtrack.context.map_em.grid_init_clutter`).
@@ -183,6 +190,7 @@ def clutter_grid(uniform: Intensity, mean_size: tuple[float, float]) -> MixtureS
         float(upper[0]),
         float(upper[1]),
         mean_size,
+        grid=grid,
         size_range=((float(lower[2]), float(lower[3])), (float(upper[2]), float(upper[3]))),
     )
 

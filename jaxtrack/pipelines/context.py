@@ -11,7 +11,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.context.clutter_labels import load_clutter_labels
@@ -26,7 +25,14 @@ from jaxtrack.context.learn import (
     uniform_volumes,
     volume_mass,
 )
-from jaxtrack.context.heldout import BIRTH_CANDIDATES, CLUTTER_CANDIDATES, select_density
+from jaxtrack.context.heldout import (
+    BIRTH_BACKGROUND_GRID,
+    BIRTH_CANDIDATES,
+    CLUTTER_BACKGROUND_GRID,
+    CLUTTER_CANDIDATES,
+    combine,
+    select_density,
+)
 from jaxtrack.context.map_em import MixtureState, map_em_learner, to_intensity
 from jaxtrack.context.samples import (
     WARMUP_FRAMES,
@@ -165,9 +171,11 @@ def learn_context(
         sequence.info.im_width, sequence.info.im_height, sequence.info.frame_rate
     )
     key_birth, key_clutter = jax.random.split(jax.random.PRNGKey(seed))
+    birth_size, clutter_size = _mean_size(births.values[:, 4:6]), _mean_size(clutter.values[:, 2:4])
     birth_state, birth_snapshots, birth_check = _learn(
         "birth",
-        birth_grid(uniform_birth, _mean_size(births.values[:, 4:6])),
+        birth_grid(uniform_birth, birth_size),
+        birth_grid(uniform_birth, birth_size, BIRTH_BACKGROUND_GRID),
         births,
         birth_epochs,
         BIRTH_CANDIDATES if heldout else None,
@@ -176,7 +184,8 @@ def learn_context(
     )
     clutter_state, clutter_snapshots, clutter_check = _learn(
         "clutter",
-        clutter_grid(uniform_clutter, _mean_size(clutter.values[:, 2:4])),
+        clutter_grid(uniform_clutter, clutter_size),
+        clutter_grid(uniform_clutter, clutter_size, CLUTTER_BACKGROUND_GRID),
         clutter,
         clutter_epochs,
         CLUTTER_CANDIDATES if heldout else None,
@@ -216,19 +225,21 @@ def _mean_size(sizes: np.ndarray) -> tuple[float, float]:
     return float(mean[0]), float(mean[1])
 
 
-def _learn(name, grid, events, epochs, candidates, key, notify):
+def _learn(name, grid, background, events, epochs, candidates, key, notify):
     """One density: ``(state, snapshots, summary of the settings and the held-out check)``."""
     learner, check = None, {"epochs": epochs, "heldout": None}
     if candidates is not None:
         notify(f"checking {name} settings on held-out events ({len(candidates)} candidates)")
-        candidate, held = select_density(grid, events.values, events.frames, key, candidates)
+        candidate, held = select_density(
+            grid, background, events.values, events.frames, key, candidates
+        )
         epochs = candidate.epochs
         learner = map_em_learner(prior_count=candidate.prior_count)
         check = {"epochs": epochs, "prior_count": candidate.prior_count, "heldout": held.as_dict()}
     notify(f"learning {name} density ({events.count} events, {epochs} passes)")
     state, snapshots = learn_density(grid, events.values, epochs, key, learner)
     if candidates is not None:
-        state = state._replace(uniform_weight=jnp.asarray(held.uniform_weight, state.weights.dtype))
+        state = combine(state, background, held)
         snapshots = (*snapshots[:-1], snapshots[-1]._replace(state=state))
     return state, snapshots, check
 
