@@ -51,9 +51,10 @@ do not support. The magnitudes are events per frame.
 Held-out check (default): the events are cut into 4 time blocks; each block is scored by a
 density learned on the others. That picks the learner's setting (passes, grid prior) and the
 uniform share pi_u: the share of events the learned Gaussians do not predict on unseen
-frames. The run prints the held-out log-likelihood per event of the learned density and of
-the uniform one; when the learned one is not better, pi_u = 1 (the uniform density: the
-context falls back to UM). --no-heldout gives the paper's recursion alone. The uniform volumes are those of the
+frames, and a background share pi_b (broad Gaussians spread evenly over the image with the
+events' typical size: "it can happen anywhere"). The run prints the held-out log-likelihood
+per event of the learned density and of the uniform one; when the learned one is not
+better, pi_u = 1 (the uniform density: the context falls back to UM). --no-heldout gives the paper's recursion alone. The uniform volumes are those of the
 tracker's uniform (UM) intensities, so the result plugs into `jaxtrack track --context`.
 
 Event sources:
@@ -197,7 +198,9 @@ def run(args: argparse.Namespace) -> int:
         refuse_ignored(args, ["video"], "needs --plot (its frame is drawn under the heat maps)")
     if args.heldout:
         refuse_ignored(
-            args, ["birth_epochs", "clutter_epochs"], "needs --no-heldout (else the passes are selected)"
+            args,
+            ["birth_epochs", "clutter_epochs"],
+            "needs --no-heldout (else the passes are selected)",
         )
     if args.video is not None and not Path(args.video).exists():
         raise InputError(f"--video {args.video}: not found")
@@ -267,7 +270,8 @@ def heldout_line(held: dict) -> str:
     line = (
         f"held-out log-lik {held['heldout_loglik']:.3f} vs uniform "
         f"{held['heldout_loglik_uniform']:.3f} nats/event (gain {held['heldout_gain']:+.3f}, "
-        f"{held['num_folds']} time folds)"
+        f"{held['num_folds']} time folds); fall-back shares: uniform "
+        f"{held['uniform_weight']:.3g}, background {held['background_weight']:.3g}"
     )
     if held["uniform_weight"] >= 1:
         return line + ": not better than uniform, fell back to the uniform density"

@@ -18,28 +18,42 @@ scored under it: ``l_i = log g_{-k(i)}(x_i)``; the uniform scores ``log u = -log
 learner's Gaussian update does not depend on ``pi_u`` (the hierarchical update of
 :mod:`~jaxtrack.context.map_em`), so ``g`` is learned once per fold and candidate.
 
-**Uniform share.** The mixture ``p = pi_u u + (1 - pi_u) g`` is scored by the held-out
-log-likelihood per event with a Beta prior that treats the uniform as worth ``a``
-pseudo-events (the prior strength, :data:`UNIFORM_PRIOR_EVENTS`):
+**Why a background mixture.** The uniform ``u`` of the paper (eq. 21) spreads over the UM
+volume, which includes every box size from 1 pixel to the image and, for births, every
+velocity up to the speed limit. Events have typical sizes, so a learned Gaussian beats ``u``
+by a factor of ~1000 (about 7 nats per event) on sizes alone: the held-out check then never
+keeps a useful uniform share, and a context whose clutter is learned (size-concentrated) but
+whose births in an unseen zone fall to the diluted uniform stops starting tracks there. The
+fall-back therefore has two parts: ``u`` (exactly UM's density) and a *background* ``b``, a
+coarse, equally weighted grid of broad Gaussians (:data:`BIRTH_BACKGROUND_GRID`,
+:data:`CLUTTER_BACKGROUND_GRID`; position spread = grid spacing, so nearly flat over the
+image; sizes around the events' mean size, velocities around 0 with half the speed limit
+as spread, as in the learner's initial grid). ``b`` is "an event can happen anywhere, with
+the typical size", and does not depend on where events were seen.
 
-    L(pi_u) = (1 / (n + a)) [ sum_i log(pi_u u + (1 - pi_u) g_{-k(i)}(x_i)) + a log pi_u ],
+**Shares.** The density is ``p = pi_u u + pi_b b + (1 - pi_u - pi_b) g`` and its shares are
+chosen by the held-out log-likelihood per event with a prior worth ``a`` pseudo-events on
+the fall-back mass (:data:`UNIFORM_PRIOR_EVENTS`):
 
-and ``pi_u = argmax L`` over ``[f, 1]`` (:func:`select_uniform_weight`; ``L`` is concave in
-``pi_u``, so a fine log-spaced grid finds the maximum to within its spacing). When the
-learned Gaussians do not predict unseen events better than ``u``, the maximum is at
-``pi_u = 1``: the learned density *is* the uniform one (the fall-back). With plentiful
-evidence (``n >> a``, out-of-fold densities close to the in-sample ones) this is the ML
-share the paper's recursion (PHD-context eq. 17-18 with ``beta = 0``) converges to.
+    L(pi_u, pi_b) = (1 / (n + a)) [ sum_i log(pi_u u + pi_b b(x_i)
+                      + (1 - pi_u - pi_b) g_{-k(i)}(x_i)) + a log(pi_u + pi_b) ],
 
-**Model selection.** Each candidate setting of the learner (e.g. passes and prior
-count, :data:`BIRTH_CANDIDATES`, :data:`CLUTTER_CANDIDATES`) is scored by its
-``max L``; the best is refitted on all events and gets the selected ``pi_u``
-(:func:`select_density`). The reported held-out log-likelihoods (nats per event) are
-``L(pi_u)`` without the prior term, for the selected candidate, and ``log u`` for the
-uniform density: ``gain = learned - uniform`` is how many nats per unseen event the context
-is better than uniform (0 when it fell back). ``L`` uses the same out-of-fold scores that
-chose ``pi_u``, a one-parameter choice, so the optimism of the reported gain is small; the
-candidate choice adds a little more.
+``(pi_u, pi_b) = argmax L`` over ``pi_u in [f, 1]``, ``pi_b >= 0``, ``pi_u + pi_b <= 1``
+(:func:`select_shares`; ``L`` is concave, a log-spaced grid finds the maximum to within its
+spacing). When the learned Gaussians do not predict unseen events better than the fall-back,
+their share goes to 0; when neither they nor ``b`` beat ``u``, ``pi_u = 1``: the density *is*
+UM's. With plentiful, stationary evidence (``n >> a``, out-of-fold densities close to the
+in-sample ones, no event left unexplained) the fall-back shares go to their floors and the
+density is the paper's MAP-EM estimate (PHD-context eq. 17-21).
+
+**Model selection.** Each candidate setting of the learner (passes and prior count,
+:data:`BIRTH_CANDIDATES`, :data:`CLUTTER_CANDIDATES`) is scored by its ``max L``; the best is
+refitted on all events and combined with its shares (:func:`select_density`,
+:func:`combine`). The reported held-out log-likelihoods (nats per event) are ``L`` without
+the prior term for the selected candidate and ``log u`` for the uniform density: ``gain =
+learned - uniform`` is how many nats per unseen event the context beats UM's density (0 when
+it fell back). ``L`` uses the same out-of-fold scores that chose the two shares, so the
+reported gain is slightly optimistic; the candidate choice adds a little more.
 """
 
 from __future__ import annotations

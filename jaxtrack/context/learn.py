@@ -10,7 +10,13 @@ files, is :func:`jaxtrack.pipelines.context.learn_context`):
 2. **Densities** by recursive MAP-EM (:mod:`jaxtrack.context.map_em`) from the paper's grid
    initialisations (births 12x10 in 6-D, clutter 16x14 in 4-D) centred on the events'
    mean box size.
-3. **Intensities** ``gamma(x) = lambda_s p(x | b)``, ``kappa(z) = lambda_r p(z | c)``
+3. **Held-out check** (:mod:`jaxtrack.context.heldout`, the default of
+   :func:`~jaxtrack.pipelines.context.learn_context`): time-blocked cross-validation picks
+   each density's learner setting and its fall-back shares (uniform ``pi_u`` and an
+   evenly spread background ``pi_b``) by the log-likelihood of unseen events, so that a
+   density learned from little or non-stationary evidence keeps mass where events were
+   not (yet) seen.
+4. **Intensities** ``gamma(x) = lambda_s p(x | b)``, ``kappa(z) = lambda_r p(z | c)``
    (PHD-context eq. 12-13) with the magnitudes estimated as events per frame, keeping only
    the live mixture components (:func:`live_components`).
 

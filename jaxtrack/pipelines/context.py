@@ -14,6 +14,14 @@ import jax
 import numpy as np
 
 from jaxtrack.context.clutter_labels import load_clutter_labels
+from jaxtrack.context.heldout import (
+    BIRTH_BACKGROUND_GRID,
+    BIRTH_CANDIDATES,
+    CLUTTER_BACKGROUND_GRID,
+    CLUTTER_CANDIDATES,
+    combine,
+    select_density,
+)
 from jaxtrack.context.learn import (
     BIRTH_EPOCHS,
     CLUTTER_EPOCHS,
@@ -24,14 +32,6 @@ from jaxtrack.context.learn import (
     live_components,
     uniform_volumes,
     volume_mass,
-)
-from jaxtrack.context.heldout import (
-    BIRTH_BACKGROUND_GRID,
-    BIRTH_CANDIDATES,
-    CLUTTER_BACKGROUND_GRID,
-    CLUTTER_CANDIDATES,
-    combine,
-    select_density,
 )
 from jaxtrack.context.map_em import MixtureState, map_em_learner, to_intensity
 from jaxtrack.context.samples import (

@@ -46,6 +46,12 @@ def learned(scene_dir):
     return learn_context(scene_dir, (1, FRAMES), birth_from="gt", clutter_from="gt")
 
 
+@pytest.fixture(scope="module")
+def paper(scene_dir):
+    """The paper's recursion alone (no held-out selection of settings and shares)."""
+    return learn_context(scene_dir, (1, FRAMES), birth_from="gt", clutter_from="gt", heldout=False)
+
+
 def _centre_map(intensity: Intensity, dims, step=2.0):
     """Centre-marginal intensity on a grid over the default 768x576 image."""
     columns = np.arange(0.0, 768.0, step)
@@ -82,15 +88,26 @@ def test_clutter_density_peaks_at_every_clutter_source(learned):
         assert distance.size and distance.min() < 20.0, source.name
 
 
-def test_birth_density_puts_most_mass_in_the_entry_zones(learned):
-    draws = np.asarray(sample(jax.random.PRNGKey(0), learned.birth, 20000), np.float64)
+def _in_zone_share(intensity):
+    draws = np.asarray(sample(jax.random.PRNGKey(0), intensity, 20000), np.float64)
     in_zone = np.zeros(draws.shape[0], bool)
     for zone in SceneConfig().zones:
         # a zone: its birth positions' 3-sigma ellipse, widened by 20 px
         semi_axes = 3 * np.asarray(zone.position_std) + 20.0
         offset = (draws[:, [0, 2]] - np.asarray(zone.centre)) / semi_axes
         in_zone |= np.sum(offset**2, axis=1) <= 1.0
-    assert in_zone.mean() > 0.8
+    return in_zone.mean()
+
+
+def test_birth_density_puts_most_mass_in_the_entry_zones(learned, paper):
+    # the paper's recursion: nearly all its mass; with the held-out check, ~25 births leave
+    # a fall-back share (uniform + background) for births where none was seen
+    assert _in_zone_share(paper.birth) > 0.8
+    held = learned.metadata["birth"]["heldout"]
+    fallback = held["uniform_weight"] + held["background_weight"]
+    assert 0.0 < fallback < 0.35
+    assert _in_zone_share(learned.birth) > 0.6
+    assert held["heldout_gain"] > 3.0  # far better than uniform on unseen births
     # the zones cover a few percent of the image: a uniform density would fail this test
     uniform = np.asarray(
         sample(jax.random.PRNGKey(1), uniform_volumes(768, 576, 10.0)[0], 20000), np.float64
@@ -178,7 +195,8 @@ def test_volumes_are_the_trackers_uniform_volumes(learned):
     assert float(learned.birth.upper[1]) == pytest.approx(0.4 * 576 / 10.0)
 
 
-def test_grids_are_pruned_and_snapshots_record_the_evolution(learned):
+def test_grids_are_pruned_and_snapshots_record_the_evolution(paper):
+    learned = paper
     for snapshots, epochs, grid_size in (
         (learned.birth_snapshots, BIRTH_EPOCHS, 120),
         (learned.clutter_snapshots, CLUTTER_EPOCHS, 224),
@@ -196,6 +214,18 @@ def test_grids_are_pruned_and_snapshots_record_the_evolution(learned):
     assert meta["birth"]["source"] == "gt" and meta["frames"] == [1, FRAMES]
     for kind in ("birth", "clutter"):
         assert 0.9 < meta[kind]["volume_mass"] <= 1.0
+        assert meta[kind]["heldout"] is None
+
+
+def test_heldout_check_selects_a_candidate_and_records_it(learned):
+    for kind, grid_size, background_size in (("birth", 120, 30), ("clutter", 224, 56)):
+        meta = learned.metadata[kind]
+        held = meta["heldout"]
+        assert held["num_folds"] == 4 and len(held["candidate_scores"]) == 3
+        assert held["candidate_scores"][held["candidate"]] == max(held["candidate_scores"])
+        assert held["heldout_loglik"] > held["heldout_loglik_uniform"]
+        assert meta["uniform_weight"] == pytest.approx(held["uniform_weight"])
+        assert 0 < meta["components_alive"] <= grid_size + background_size
 
 
 def test_marginal_matches_numerical_integration():
