@@ -54,8 +54,9 @@ uniform share pi_u: the share of events the learned Gaussians do not predict on 
 frames, and a background share pi_b (broad Gaussians spread evenly over the image with the
 events' typical size: "it can happen anywhere"). The run prints the held-out log-likelihood
 per event of the learned density and of the uniform one; when the learned one is not
-better, pi_u = 1 (the uniform density: the context falls back to UM). --no-heldout gives the paper's recursion alone. The uniform volumes are those of the
-tracker's uniform (UM) intensities, so the result plugs into `jaxtrack track --context`.
+better, pi_u = 1 (the uniform density: the context falls back to UM). --no-heldout gives
+the paper's recursion alone. The uniform volumes are those of the tracker's uniform (UM)
+intensities, so the result plugs into `jaxtrack track --context`.
 
 Event sources:
   --birth-from tracks   first states of the trajectories of a UM tracker run (default)
