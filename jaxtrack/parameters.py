@@ -11,6 +11,9 @@ Transforms map the unconstrained real line to the parameter's domain:
 
 * ``LOG``: rates and scales ``> 0``, ``value = exp(theta)``;
 * ``LOGIT``: probabilities in ``(0, 1)``, ``value = sigmoid(theta)``;
+* ``SHARE``: a mixture's share in ``[0, 1)`` (the uniform share of a learned density),
+  ``value = sigmoid(theta)``; 1 is refused: the density is then uniform and its share
+  means nothing;
 * ``IDENTITY``: unconstrained values.
 """
 
@@ -57,6 +60,13 @@ def _logit(value: Array) -> Array:
 
 LOG = Transform("log", jnp.exp, jnp.log, "> 0", lambda v: v > 0)
 LOGIT = Transform("logit", jax.nn.sigmoid, _logit, "(0, 1]", lambda v: (v > 0) & (v <= 1))
+SHARE = Transform(
+    "logit",
+    jax.nn.sigmoid,
+    _logit,
+    "in [0, 1) (1 is a uniform density, with no learned part to share with)",
+    lambda v: (v >= 0) & (v < 1),
+)
 IDENTITY = Transform("identity", lambda t: t, lambda v: v, "finite", np.isfinite)
 
 

@@ -246,6 +246,15 @@ REFUSED = [
         "tune {seq} --out {tmp}/file.txt/t.json",
         "--out {tmp}/file.txt/t.json cannot be written: {tmp}/file.txt is not a folder",
     ),
+    (
+        "tune {seq} --context {ctx} --out {ctx}",
+        "--out {ctx} is an input of this run (the context --context {ctx})",
+    ),
+    (
+        "tune {seq} --context {ctx} --out {tmp}/t.npz --config {tmp}/t.config.json",
+        "{tmp}/t.config.json (written with --out {tmp}/t.npz) is an input of this run "
+        "(the tracker configuration --config {tmp}/t.config.json)",
+    ),
     # demo
     ("demo --out {tmp}/file.txt", "--out {tmp}/file.txt exists and is not a folder"),
     (

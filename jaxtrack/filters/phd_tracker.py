@@ -11,7 +11,8 @@
   the filter is cached on the configuration's static settings, so a setting compiles once per
   process.
 * :func:`phd_properties` is the parameter-properties tree (:mod:`jaxtrack.parameters`) that
-  the sweep and the tuner share.
+  the sweep and the tuner share; :func:`tuned_context` writes tuned magnitudes and uniform
+  shares back into a learned context (``jaxtrack tune --context``).
 
 **Birth rate.** ``birth_rate`` is ``lambda_s``, the magnitude of the birth intensity
 ``gamma`` (PHD-context eq. 19): expected births per frame from the second frame of a run on.
@@ -23,15 +24,18 @@ targets already in view when a span starts are. Configuration, sweep and tuner a
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 from typing import Any, ClassVar, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
 from jaxtrack.context.intensity import Intensity, birth_speed_limit, uniform_birth_intensity
+from jaxtrack.context.learn import volume_mass
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.phd import PHDParams, phd_filter
@@ -43,7 +47,7 @@ from jaxtrack.filters.phd_defaults import (
     default_phd_params,
 )
 from jaxtrack.models.survival import SurvivalMap
-from jaxtrack.parameters import LOG, LOGIT, ParameterProperties, frozen_properties
+from jaxtrack.parameters import LOG, LOGIT, SHARE, ParameterProperties, frozen_properties
 from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
 from jaxtrack.types import SequenceInfo
 
@@ -67,6 +71,9 @@ TUNABLE = (
     "motion_noise_std",
     "measurement_noise_std",
 )
+#: The tunable uniform shares ``pi_u`` of a learned context's densities, by context part.
+#: They are no configuration keys: :func:`tuned_context` writes them into the context.
+UNIFORM_SHARES = {"birth": "birth_uniform_share", "clutter": "clutter_uniform_share"}
 
 _RATE = {"kind": float, "lower": 0.0, "upper": MAX_RATE, "lower_open": True}
 _PROBABILITY = {"kind": float, "lower": 0.0, "upper": 1.0, "lower_open": True}
@@ -315,12 +322,16 @@ def phd_memory_estimate(config: PHDConfig, capacity: int, chunk_frames: int) -> 
 def phd_properties(params: PHDParams) -> PHDParams:
     """The parameter-properties tree of :class:`~jaxtrack.filters.phd.PHDParams`.
 
-    Named leaves (each name is the :class:`PHDConfig` key that carries it):
-    ``clutter_rate`` (``clutter_intensity.magnitude``, log), ``birth_rate``
+    Named leaves (each name but the uniform shares is the :class:`PHDConfig` key that carries
+    it): ``clutter_rate`` (``clutter_intensity.magnitude``, log), ``birth_rate``
     (``birth_intensity.magnitude``, log), ``initial_rate`` (``initial_intensity.magnitude``,
-    log), ``detection_prob`` and ``survival_prob`` (logit; a survival map is not tunable) and
-    the SDV noise scales ``motion_noise_std`` and ``measurement_noise_std`` (log). All start
-    frozen; :func:`~jaxtrack.parameters.with_trainable` picks the trainable ones.
+    log), ``detection_prob`` and ``survival_prob`` (logit; a survival map is not tunable), the
+    SDV noise scales ``motion_noise_std`` and ``measurement_noise_std`` (log), and the uniform
+    shares ``pi_u`` of the birth and clutter densities (PHD-context eq. 21),
+    ``birth_uniform_share`` and ``clutter_uniform_share`` (``*_intensity.uniform_weight``,
+    :data:`~jaxtrack.parameters.SHARE`: logit on ``[0, 1)``; a uniform intensity's
+    ``pi_u = 1`` is refused when tuned, see :func:`has_learned_density`). All start frozen;
+    :func:`~jaxtrack.parameters.with_trainable` picks the trainable ones.
     """
     props = frozen_properties(params)
 
@@ -329,8 +340,14 @@ def phd_properties(params: PHDParams) -> PHDParams:
 
     survival = params.survival_prob
     return props._replace(
-        clutter_intensity=props.clutter_intensity._replace(magnitude=named("clutter_rate", LOG)),
-        birth_intensity=props.birth_intensity._replace(magnitude=named("birth_rate", LOG)),
+        clutter_intensity=props.clutter_intensity._replace(
+            magnitude=named("clutter_rate", LOG),
+            uniform_weight=named(UNIFORM_SHARES["clutter"], SHARE),
+        ),
+        birth_intensity=props.birth_intensity._replace(
+            magnitude=named("birth_rate", LOG),
+            uniform_weight=named(UNIFORM_SHARES["birth"], SHARE),
+        ),
         initial_intensity=props.initial_intensity._replace(magnitude=named("initial_rate", LOG)),
         detection_prob=named("detection_prob", LOGIT),
         survival_prob=props.survival_prob
@@ -339,6 +356,110 @@ def phd_properties(params: PHDParams) -> PHDParams:
         motion_noise_std=named("motion_noise_std", LOG),
         measurement_noise_std=named("measurement_noise_std", LOG),
     )
+
+
+def has_learned_density(intensity: Intensity) -> bool:
+    """Whether an intensity's density has a learned part: live Gaussians and ``pi_u < 1``.
+
+    Only then is its uniform share a parameter: a uniform (UM) intensity has ``pi_u = 1`` and
+    no live Gaussians, so moving ``pi_u`` would share the density with nothing.
+    """
+    alive = np.any(np.asarray(intensity.weights) > 0)
+    return bool(alive and float(intensity.uniform_weight) < 1)
+
+
+def context_names(variant: str) -> dict[str, str]:
+    """The tunable names whose values a variant takes from the context, by name: its part.
+
+    A learned part's magnitude and uniform share, and the magnitude of a uniform part whose
+    magnitude is measured (A3-A5); the others are configuration keys.
+    """
+    use = VARIANTS[variant]
+    names = {}
+    for part, learned, measured in (
+        ("birth", use.learned_birth, use.birth_magnitude_from_context),
+        ("clutter", use.learned_clutter, use.clutter_magnitude_from_context),
+    ):
+        if learned or measured:
+            names[f"{part}_rate"] = part
+        if learned:
+            names[UNIFORM_SHARES[part]] = part
+    return names
+
+
+def tuned_context(
+    context: Context, params: PHDParams, variant: str, record: dict[str, Any]
+) -> Context:
+    """The context with the (tuned) magnitudes and uniform shares of ``params`` written in.
+
+    The inverse of :func:`phd_params` for the parts the variant takes from the context, so
+    that ``phd_params(config, info, tuned_context(...), variant)`` gives back ``params``'
+    birth and clutter intensities (and every variant reads consistent values):
+
+    * a learned part (GM; A1, A4 birth; A2, A5 clutter): the intensity takes ``params``'
+      magnitude ``m`` and uniform share ``pi_u``; the recorded events per frame become
+      ``lambda = m P_p(V)``, with ``P_p(V) = pi_u + (1 - pi_u) P_GMM(V)`` the density's mass
+      in the volume (:mod:`jaxtrack.context.learn`; ``P_GMM(V)`` from the recorded
+      ``volume_mass``, else by Monte Carlo);
+    * a uniform part with a measured magnitude (A3; A4 clutter, A5 birth): ``lambda`` is
+      ``params``' magnitude, the learned intensity's magnitude ``lambda / P_p(V)``;
+    * a part the variant does not take from the context is unchanged.
+
+    Args:
+        context: the context tuned.
+        params: the tuned parameters (from ``phd_params(config, info, context, variant)``).
+        variant: the variant they were built with (not UM).
+        record: what to note in the metadata's ``tuning`` list (span, objective, values).
+
+    Returns:
+        The tuned context; its metadata's ``birth`` and ``clutter`` hold the new
+        ``magnitude``, ``uniform_weight`` and ``volume_mass``, ``tuning`` the records.
+    """
+    use = VARIANTS[variant]
+    metadata = copy.deepcopy(context.metadata)
+    parts = {}
+    for part, learned, measured in (
+        ("birth", use.learned_birth, use.birth_magnitude_from_context),
+        ("clutter", use.learned_clutter, use.clutter_magnitude_from_context),
+    ):
+        intensity = getattr(context, part)
+        tuned = getattr(params, f"{part}_intensity")
+        if learned:
+            intensity = intensity._replace(uniform_weight=jnp.asarray(tuned.uniform_weight))
+        mass = _volume_mass(context, part, float(intensity.uniform_weight))
+        if learned:
+            rate = float(tuned.magnitude) * mass
+        elif measured:
+            rate = float(tuned.magnitude)
+        else:
+            parts[part] = intensity
+            continue
+        parts[part] = intensity._replace(magnitude=jnp.asarray(rate / mass, jnp.float32))
+        recorded = metadata.get(part)
+        metadata[part] = {
+            **(recorded if isinstance(recorded, dict) else {}),
+            "magnitude": rate,
+            "volume_mass": mass,
+            "uniform_weight": float(intensity.uniform_weight),
+        }
+    metadata["tuning"] = [*metadata.get("tuning", []), record]
+    return Context(parts["birth"], parts["clutter"], metadata)
+
+
+def _volume_mass(context: Context, part: str, uniform_weight: float) -> float:
+    """``P_p(V)`` of a context part's density with its uniform share set to ``uniform_weight``."""
+    intensity = getattr(context, part)
+    if not np.any(np.asarray(intensity.weights) > 0):
+        return 1.0
+    recorded = context.metadata.get(part, {})
+    learned_share = float(intensity.uniform_weight)
+    if isinstance(recorded, dict) and "volume_mass" in recorded and learned_share < 1:
+        gaussian_mass = (float(recorded["volume_mass"]) - learned_share) / (1 - learned_share)
+    else:
+        mixture = intensity._replace(uniform_weight=jnp.asarray(0.0))
+        gaussian_mass = volume_mass(mixture, jax.random.key(0))
+    gaussian_mass = min(max(gaussian_mass, 0.0), 1.0)
+    return uniform_weight + (1 - uniform_weight) * gaussian_mass
 
 
 def _measured_magnitude(context: Context, part: str) -> float:

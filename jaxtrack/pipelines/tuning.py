@@ -1,10 +1,20 @@
 """Tuning the PHD tracker on a MOTChallenge sequence span: what ``jaxtrack tune`` does.
 
 :func:`tune_sequence` starts from the tracker's configuration
-(:class:`~jaxtrack.filters.phd_tracker.PHDConfig`, uniform intensities),
-tunes the chosen parameters with :func:`~jaxtrack.pipelines.tuner.tune` on the span's
-detections (and ground truth for the supervised objective), and returns the tuned tracker
-configuration (a JSON object for ``jaxtrack track --config``) with a report of the run.
+(:class:`~jaxtrack.filters.phd_tracker.PHDConfig`, uniform intensities) or, given a learned
+context, from the context's intensities in one of the paper's variants; it tunes the chosen
+parameters with :func:`~jaxtrack.pipelines.tuner.tune` on the span's detections (and ground
+truth for the supervised objective), and returns the tuned tracker configuration (a JSON
+object for ``jaxtrack track --config``), the tuned context (``jaxtrack track --context``;
+:func:`~jaxtrack.filters.phd_tracker.tuned_context`) and a report of the run.
+
+**Tuning a context.** With a context the default parameters are the magnitudes and the
+uniform shares ``pi_u`` of the parts the variant takes from it
+(:data:`CONTEXT_TRAINABLE`; e.g. A1: ``birth_rate`` and ``birth_uniform_share``; a share
+only where the part's density has a learned part). A learned part's magnitude is its
+intensity's magnitude ``lambda / P_p(V)`` (PHD-context eq. 19-21 with the volume mass of
+:mod:`jaxtrack.context.learn`); the tuned context records the events per frame
+``lambda = m P_p(V)`` beside it, so that every variant reads the tuned values.
 
 The tuning filter is the tracker's filter with fewer particles by default
 (:data:`TUNING_PARTICLES`): the tuned magnitudes hardly depend on the particle count, and a
@@ -22,7 +32,17 @@ import numpy as np
 import optax
 
 from jaxtrack.errors import InputError
-from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
+from jaxtrack.filters.phd import PHDParams
+from jaxtrack.filters.phd_tracker import (
+    UNIFORM_SHARES,
+    VARIANTS,
+    Context,
+    PHDConfig,
+    context_names,
+    has_learned_density,
+    phd_params,
+    tuned_context,
+)
 from jaxtrack.io import MotSequence
 from jaxtrack.pipelines.tuner import DEFAULT_LEARNING_RATE, TuneResult, tune
 from jaxtrack.tuning.objectives import ESTIMATORS, make_objective, tuning_filter
@@ -40,29 +60,39 @@ TUNING_BIRTHS_PER_DETECTION = 16
 #: Parameters that ``jaxtrack tune`` tunes by default: the clutter and birth magnitudes (the
 #: axes of PHD-context's sweeps); ``--tune`` adds others.
 CONFIG_TRAINABLE = ("clutter_rate", "birth_rate")
+#: Parameters tuned by default with a learned context: of these, the ones the variant takes
+#: from the context (:func:`context_trainable`).
+CONTEXT_TRAINABLE = ("clutter_rate", "birth_rate", "birth_uniform_share", "clutter_uniform_share")
 
 
 class SequenceTuning(NamedTuple):
     """Outcome of :func:`tune_sequence`.
 
     Attributes:
-        config: the tuned tracker configuration (``jaxtrack track --config``).
+        config: the tuned tracker configuration (``jaxtrack track --config``); with a
+            context, the start configuration plus the tuned parameters it carries (those the
+            variant does not take from the context).
         result: the :class:`~jaxtrack.pipelines.tuner.TuneResult`.
         report: a JSON-ready summary: sequence, frames, objective, settings, start and tuned
-            values of the trainable parameters, the history and the run time.
+            values of the trainable parameters, the history and the run time; with a context
+            also the variant and the tuned context's parts.
+        context: the tuned context (``jaxtrack track --context``), or None without one.
     """
 
     config: PHDConfig
     result: TuneResult
     report: dict[str, Any]
+    context: Context | None = None
 
 
 def tune_sequence(
     sequence: MotSequence,
     objective: str = "likelihood",
     config: PHDConfig | None = None,
-    trainable: Sequence[str] = CONFIG_TRAINABLE,
+    trainable: Sequence[str] | None = None,
     *,
+    context: Context | None = None,
+    variant: str = "GM",
     seed: int = 0,
     num_steps: int = 60,
     num_keys: int = 2,
@@ -81,7 +111,10 @@ def tune_sequence(
         objective: ``"likelihood"`` (no ground truth) or ``"supervised"``.
         config: the tracker configuration to start from (default :class:`PHDConfig`); the
             tuned one keeps its other keys.
-        trainable: parameter names to tune (:func:`~jaxtrack.tuning.transforms.tunable_names`).
+        trainable: parameter names to tune (:func:`~jaxtrack.tuning.transforms.tunable_names`);
+            default :data:`CONFIG_TRAINABLE`, with a context :func:`context_trainable`.
+        context: a learned context to start from (and to tune); None: uniform intensities.
+        variant: which parts of the context the tracker uses (not UM; ignored without one).
         seed: PRNG seed of the filter runs.
         num_steps: the most adam steps.
         num_keys: keys per step (common random numbers).
@@ -97,8 +130,9 @@ def tune_sequence(
         The :class:`SequenceTuning`.
 
     Raises:
-        InputError: a bad objective, estimator, setting or parameter name, a
-            supervised objective without ground truth, or a span without detections.
+        InputError: a bad objective, estimator, setting, variant or parameter name, a
+            uniform share of a density with no learned part, a supervised objective without
+            ground truth, or a span without detections.
     """
     if objective not in ("likelihood", "supervised"):
         raise InputError(f"objective must be 'likelihood' or 'supervised', got {objective!r}")
@@ -118,7 +152,12 @@ def tune_sequence(
         raise InputError(f"{sequence.path}: the supervised objective needs gt/gt.txt")
     if not np.any(np.asarray(sequence.detections.mask)):
         raise InputError(f"{sequence.path}: no detections in frames {_span(sequence)}")
-    start = phd_params(config, sequence.info)
+    if context is not None and variant == "UM":
+        raise InputError("variant UM uses no context: give another variant, or no context")
+    start = phd_params(config, sequence.info, context, variant)
+    if trainable is None:
+        trainable = CONFIG_TRAINABLE if context is None else context_trainable(start, variant)
+    _check_uniform_shares(start, trainable, context, variant)
     space = parameter_space(start, trainable)
     filt = tuning_filter(num_particles, births_per_detection, estimator)
     began = time.perf_counter()
@@ -137,7 +176,12 @@ def tune_sequence(
         progress=progress,
     )
     seconds = time.perf_counter() - began
-    tuned_config = to_config(result.params, config)
+    in_context = {} if context is None else context_names(variant)
+    tuned_config = (
+        to_config(result.params, config)
+        if context is None
+        else to_config(result.params, config, [n for n in space.trainable if n not in in_context])
+    )
     report = {
         "sequence": str(sequence.path),
         "frames": [sequence.first_frame, sequence.last_frame],
@@ -160,7 +204,60 @@ def tune_sequence(
             **{name: round_significant(v) for name, v in result.history["values"].items()},
         },
     }
-    return SequenceTuning(tuned_config, result, report)
+    if context is None:
+        return SequenceTuning(tuned_config, result, report)
+    record = {
+        key: report[key]
+        for key in ("sequence", "frames", "objective", "steps", "stop_reason", "start", "tuned")
+    }
+    record["variant"] = variant
+    tuned = tuned_context(context, result.params, variant, record)
+    report["variant"] = variant
+    report["context"] = {
+        part: {key: tuned.metadata[part][key] for key in ("magnitude", "uniform_weight")}
+        for part in sorted(set(in_context.values()))
+    }
+    return SequenceTuning(tuned_config, result, report, tuned)
+
+
+def context_trainable(params: PHDParams, variant: str) -> tuple[str, ...]:
+    """The parameters tuned by default with a context: of :data:`CONTEXT_TRAINABLE`, those
+    the variant takes from the context, a uniform share only where the part's density has a
+    learned part (:func:`~jaxtrack.filters.phd_tracker.has_learned_density`)."""
+    taken = context_names(variant)
+    return tuple(
+        name
+        for name in CONTEXT_TRAINABLE
+        if name in taken
+        and (
+            name not in UNIFORM_SHARES.values()
+            or has_learned_density(getattr(params, f"{taken[name]}_intensity"))
+        )
+    )
+
+
+def _check_uniform_shares(
+    params: PHDParams, names: Sequence[str], context: Context | None, variant: str
+) -> None:
+    """Refuses to tune the uniform share of a density with no learned part."""
+    for part, name in UNIFORM_SHARES.items():
+        if name not in names or has_learned_density(getattr(params, f"{part}_intensity")):
+            continue
+        if context is None:
+            raise InputError(
+                f"{name} is the uniform share of a learned {part} density: it needs a learned "
+                "context (--context CTX.npz); without one the intensities are uniform"
+            )
+        if not getattr(VARIANTS[variant], f"learned_{part}"):
+            users = ", ".join(v for v, use in VARIANTS.items() if getattr(use, f"learned_{part}"))
+            raise InputError(
+                f"{name}: variant {variant} uses no learned {part} density (those that do: {users})"
+            )
+        raise InputError(
+            f"{name}: the context's {part} density is uniform (pi_u = "
+            f"{float(getattr(context, part).uniform_weight):g}, no live Gaussians below 1): "
+            "there is no learned part to share with"
+        )
 
 
 def _span(sequence: MotSequence) -> str:

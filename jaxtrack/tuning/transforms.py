@@ -103,17 +103,21 @@ def parameter_space(
     return ParameterSpace(with_trainable(properties, names))
 
 
-def to_config(params: Any, config: TrackerConfig) -> TrackerConfig:
-    """``config`` with every named parameter that it carries set from ``params``.
+def to_config(
+    params: Any, config: TrackerConfig, names: Iterable[str] | None = None
+) -> TrackerConfig:
+    """``config`` with the named parameters that it carries set from ``params``.
 
     Args:
         params: the (tuned) parameters.
         config: the configuration to update (e.g. the one the tuning started from).
+        names: the parameters to write (those the configuration carries); default all.
 
     Returns:
         The updated configuration (values rounded by :func:`round_significant`).
     """
-    carried = tuple(name for name in tunable_names(params) if name in config.rules())
+    names = tunable_names(params) if names is None else tuple(names)
+    carried = tuple(name for name in names if name in config.rules())
     return config.replace(**parameter_values(params, carried))
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from jaxtrack.commands.arguments import load_config
 from jaxtrack.errors import InputError
-from jaxtrack.filters.phd_tracker import TUNABLE, PHDConfig, phd_params
+from jaxtrack.filters.phd_tracker import TUNABLE, UNIFORM_SHARES, PHDConfig, phd_params
 from jaxtrack.models.survival import SurvivalMap
 from jaxtrack.parameters import LOG, LOGIT
 from jaxtrack.pipelines.sweep import batch_params
@@ -24,11 +24,10 @@ INFO = SequenceInfo("s", 10, 640, 480, 25.0)
 PARAMS = phd_params(PHDConfig(birth_rate=0.3, clutter_rate=2.5), INFO)
 
 
-def test_the_named_parameters_are_the_config_keys():
-    assert tunable_names(PARAMS) == tuple(
-        name for name in tunable_names(PARAMS) if name in PHDConfig.rules()
-    )
-    assert set(tunable_names(PARAMS)) == set(TUNABLE)
+def test_the_named_parameters_are_the_config_keys_and_the_uniform_shares():
+    carried = [name for name in tunable_names(PARAMS) if name in PHDConfig.rules()]
+    assert set(carried) == set(TUNABLE)
+    assert set(tunable_names(PARAMS)) - set(carried) == set(UNIFORM_SHARES.values())
 
 
 def test_round_trip_of_every_parameter():
