@@ -122,7 +122,13 @@ CONTEXT_COLUMNS = (
     "clutter_uniform_weight",
 )
 #: The files written into the output folder (besides the scenes and the video's detections).
-FILES = ("context_generalisation.csv", "summary.csv", "contexts.csv", "gain.png", "summary.md")
+GENERALISATION_FILES = (
+    "context_generalisation.csv",
+    "summary.csv",
+    "contexts.csv",
+    "gain.png",
+    "summary.md",
+)
 
 
 class Goal(NamedTuple):
