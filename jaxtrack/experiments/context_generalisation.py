@@ -551,6 +551,13 @@ def _load_scene(
         return split_halves(mot / name)
 
 
+def _context_cells(row: dict[str, Any]) -> dict[str, Any]:
+    """A :func:`context_row` with its floats as text of 3 significant digits."""
+    return {
+        key: f"{value:.3g}" if isinstance(value, float) else value for key, value in row.items()
+    }
+
+
 @contextlib.contextmanager
 def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
     """Adds the seconds spent in the block to ``timings[key]``."""
@@ -592,7 +599,10 @@ def summary_markdown(
         "## Min MOTA over seeds\n",
         markdown_table(wide_table(summary, "MOTA_min", variants), ("group", "seeds", *variants)),
         "## Learned contexts\n",
-        markdown_table(context_rows, CONTEXT_COLUMNS),
+        "Events, magnitude (per frame), live components and uniform share of each density "
+        "(`tracks`: births from a UM run, GM and A1-A5; `gt`: births from the ground truth, "
+        "A6).\n",
+        markdown_table([_context_cells(row) for row in context_rows], CONTEXT_COLUMNS),
     ]
     if notes:
         text += ["## Notes\n", *(f"- {note}" for note in notes), ""]
