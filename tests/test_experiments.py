@@ -254,3 +254,107 @@ def test_context_gap_quick_equals_single_runs(tmp_path, capsys):
     gap = float(rows[1]["MOTA"]) - float(rows[0]["MOTA"])
     assert f"| sparse-door | 0 | {float(rows[0]['MOTA']):.1f} |" in summary
     assert f"| {gap:.1f} |" in summary
+
+
+def _generalisation_rows(mota: dict[tuple[str, int], dict[str, float]]) -> list[dict]:
+    """Per-scene rows as :func:`scene_rows` gives them, from ``{(family, seed): {variant:
+    MOTA}}`` (UM first)."""
+    rows = []
+    for (family, seed), scores in mota.items():
+        for variant, value in scores.items():
+            gain = round(percent_difference(value, scores["UM"]), 2)
+            rows.append(
+                {"family": family, "seed": seed, "variant": variant, "MOTA": value,
+                 "MOTA_gain_pct": gain}
+            )  # fmt: skip
+    return rows
+
+
+def test_generalisation_summary_and_goals_against_hand_numbers():
+    from jaxtrack.experiments.context_generalisation import gain_table, goal_checks, summarise
+
+    rows = _generalisation_rows(
+        {
+            ("street", 0): {"UM": 80.0, "GM": 90.0},  # +12.5 %
+            ("street", 1): {"UM": 60.0, "GM": 63.0},  # +5 %
+            ("uniform", 0): {"UM": 50.0, "GM": 48.5},  # -1.5 points, -3 %
+            ("PETS09-S2L1", 0): {"UM": 70.0, "GM": 77.0},  # +10 %
+        }
+    )
+    summary = summarise(rows)
+    street = {row["variant"]: row for row in summary if row["group"] == "street"}
+    assert street["GM"]["seeds"] == 2
+    assert street["GM"]["MOTA_mean"] == 76.5 and street["GM"]["minus_UM"] == 6.5
+    assert (street["GM"]["MOTA_min"], street["GM"]["MOTA_max"]) == (63.0, 90.0)
+    # the gain is averaged over the seeds' gains, not taken between the means
+    assert street["GM"]["gain_pct_mean"] == pytest.approx(8.75)
+    assert (street["GM"]["gain_pct_min"], street["GM"]["gain_pct_max"]) == (5.0, 12.5)
+    assert street["UM"]["minus_UM"] == 0 and street["UM"]["gain_pct_mean"] == 0
+    loss, mean_gain, pets, flat = goal_checks(summary)
+    assert loss.status == "FAIL" and "uniform -1.50 points" in loss.detail
+    # only street has context here: 8.75 % < 9 %
+    assert mean_gain.status == "FAIL" and mean_gain.detail.startswith("+8.75% over 1 families")
+    assert pets.status == "PASS" and pets.detail.startswith("+10.00%")
+    assert flat.status == "FAIL" and flat.detail == "-1.50 points"
+    table = gain_table(summary)
+    assert [row["group"] for row in table] == ["street", "uniform", "PETS09-S2L1"]
+    assert table[0]["GM-UM"] == 6.5 and math.isnan(table[0]["GM+tuned"])
+    # without the scenes a goal is about, it is not decided
+    statuses = [goal.status for goal in goal_checks(summarise(rows[:4]))]
+    assert statuses == ["PASS", "FAIL", "n/a", "n/a"]
+
+
+@pytest.mark.slow
+def test_context_generalisation_quick(tmp_path, capsys):
+    from jaxtrack.experiments.context_generalisation import (
+        CONTEXT_COLUMNS,
+        GAIN_COLUMNS,
+        ROW_COLUMNS,
+        SUMMARY_COLUMNS,
+    )
+
+    out = tmp_path / "cg"
+    argv = ("--out", out, "--quick", "--quiet", "--families", "sparse-door", "--seeds", 1)
+    assert _experiment("context-generalisation", *argv, "--no-real", "--no-tuned") == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("| " + " | ".join(GAIN_COLUMNS) + " |")
+    columns, rows = _read_csv(out / "context_generalisation.csv")
+    assert columns == list(ROW_COLUMNS)
+    assert [(row["scene"], row["family"], row["seed"], row["variant"]) for row in rows] == [
+        ("sparse-door-1", "sparse-door", "1", name) for name in VARIANTS
+    ]
+    mota = {row["variant"]: float(row["MOTA"]) for row in rows}
+    for row in rows:  # the gain column agrees with the MOTA column
+        expected = percent_difference(float(row["MOTA"]), mota["UM"])
+        assert float(row["MOTA_gain_pct"]) == pytest.approx(expected, abs=0.006)
+    # A1 (learned births only) and A2 (learned clutter only) differ from UM and GM
+    assert len({(row["FP"], row["FN"]) for row in rows}) > 2
+    columns, summary = _read_csv(out / "summary.csv")
+    assert columns == list(SUMMARY_COLUMNS)
+    for line, row in zip(summary, rows, strict=True):  # one seed: mean = min = max = the row
+        assert (line["group"], line["variant"], line["seeds"]) == (
+            "sparse-door",
+            row["variant"],
+            "1",
+        )
+        assert float(line["MOTA_mean"]) == float(line["MOTA_min"]) == float(row["MOTA"])
+        assert float(line["minus_UM"]) == pytest.approx(float(row["MOTA"]) - mota["UM"])
+        assert float(line["gain_pct_mean"]) == float(row["MOTA_gain_pct"])
+    gm = next(row for row in rows if row["variant"] == "GM")
+    gap, gain = mota["GM"] - mota["UM"], float(gm["MOTA_gain_pct"])
+    assert f"| sparse-door | 1 | {mota['UM']:.1f} | {mota['GM']:.1f} |" in printed
+    assert f"| {gain:.1f} | {gain:.1f} | {gain:.1f} | n/a | n/a | n/a |" in printed
+    loss = "PASS" if gap >= -1 else "FAIL"
+    assert f"{loss}: GM never worse than UM by more than 1 MOTA point" in printed
+    assert f"{'PASS' if gain >= 9 else 'FAIL'}: mean relative MOTA gain of GM" in printed
+    assert printed.count("n/a: ") == 2  # PETS09-S2L1 and the uniform family were not run
+    columns, contexts = _read_csv(out / "contexts.csv")
+    assert columns == list(CONTEXT_COLUMNS)
+    assert [row["context"] for row in contexts] == ["tracks", "gt"]
+    # clutter from the ground truth in both; births from a tracker run and from the gt
+    assert contexts[0]["clutter_events"] == contexts[1]["clutter_events"] != "0"
+    assert all(int(row["birth_events"]) > 0 for row in contexts)
+    _assert_figure_png(out / "gain.png")
+    text = (out / "summary.md").read_text()
+    assert "| group | seeds | UM | GM | A1 | A2 | A3 | A4 | A5 | A6 |" in text  # no GM+tuned
+    assert "## Goals (issue 15)" in text and "Run time" in text

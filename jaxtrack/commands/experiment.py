@@ -15,13 +15,21 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from jaxtrack.commands.arguments import add_out, add_quiet, add_seed, ranged, refuse_ignored
+from jaxtrack.commands.arguments import (
+    SEED_TYPE,
+    add_out,
+    add_quiet,
+    add_seed,
+    ranged,
+    refuse_ignored,
+)
 from jaxtrack.commands.paths import (
     SCENE_FILES,
     benchmark_inputs,
     check_outputs,
     output_folder,
     sequence_inputs,
+    video_input,
 )
 from jaxtrack.datasets.scene_bank import FAMILIES
 from jaxtrack.errors import InputError
@@ -29,6 +37,17 @@ from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
 from jaxtrack.experiments.common import markdown_table
 from jaxtrack.experiments.comparison import COMPARISON_COLUMNS, run_comparison
 from jaxtrack.experiments.context_gap import GAP_SUMMARY_COLUMNS, gap_summary, run_context_gap
+from jaxtrack.experiments.context_generalisation import (
+    GAIN_COLUMNS,
+    GENERALISATION_FILES,
+    REAL_SEQUENCES,
+    VIDEO_DETECTIONS,
+    VIDEO_FILE,
+    VIDEO_SEQUENCE,
+    gain_table,
+    goal_lines,
+    run_context_generalisation,
+)
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
 from jaxtrack.limits import MAX_SEED, Rule
@@ -144,6 +163,84 @@ def _context_gap(args: argparse.Namespace) -> int:
     rows, written = run_context_gap(args.out, families, seeds, args.quick, _steps(args))
     print(markdown_table(gap_summary(rows), GAP_SUMMARY_COLUMNS))
     print(_written(written))
+    return 0
+
+
+def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--families",
+        nargs="+",
+        choices=tuple(FAMILIES),
+        metavar="NAME",
+        help=f"scene families of the bank (default all: {', '.join(FAMILIES)})",
+    )
+    parser.add_argument(
+        "--seeds",
+        nargs="+",
+        type=SEED_TYPE,
+        metavar="N",
+        help="seeds of the bank's scenes (default 0 1 2; with --quick 0)",
+    )
+    parser.add_argument(
+        "--data",
+        metavar="DIR",
+        help=f"the shared data folder with mot15/ and video/ (default: {SHARED_DATA})",
+    )
+    parser.add_argument(
+        "--no-real",
+        action="store_true",
+        help="only the bank (no PETS09-S2L1, TUD-Stadtmitte, video)",
+    )
+    parser.add_argument(
+        "--no-video",
+        action="store_true",
+        help="no video detector's output on vtest.avi (always so with --quick)",
+    )
+    parser.add_argument(
+        "--no-tuned", action="store_true", help="skip GM+tuned (the gradient tuning)"
+    )
+
+
+def _context_generalisation(args: argparse.Namespace) -> int:
+    if args.no_real:
+        refuse_ignored(args, ["data"], "is not used with --no-real")
+    families = args.families or list(FAMILIES)
+    seeds = args.seeds or ([0] if args.quick else [0, 1, 2])
+    data = None if args.no_real else Path(args.data or SHARED_DATA)
+    video = data is not None and not (args.quick or args.no_video)
+    files = list(GENERALISATION_FILES)
+    files += [
+        f"scenes/{family}-{seed}/{name}"
+        for family in families
+        for seed in seeds
+        for name in SCENE_FILES
+    ]
+    inputs = []
+    if data is not None:
+        for name in REAL_SEQUENCES:
+            inputs += sequence_inputs(data / "mot15" / name)
+        if video:
+            files.append(str(VIDEO_DETECTIONS))
+            inputs += video_input(data / VIDEO_FILE, f"the video {data / VIDEO_FILE}")
+            inputs += sequence_inputs(data / "mot15" / VIDEO_SEQUENCE)
+    check_outputs(output_folder("--out", args.out, files), inputs)
+    result = run_context_generalisation(
+        args.out,
+        families,
+        seeds,
+        data,
+        video,
+        tuned=not args.no_tuned,
+        quick=args.quick,
+        seed=args.seed,
+        progress=not args.quiet,
+    )
+    print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))
+    for line in goal_lines(result.goals):
+        print(line)
+    for note in result.notes:
+        print(f"note: {note}")
+    print(_written(result.files))
     return 0
 
 
@@ -275,6 +372,48 @@ examples:
         add_extras=_context_gap_extras,
         run=_context_gap,
         files=("context_gap.csv", "summary.md"),
+        scene="scenes",
+    ),
+    "context-generalisation": Experiment(
+        help="UM, GM, A1-A6, GM+tuned on the scene bank and real sequences (issue 15 goals)",
+        description=f"""\
+Does learned context generalise? UM, GM, A1-A6 and GM+tuned on held-out scenes.
+
+Scenes: every family of the scene bank (jaxtrack.datasets.scene_bank: street, plaza-edges,
+sparse-door, layout-change, flicker, uniform) for each of --seeds, written to
+OUT/scenes/FAMILY-SEED, learned on frames 1-300 and tested on 301-600; then (unless
+--no-real) from --data: PETS09-S2L1 (learn 1:397, test 398:795), TUD-Stadtmitte (learn
+1:89, test 90:179) and (unless --no-video or --quick) PETS09-video: the video detector
+(jaxtrack detect, horprasert) run once over video/vtest.avi, its detections cached in
+OUT/{VIDEO_DETECTIONS} (delete it to detect again), paired with PETS09-S2L1's ground truth
+and seqinfo.ini (7 fps), same spans.
+
+Variants: context learned on the training half with births from a UM tracker run and
+clutter from the ground truth (as context-ablation) gives GM and A1-A5; births from the
+ground truth give A6; GM+tuned is the GM context tuned on the training half by the
+likelihood objective (skipped with a note while jaxtrack.pipelines.tuning.tune_sequence
+takes no context; --no-tuned skips it). All variants of a scene track its test half in
+one compiled run with the scene's seed (a bank scene's seed; --seed for real sequences).
+
+Writes into --out: context_generalisation.csv (scores of every scene and variant, with
+MOTA_gain_pct = 100 (MOTA - MOTA_UM) / |MOTA_UM|), summary.csv (per family or real
+sequence and variant: mean/min/max MOTA and gain over the seeds, mean minus UM's in
+points), contexts.csv (the learned densities), gain.png (relative MOTA gain of GM and
+GM+tuned per group: bars = mean over seeds, marks = min..max, lines at 0 and +9%) and
+summary.md (the tables, issue 15's goals as PASS/FAIL with their numbers, run time per
+stage). Prints the gain table and the goals. Logic:
+jaxtrack.experiments.context_generalisation.
+
+examples:
+  jaxtrack experiment context-generalisation --out /tmp/cg
+  jaxtrack experiment context-generalisation --out /tmp/cg --no-tuned --no-video
+  jaxtrack experiment context-generalisation --out /tmp/q --quick --families street \\
+      --no-real --no-tuned""",
+        quick_help="few particles, a 3-step tuning, one seed (unless --seeds), no video",
+        sequence=False,
+        add_extras=_context_generalisation_extras,
+        run=_context_generalisation,
+        files=GENERALISATION_FILES,
         scene="scenes",
     ),
     "compare-trackers": Experiment(

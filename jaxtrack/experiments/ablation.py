@@ -33,10 +33,12 @@ from jaxtrack.experiments.common import (
     synthetic_sequence,
     write_csv,
 )
+from jaxtrack.filters.phd import PHDParams
 from jaxtrack.filters.phd_tracker import VARIANTS, Context, PHDConfig, phd_params
 from jaxtrack.pipelines.sweep import common_shapes
 from jaxtrack.pipelines.tracking import track_sequences
 from jaxtrack.plot.experiments import save_ablation_figure
+from jaxtrack.types import SequenceInfo
 
 #: What each variant uses (PHD-context Sec. V), for tables and summaries.
 VARIANT_DESCRIPTIONS = {
@@ -96,19 +98,8 @@ def ablation_table(
     """
     notify = progress or (lambda _: None)
     config = config or PHDConfig()
-    contexts = {}
-    for source in ("tracks", "gt"):
-        notify(f"learning context (births from {source})")
-        contexts[source] = Context.from_learned(learn_split(split, config, seed, source))
-    info = split.test.info
-    params = common_shapes(
-        [
-            phd_params(config, info)
-            if name == "UM"
-            else phd_params(config, info, contexts["gt" if name == "A6" else "tracks"], name)
-            for name in VARIANTS
-        ]
-    )
+    contexts = ablation_contexts(split, config, seed, progress)
+    params = common_shapes(variant_params(config, split.test.info, contexts))
     notify(f"tracking frames {split.test.first_frame}:{split.test.last_frame}")
     results = track_sequences(
         [split.test] * len(params), config, seed, params, progress=progress is not None
@@ -119,6 +110,52 @@ def ablation_table(
     ]
     add_differences(rows, "UM")
     return AblationResult(rows, {key: context.metadata for key, context in contexts.items()})
+
+
+def ablation_contexts(
+    split: Split,
+    config: PHDConfig,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Context]:
+    """The two contexts of the ablation, learned on ``split.train``, keyed by birth source.
+
+    Args:
+        split: the training and test spans.
+        config: the tracker configuration (also that of the UM run that yields births).
+        seed: seeds the learning (tracker run, sample order).
+        progress: called with a short description before each long step.
+
+    Returns:
+        ``{"tracks": ..., "gt": ...}``: births from a UM tracker run (UM, GM, A1-A5) and from
+        the ground truth (A6); clutter from the ground truth in both.
+
+    Raises:
+        InputError: no birth or clutter events on the training span.
+    """
+    notify = progress or (lambda _: None)
+    contexts = {}
+    for source in ("tracks", "gt"):
+        notify(f"learning context (births from {source})")
+        contexts[source] = Context.from_learned(learn_split(split, config, seed, source))
+    return contexts
+
+
+def variant_params(
+    config: PHDConfig, info: SequenceInfo, contexts: dict[str, Context]
+) -> list[PHDParams]:
+    """The parameters of every variant of :data:`VARIANTS`, in order.
+
+    UM has uniform intensities; A6 is GM with ``contexts["gt"]``, every other variant uses
+    ``contexts["tracks"]`` (:func:`ablation_contexts`). The parameters are not padded to
+    common shapes (:func:`~jaxtrack.pipelines.sweep.common_shapes` does that).
+    """
+    return [
+        phd_params(config, info)
+        if name == "UM"
+        else phd_params(config, info, contexts["gt" if name == "A6" else "tracks"], name)
+        for name in VARIANTS
+    ]
 
 
 def add_differences(rows: list[dict[str, Any]], reference: str) -> None:

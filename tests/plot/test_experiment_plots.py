@@ -134,3 +134,31 @@ def test_save_ablation_figure_writes_the_figure_at_100_dpi(tmp_path):
     assert pixels.shape[:2] == (450, 800)  # figsize (8, 4.5) inches at 100 dpi
     # the bar's colour (C0) is drawn
     assert np.any(np.all(np.abs(pixels[..., :3] - [0.122, 0.467, 0.706]) < 0.01, axis=-1))
+
+
+def test_gain_figure_draws_mean_bars_min_max_marks_and_the_goal_line():
+    from jaxtrack.plot.generalisation import gain_figure
+
+    def row(group, variant, mean, low, high):
+        return {"group": group, "variant": variant, "gain_pct_mean": mean,
+                "gain_pct_min": low, "gain_pct_max": high}  # fmt: skip
+
+    rows = [
+        row("street", "UM", 0.0, 0.0, 0.0),
+        row("street", "GM", 4.0, -2.0, 10.0),
+        row("street", "GM+tuned", 6.0, 5.0, 7.0),
+        row("PETS", "UM", 0.0, 0.0, 0.0),
+        row("PETS", "GM", math.nan, math.nan, math.nan),
+    ]
+    (axes,) = gain_figure(rows, variants=("GM", "GM+tuned", "A1"), goal=9.0).axes
+    assert [label.get_text() for label in axes.get_xticklabels()] == ["street", "PETS"]
+    # A1 has no rows: not drawn; GM+tuned has no PETS row and GM's is NaN: drawn as 0
+    legend = {text.get_text() for text in axes.get_legend().get_texts()}
+    assert legend == {"GM", "GM+tuned", "goal +9 %"}
+    bars = [container for container in axes.containers if hasattr(container, "patches")]
+    assert [[bar.get_height() for bar in c] for c in bars] == [[4.0, 0.0], [6.0, 0.0]]
+    # error marks from the min to the max gain over the seeds
+    spans = [segment[:, 1] for segment in bars[0].errorbar.lines[2][0].get_segments()]
+    assert [tuple(span) for span in spans] == [(-2.0, 10.0), (0.0, 0.0)]
+    levels = [line.get_ydata() for line in axes.lines if line.get_linestyle() != "None"]
+    assert sorted(float(y[0]) for y in levels) == [0.0, 9.0]  # the zero and goal lines
