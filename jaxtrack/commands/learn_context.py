@@ -267,7 +267,10 @@ def run(args: argparse.Namespace) -> int:
 def heldout_line(held: dict) -> str:
     """One line on a density's held-out check (:mod:`jaxtrack.context.heldout`)."""
     if held["num_folds"] == 0:
-        return "held-out check: too few events; the density is uniform"
+        return (
+            "held-out check: too few events; the density is the background (anywhere in "
+            "the image, with the events' mean size)"
+        )
     line = (
         f"held-out log-lik {held['heldout_loglik']:.3f} vs uniform "
         f"{held['heldout_loglik_uniform']:.3f} nats/event (gain {held['heldout_gain']:+.3f}, "

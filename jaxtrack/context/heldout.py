@@ -78,7 +78,7 @@ BIRTH_BACKGROUND_GRID = (6, 5)
 CLUTTER_BACKGROUND_GRID = (8, 7)
 #: Time blocks of the cross-validation.
 NUM_FOLDS = 4
-#: Fewest events for which the held-out check runs (fewer: the density stays uniform).
+#: Fewest events for which the held-out check runs (fewer: the density is the background).
 MIN_EVENTS = 2 * NUM_FOLDS
 #: Prior strength ``a``: the uniform density is worth this many pseudo-events.
 UNIFORM_PRIOR_EVENTS = 2.0
@@ -288,7 +288,9 @@ def select_density(
         key: PRNG key of the learning order (that of the final fit too).
         candidates: the learner settings compared.
         num_folds: time blocks; fewer than :data:`MIN_EVENTS` events skip the check: the
-            first candidate with ``pi_u = 1`` (the uniform density).
+            first candidate with ``pi_u = f``, ``pi_b = 1 - f`` (the background: events
+            anywhere in the image with their mean size; not the uniform ``u``, whose sizes
+            and velocities would not match a learned other part of the context).
         prior_events: prior strength ``a`` of :func:`select_shares`.
         floor: smallest ``pi_u``.
 
@@ -299,7 +301,8 @@ def select_density(
     samples = np.asarray(samples, np.float64)
     log_u = log_uniform(grid)
     if samples.shape[0] < max(MIN_EVENTS, 2 * num_folds):
-        return candidates[0], HeldOut(1.0, 0.0, log_u, log_u, 0, (), 0)
+        # too few events to check anything: "anywhere, with the events' typical size"
+        return candidates[0], HeldOut(floor, 1.0 - floor, log_u, log_u, 0, (), 0)
     folds = time_folds(frames, num_folds)
     log_b = np.asarray(_jit_log_g(background, jnp.asarray(samples, grid.weights.dtype)))
     results = []
