@@ -30,6 +30,7 @@ WITH_PROGRESS = (
     "track-video",
     "experiment context-ablation",
     "experiment context-gap",
+    "experiment context-generalisation",
     "experiment sweep-magnitudes",
     "experiment compare-trackers",
     "experiment gradient-tuning",

@@ -58,6 +58,7 @@ reported gain is slightly optimistic; the candidate choice adds a little more.
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax
@@ -67,6 +68,7 @@ import numpy as np
 from jaxtrack.context.intensity import log_normal
 from jaxtrack.context.map_em import (
     UNIFORM_FLOOR,
+    MapEMLearner,
     MixtureState,
     fit,
     map_em_learner,
@@ -230,6 +232,14 @@ def select_shares(
 
 
 _jit_fit = jax.jit(fit, static_argnums=(0, 4))
+
+
+@functools.cache
+def candidate_learner(prior_count: float) -> MapEMLearner:
+    """The learner of a candidate's prior count, one object per value (compiled once)."""
+    return map_em_learner(prior_count=prior_count)
+
+
 _jit_log_g = jax.jit(log_gaussian_part)
 
 
@@ -252,7 +262,7 @@ def out_of_fold_log_g(
     Returns:
         ``[n]`` out-of-fold log densities of the Gaussian part.
     """
-    learner = map_em_learner(prior_count=candidate.prior_count)
+    learner = candidate_learner(candidate.prior_count)
     n = samples.shape[0]
     order = np.asarray(jax.random.permutation(key, n))
     shuffled = jnp.asarray(samples[order], grid.weights.dtype)

@@ -19,6 +19,7 @@ from jaxtrack.context.heldout import (
     BIRTH_CANDIDATES,
     CLUTTER_BACKGROUND_GRID,
     CLUTTER_CANDIDATES,
+    candidate_learner,
     combine,
     select_density,
 )
@@ -33,7 +34,7 @@ from jaxtrack.context.learn import (
     uniform_volumes,
     volume_mass,
 )
-from jaxtrack.context.map_em import MixtureState, map_em_learner, to_intensity
+from jaxtrack.context.map_em import MixtureState, to_intensity
 from jaxtrack.context.samples import (
     WARMUP_FRAMES,
     EventSamples,
@@ -234,7 +235,7 @@ def _learn(name, grid, background, events, epochs, candidates, key, notify):
             grid, background, events.values, events.frames, key, candidates
         )
         epochs = candidate.epochs
-        learner = map_em_learner(prior_count=candidate.prior_count)
+        learner = candidate_learner(candidate.prior_count)
         check = {"epochs": epochs, "prior_count": candidate.prior_count, "heldout": held.as_dict()}
     notify(f"learning {name} density ({events.count} events, {epochs} passes)")
     state, snapshots = learn_density(grid, events.values, epochs, key, learner)
