@@ -205,7 +205,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
     if args.no_real:
         refuse_ignored(args, ["data"], "is not used with --no-real")
     families = args.families or list(FAMILIES)
-    seeds = args.seeds or ([0] if args.quick else [0, 1, 2])
+    seeds = list(dict.fromkeys(args.seeds or ([0] if args.quick else [0, 1, 2])))
     data = None if args.no_real else Path(args.data or SHARED_DATA)
     video = data is not None and not (args.quick or args.no_video)
     files = list(GENERALISATION_FILES)
