@@ -41,6 +41,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import jax
 import numpy as np
 from tqdm import tqdm
 
@@ -510,6 +511,11 @@ def run_context_generalisation(
         scene, contexts = scene_rows(split, config, scene_seed, tuned, quick, timings)
         rows += [{"scene": name, "family": family, "seed": scene_seed, **row} for row in scene]
         context_rows += [context_row(name, key, value) for key, value in contexts.items()]
+        # Every scene compiles anew (its own event counts, context sizes, image size), and
+        # the context learner compiles on every call: without freeing the compiled code a
+        # full run holds ~2000 memory maps per learned context and aborts at the kernel's
+        # limit (vm.max_map_count 65530: "LLVM ERROR: Unable to allocate section memory").
+        jax.clear_caches()
     summary = summarise(rows)
     goals = goal_checks(summary)
     variants = [v for v in GENERALISATION_VARIANTS if any(r["variant"] == v for r in rows)]
