@@ -513,10 +513,10 @@ def run_context_generalisation(
         scene, contexts = scene_rows(split, config, scene_seed, tuned, quick, timings)
         rows += [{"scene": name, "family": family, "seed": scene_seed, **row} for row in scene]
         context_rows += [context_row(name, key, value) for key, value in contexts.items()]
-        # Every scene compiles anew (its own event counts, context sizes, image size), and
-        # the context learner compiles on every call: without freeing the compiled code a
-        # full run holds ~2000 memory maps per learned context and aborts at the kernel's
-        # limit (vm.max_map_count 65530: "LLVM ERROR: Unable to allocate section memory").
+        # Each scene compiles new code for its own shapes (event counts, context sizes, image
+        # size) and JAX keeps every executable: without freeing them a full run reached the
+        # kernel's limit of memory maps after 12 scenes (vm.max_map_count 65530, "LLVM
+        # ERROR: Unable to allocate section memory").
         jax.clear_caches()
     summary = summarise(rows)
     goals = goal_checks(summary)
