@@ -51,7 +51,7 @@ def gain_figure(
     groups = list(dict.fromkeys(row["group"] for row in rows))
     by_key = {(row["group"], row["variant"]): row for row in rows}
     drawn = [name for name in variants if any((g, name) in by_key for g in groups)]
-    figure = Figure(figsize=(max(7.0, 0.9 * len(groups) * max(1, len(drawn)) + 2), 4.5))
+    figure = Figure(figsize=(min(14.0, max(7.0, 0.45 * len(groups) * max(1, len(drawn)) + 3)), 4.5))
     figure.set_layout_engine("constrained")
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
