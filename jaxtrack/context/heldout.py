@@ -65,13 +65,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.context.intensity import log_normal
+from jaxtrack.context.intensity import log_density, log_volume
 from jaxtrack.context.map_em import (
     UNIFORM_FLOOR,
     MapEMLearner,
     MixtureState,
-    fit,
+    jit_fit,
     map_em_learner,
+    to_intensity,
 )
 
 #: Grid (columns, rows) of the birth background mixture ``b``.
@@ -174,17 +175,15 @@ def time_folds(frames: np.ndarray, num_folds: int = NUM_FOLDS) -> np.ndarray:
 
 def log_gaussian_part(state: MixtureState, x: jax.Array) -> jax.Array:
     """``log g(x)`` of the Gaussian part of a mixture state for a batch ``[n, dim]``."""
-    safe = jnp.where(state.alive, state.weights, 1.0)
-    log_components = jax.vmap(lambda m, c: log_normal(x, m, c), out_axes=-1)(
-        state.means, state.covs
+    gaussians = to_intensity(
+        state._replace(uniform_weight=jnp.zeros_like(state.uniform_weight)), 1.0
     )
-    values = jnp.where(state.alive, jnp.log(safe) + log_components, -jnp.inf)
-    return jax.nn.logsumexp(values, axis=-1)
+    return log_density(gaussians, x)
 
 
 def log_uniform(state: MixtureState) -> float:
     """``log u = -log V`` of a mixture state's volume."""
-    return -float(np.sum(np.log(np.asarray(state.upper, np.float64) - state.lower)))
+    return -float(log_volume(to_intensity(state, 1.0)))
 
 
 def select_shares(
@@ -231,9 +230,6 @@ def select_shares(
     return float(pi_u[best]), float(pi_b[best]), float(objective[best]), float(loglik[best])
 
 
-_jit_fit = jax.jit(fit, static_argnums=(0, 4))
-
-
 @functools.cache
 def candidate_learner(prior_count: float) -> MapEMLearner:
     """The learner of a candidate's prior count, one object per value (compiled once)."""
@@ -270,7 +266,7 @@ def out_of_fold_log_g(
     result = np.empty(n)
     for fold in np.unique(folds):
         train = jnp.asarray(folds[order] != fold)
-        state = _jit_fit(learner, grid, shuffled, train, candidate.epochs)
+        state = jit_fit(learner, grid, shuffled, train, candidate.epochs)
         held = folds == fold
         result[held] = np.asarray(_jit_log_g(state, points))[held]
     return result

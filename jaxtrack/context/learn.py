@@ -70,9 +70,9 @@ from jaxtrack.context.intensity import (
 from jaxtrack.context.map_em import (
     MapEMLearner,
     MixtureState,
-    fit,
     grid_init_birth,
     grid_init_clutter,
+    jit_fit,
     map_em_learner,
 )
 from jaxtrack.context.samples import EventSamples
@@ -85,8 +85,6 @@ CLUTTER_EPOCHS = 5
 SNAPSHOT_FRACTIONS = (0.0, 0.05, 0.2, 0.5, 1.0)
 #: The default learner: ``1/n`` learning rates, one pseudo-sample per grid component.
 DEFAULT_LEARNER = map_em_learner()
-#: :func:`~jaxtrack.context.map_em.fit` compiled once per learner, shape and pass count.
-_jit_fit = jax.jit(fit, static_argnums=(0, 4))
 #: Position axes of the birth state ``(y1, vy1, y2, vy2, w, h)`` and clutter ``(y1, y2, w, h)``.
 BIRTH_POSITION_DIMS = (0, 2)
 CLUTTER_POSITION_DIMS = (0, 1)
@@ -234,10 +232,10 @@ def learn_density(
         target = round(fraction * num)
         if target > done:
             mask = (np.arange(num) >= done) & (np.arange(num) < target)
-            current = _jit_fit(learner, current, shuffled, jnp.asarray(mask), 1)
+            current = jit_fit(learner, current, shuffled, jnp.asarray(mask), 1)
             done = target
         snapshots.append(Snapshot(done, 0, current, samples[order[:done]]))
-    final = _jit_fit(learner, state, shuffled, jnp.ones(num, bool), num_epochs)
+    final = jit_fit(learner, state, shuffled, jnp.ones(num, bool), num_epochs)
     snapshots.append(Snapshot(num, num_epochs, final, samples[order]))
     return final, tuple(snapshots)
 

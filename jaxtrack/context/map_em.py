@@ -319,6 +319,11 @@ def fit(
     return state
 
 
+#: :func:`fit` compiled once per learner, shapes and pass count (the learner and the pass
+#: count are static): the one compiled fit that the learning and its held-out check share.
+jit_fit = jax.jit(fit, static_argnums=(0, 4))
+
+
 def to_intensity(state: MixtureState, magnitude: Float[Array, ""] | float) -> Intensity:
     """The learned intensity ``magnitude * p(x)`` (PHD-context eq. 12-13 with eq. 21).
 

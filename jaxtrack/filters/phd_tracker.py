@@ -374,17 +374,22 @@ def context_names(variant: str) -> dict[str, str]:
     A learned part's magnitude and uniform share, and the magnitude of a uniform part whose
     magnitude is measured (A3-A5); the others are configuration keys.
     """
-    use = VARIANTS[variant]
     names = {}
-    for part, learned, measured in (
-        ("birth", use.learned_birth, use.birth_magnitude_from_context),
-        ("clutter", use.learned_clutter, use.clutter_magnitude_from_context),
-    ):
+    for part, learned, measured in _context_parts(variant):
         if learned or measured:
             names[f"{part}_rate"] = part
         if learned:
             names[UNIFORM_SHARES[part]] = part
     return names
+
+
+def _context_parts(variant: str) -> tuple[tuple[str, bool, bool], ...]:
+    """``(part, learned density, measured magnitude)`` of a variant's birth and clutter."""
+    use = VARIANTS[variant]
+    return (
+        ("birth", use.learned_birth, use.birth_magnitude_from_context),
+        ("clutter", use.learned_clutter, use.clutter_magnitude_from_context),
+    )
 
 
 def tuned_context(
@@ -415,13 +420,9 @@ def tuned_context(
         The tuned context; its metadata's ``birth`` and ``clutter`` hold the new
         ``magnitude``, ``uniform_weight`` and ``volume_mass``, ``tuning`` the records.
     """
-    use = VARIANTS[variant]
     metadata = copy.deepcopy(context.metadata)
     parts = {}
-    for part, learned, measured in (
-        ("birth", use.learned_birth, use.birth_magnitude_from_context),
-        ("clutter", use.learned_clutter, use.clutter_magnitude_from_context),
-    ):
+    for part, learned, measured in _context_parts(variant):
         intensity = getattr(context, part)
         tuned = getattr(params, f"{part}_intensity")
         if learned:

@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy.stats import multivariate_normal
 
 from jaxtrack.context.heldout import (
     Candidate,
@@ -138,6 +139,22 @@ def test_too_few_events_give_the_background_density(grids):
     assert held == HeldOut(1e-3, 1 - 1e-3, held.uniform, held.uniform, 0, (), 0)
 
 
+def _log_mixture(state, points):
+    """Oracle: ``log sum_m pi_m N(x; mu_m, Sigma_m)`` with SciPy's Gaussian density."""
+    densities = [
+        weight * multivariate_normal(np.asarray(mean), np.asarray(cov)).pdf(np.asarray(points))
+        for weight, mean, cov in zip(state.weights, state.means, state.covs, strict=True)
+    ]
+    return np.log(np.sum(densities, axis=0))
+
+
+def test_gaussian_part_matches_a_scipy_oracle(grids):
+    grid, _ = grids
+    points = _volume_events(np.random.default_rng(5), 40, zone=True)
+    got = np.asarray(log_gaussian_part(grid, jnp.asarray(points, jnp.float32)))
+    np.testing.assert_allclose(got, _log_mixture(grid, points), rtol=1e-4)
+
+
 def test_combine_is_the_three_part_mixture():
     lower, upper = np.zeros(2), np.array([10.0, 8.0])
     learned = init_state(
@@ -158,8 +175,8 @@ def test_combine_is_the_three_part_mixture():
     parts = np.stack(
         [
             np.full(50, np.log(0.2) + log_uniform(learned)),
-            np.log(0.3) + np.asarray(log_gaussian_part(background, points)),
-            np.log(0.5) + np.asarray(log_gaussian_part(learned, points)),
+            np.log(0.3) + _log_mixture(background, points),
+            np.log(0.5) + _log_mixture(learned, points),
         ]
     )
     np.testing.assert_allclose(got, np.logaddexp.reduce(parts, axis=0), rtol=1e-6)
