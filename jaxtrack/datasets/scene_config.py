@@ -136,7 +136,7 @@ SCENE_RULES: dict[str, Rule] = {
 }
 
 
-def _apply_rules(instance, rules: dict[str, Rule], where: str, optional=()) -> None:
+def apply_rules(instance, rules: dict[str, Rule], where: str, optional=()) -> None:
     """Checks (and normalises: ints, floats, tuples) every ruled field of a frozen dataclass.
 
     A field named in ``optional`` may also be None (not checked).
@@ -200,7 +200,7 @@ class EntryZone:
 
     def __post_init__(self) -> None:
         where = f"zone {self.name!r} "
-        _apply_rules(self, ZONE_RULES, where, optional=("aspect_ratio",))
+        apply_rules(self, ZONE_RULES, where, optional=("aspect_ratio",))
         if self.active_frames is not None:
             if not isinstance(self.active_frames, list | tuple) or len(self.active_frames) != 2:
                 raise InputError(
@@ -262,7 +262,7 @@ class ClutterSource:
 
     def __post_init__(self) -> None:
         where = f"clutter source {self.name!r} "
-        _apply_rules(self, SOURCE_RULES, where)
+        apply_rules(self, SOURCE_RULES, where)
         if 0 < self.off_frames < 1:
             raise InputError(
                 f"{where}off_frames must be 0 (always on) or >= 1, got {self.off_frames}"
@@ -374,7 +374,7 @@ class SceneConfig:
     clutter_score: Pair = (3.0, 3.0)
 
     def __post_init__(self) -> None:
-        _apply_rules(self, SCENE_RULES, "")
+        apply_rules(self, SCENE_RULES, "")
         width, height = self.image_width, self.image_height
         if not all(lo < hi for lo, hi in zip(self.min_box_size, self.max_box_size, strict=True)):
             raise InputError(
@@ -450,7 +450,7 @@ def config_to_dict(config: SceneConfig) -> dict[str, Any]:
     Returns:
         A dict accepted back by :func:`config_from_dict`.
     """
-    return _to_plain(dataclasses.asdict(config))
+    return to_plain(dataclasses.asdict(config))
 
 
 def config_from_dict(overrides: Mapping[str, Any], base: SceneConfig | None = None) -> SceneConfig:
@@ -469,7 +469,7 @@ def config_from_dict(overrides: Mapping[str, Any], base: SceneConfig | None = No
     Raises:
         InputError: an unknown field, a value of the wrong type or shape, or an invalid value.
     """
-    return _from_plain(SceneConfig, overrides, base or SceneConfig(), "config")
+    return from_plain(SceneConfig, overrides, base or SceneConfig(), "config")
 
 
 def load_scene_config(path: str | Path, base: SceneConfig | None = None) -> SceneConfig:
@@ -502,15 +502,26 @@ def _short(value) -> str:
     return text if len(text) <= 40 else f"{text[:30]}...({len(text)} characters)"
 
 
-def _to_plain(value):
+def to_plain(value):
+    """A dataclass's ``asdict`` as plain JSON values (tuples become lists), recursively."""
     if isinstance(value, dict):
-        return {key: _to_plain(item) for key, item in value.items()}
+        return {key: to_plain(item) for key, item in value.items()}
     if isinstance(value, (tuple, list)):
-        return [_to_plain(item) for item in value]
+        return [to_plain(item) for item in value]
     return value
 
 
-def _from_plain(cls, data, base, where: str):
+def from_plain(cls, data, base, where: str):
+    """A frozen dataclass ``cls`` from plain (JSON) values, over ``base`` when not None.
+
+    Each value is converted to its field's annotation (numbers, strings, bools, tuples,
+    optional fields, nested dataclasses, variable-length tuples of them); the dataclass's own
+    ``__post_init__`` then checks its rules.
+
+    Raises:
+        InputError: naming ``where`` and the field, for an unknown field or a value of the
+            wrong type or shape (and whatever the dataclass itself refuses).
+    """
     if not isinstance(data, Mapping):
         raise InputError(f"{where} must be an object, got {type(data).__name__}")
     hints = typing.get_type_hints(cls)
@@ -549,7 +560,7 @@ def _convert(annotation, raw, where: str):
             for i, (arg, item) in enumerate(zip(args, raw, strict=True))
         )
     if dataclasses.is_dataclass(annotation):
-        return _from_plain(annotation, raw, None, where)
+        return from_plain(annotation, raw, None, where)
     if annotation is bool:
         if not isinstance(raw, bool):
             raise InputError(f"{where} must be true or false, got {raw!r}")

@@ -1,0 +1,718 @@
+"""A scripted surveillance video scene: people walking between entry/exit zones, hard cases.
+
+:func:`generate_video_scene` draws, from a seed, the script of a
+:class:`~jaxtrack.datasets.video_config.VideoSceneConfig`: who walks where and when, the
+ground truth (boxes, MOT16/17 visibility), detections for ``det.txt``, the true appearance of
+each person and the scripted events. :mod:`jaxtrack.datasets.render` draws its frames and
+:mod:`jaxtrack.datasets.video_files` writes it as a MOTChallenge folder with ``<name>.mp4``.
+
+**People.** Everybody enters through a zone (foot point uniform in the zone's box; a group at
+the box centre) and walks a piecewise-linear route (:func:`~jaxtrack.datasets.video_paths.walk`:
+perspective speed, gait) to a point in another zone, where they leave. Routes never walk
+through the occluder's base (:func:`~jaxtrack.datasets.video_paths.crosses_occluder`; a route
+that would is drawn again). Each person has an own height scale ``s ~ N(1, height_spread)``
+and pace ``U(0.85, 1.15) walking_pace``, and a two-tone appearance: top and bottom colours
+from a clothing palette (plus a uniform per-channel change of up to +-15 levels) and a skin
+tone for the head. Nobody enters before frame ``FIRST_ENTRY``.
+
+**Scripted hard cases** (placed by the seed; :attr:`VideoScene.events`):
+
+* ``crossing``: two similarly dressed people (the same palette colours, within +-4 levels)
+  from different zones pass the same point in the same frame, one ``CROSSING_OFFSET`` body
+  heights nearer the camera; the event's frames are those in which their boxes overlap;
+* ``group``: ``GROUP_SIZE`` people enter together side by side (``GROUP_SPACING`` body heights
+  apart, across the walking direction), walk to a split point and leave through different
+  zones; frames: entry to split;
+* ``occlusion``: a person walks along the row just behind the occluder, from one side to the
+  other; frames: those in which the box lies wholly inside the occluder (visibility 0);
+* ``standing``: a person walks to a point and stands still for ``stand_frames`` frames
+  (legs together); frames: those at the standing point;
+* ``entry`` / ``exit``: one per person and zone (the exit only when it happens within the
+  scene).
+
+Background walkers (``walkers_per_zone`` per zone) enter at times spread evenly over the
+scene (one in each of ``walkers_per_zone`` equal slots of ``FIRST_ENTRY..T - EXIT_MARGIN``),
+and leave through a random other zone via a waypoint near the route's midpoint.
+
+**Ground truth** (MOT16/17 layout, ``frame, id, x, y, w, h, 1, 1, visibility``): the boxes of
+:func:`~jaxtrack.datasets.video_paths.person_boxes`, ids ``1..N`` in order of entry, class 1
+(pedestrian), visibility from :func:`~jaxtrack.datasets.video_paths.box_visibility` (the
+occluder, nearer people and the image border).
+
+**Detections** (``det.txt``): a person with visibility ``v`` is detected with probability
+``detection_prob * clip((v - 0.2) / 0.3, 0, 1)``; a detection of box ``(cx, cy, w, h)`` is
+``N((cx, cy, w, h), diag(s_w w, s_h h, s_w w, s_h h)^2)``. False detections: ``Poisson
+(clutter_rate)`` per frame of nominal person size with a foot point uniform over the ground,
+and, in gust frames (the vegetation moves, :attr:`VideoScene.gust`),
+``Poisson(vegetation_clutter_rate)`` boxes inside the vegetation region (a fifth to a half of
+its size). Scores ``Beta(6, 1.5)`` (true) and ``Beta(3, 3)`` (false); detection boxes are
+clipped to the image; both tables are rounded to 1/1000 pixel.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from jaxtrack.boxes import cxcywh_to_xywh, xywh_to_cxcywh
+from jaxtrack.datasets.video_config import HEIGHT_SPREAD_CLIP, VideoSceneConfig
+from jaxtrack.datasets.video_paths import (
+    box_visibility,
+    crosses_occluder,
+    gait_phase,
+    nominal_height,
+    person_boxes,
+    walk,
+)
+from jaxtrack.errors import InputError
+from jaxtrack.io.motchallenge import MotTable, SequenceInfo
+
+#: First frame in which anybody enters.
+FIRST_ENTRY = 10
+#: Background walkers enter no later than this many frames before the end.
+EXIT_MARGIN = 60
+#: People in the scripted group.
+GROUP_SIZE = 3
+#: Distance between group neighbours, body heights.
+GROUP_SPACING = 0.45
+#: The second person of the crossing passes this many body heights nearer the camera.
+CROSSING_OFFSET = 0.12
+#: Frames after a scripted moment that the scene must still show (a group's split needs more).
+EVENT_MARGIN = 10
+SPLIT_MARGIN = 80
+#: Tries to draw a route that does not cross the occluder before the layout is refused.
+MAX_ROUTE_TRIES = 200
+#: Clothing palette (RGB) and skin tones.
+CLOTHING = np.array(
+    [
+        (30, 40, 90),
+        (180, 30, 35),
+        (225, 225, 215),
+        (35, 35, 38),
+        (120, 120, 125),
+        (40, 110, 50),
+        (220, 190, 40),
+        (110, 70, 40),
+        (100, 160, 215),
+        (110, 50, 130),
+        (230, 120, 30),
+        (200, 180, 140),
+    ]
+)
+SKIN = np.array([(230, 190, 160), (200, 150, 110), (150, 100, 70), (95, 65, 45)])
+#: Per-channel colour change of an ordinary person, and of the crossing's similar pair.
+COLOUR_JITTER = 15
+SIMILAR_JITTER = 4
+#: Beta parameters of the scores of true and false detections.
+TARGET_SCORE = (6.0, 1.5)
+CLUTTER_SCORE = (3.0, 3.0)
+#: Visibility below which a person is never detected, and above which detection is sure
+#: (times ``detection_prob``).
+UNSEEN, SEEN = 0.2, 0.5
+#: Decimals kept in written boxes (pixels).
+BOX_DECIMALS = 3
+#: Vegetation sway: largest offset (fraction of the image width, at least 1 pixel), its AR(1)
+#: persistence and per-frame innovation in calm and gust frames (units of the largest
+#: offset), and the mean lengths of gusts and of calm spells, frames.
+SWAY = 0.006
+SWAY_PERSISTENCE = 0.75
+SWAY_INNOVATION = (0.1, 0.6)
+GUST_FRAMES, CALM_FRAMES = 12.0, 50.0
+#: Range of the per-frame offsets into the pixel-noise field, pixels.
+NOISE_OFFSETS = 64
+
+
+@dataclasses.dataclass(frozen=True)
+class ScriptedEvent:
+    """One scripted event.
+
+    Attributes:
+        kind: ``"crossing"``, ``"group"``, ``"occlusion"``, ``"standing"``, ``"entry"`` or
+            ``"exit"``.
+        ids: the ground-truth ids involved.
+        frames: ``(first, last)``, 1-based inclusive.
+        zone: the zone's name (entry and exit events), else None.
+    """
+
+    kind: str
+    ids: tuple[int, ...]
+    frames: tuple[int, int]
+    zone: str | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Appearance:
+    """The true appearance of each person (row ``i`` is ground-truth id ``i + 1``).
+
+    Attributes:
+        top: RGB of the upper body (torso and arms), ``[N, 3]`` uint8.
+        bottom: RGB of the legs, ``[N, 3]`` uint8.
+        skin: RGB of the head, ``[N, 3]`` uint8.
+        height_scale: own height relative to the perspective law, ``[N]``.
+    """
+
+    top: np.ndarray
+    bottom: np.ndarray
+    skin: np.ndarray
+    height_scale: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class VideoScene:
+    """A scripted scene with its truth; rows of ``gt_*`` arrays follow ``gt_table``.
+
+    Attributes:
+        seed: the seed it was drawn from (the renderer's textures use it too).
+        config: the configuration.
+        info: sequence information (``seqinfo.ini``).
+        gt_table: ground truth, sorted by frame then id; ``extra`` = (class 1, visibility).
+        det_table: detections, sorted by frame, shuffled within a frame.
+        det_target_ids: ground-truth id of each detection, -1 for a false one.
+        gt_phase: gait phase of each row, radians.
+        gt_walking: whether the person moved into this row's position (False: standing).
+        appearance: the true appearance of each person.
+        roles: each person's part: ``"walker"``, ``"crossing"``, ``"group"``,
+            ``"occlusion"`` or ``"standing"``.
+        entry_zones: index into ``config.zones`` of each person's entry zone.
+        exit_zones: index of each person's exit zone, -1 when still in view at the end.
+        events: the scripted events.
+        zones: ``(x, y, w, h)`` pixel box of each zone, ``[Z, 4]``.
+        occluder: the occluder's pixel box ``[4]``.
+        vegetation: the vegetation region's pixel box ``[4]``.
+        gust: whether the vegetation is in a gust, per frame ``[T]``.
+        vegetation_offsets: ``(dx, dy)`` sway of the foliage texture per frame, ``[T, 2]``
+            integer pixels.
+        noise_offsets: ``(dx, dy)`` offset into the pixel-noise field per frame, ``[T, 2]``.
+    """
+
+    seed: int
+    config: VideoSceneConfig
+    info: SequenceInfo
+    gt_table: MotTable
+    det_table: MotTable
+    det_target_ids: np.ndarray
+    gt_phase: np.ndarray
+    gt_walking: np.ndarray
+    appearance: Appearance
+    roles: tuple[str, ...]
+    entry_zones: np.ndarray
+    exit_zones: np.ndarray
+    events: tuple[ScriptedEvent, ...]
+    zones: np.ndarray
+    occluder: np.ndarray
+    vegetation: np.ndarray
+    gust: np.ndarray
+    vegetation_offsets: np.ndarray
+    noise_offsets: np.ndarray
+
+    @property
+    def visibility(self) -> np.ndarray:
+        """Visible fraction of each ground-truth row (column 9 of ``gt.txt``)."""
+        return self.gt_table.extra[:, 1]
+
+    @property
+    def num_people(self) -> int:
+        return len(self.roles)
+
+    def frame_rows(self, frame: int) -> np.ndarray:
+        """Indices of the ground-truth rows of a 1-based frame."""
+        frames = self.gt_table.frames
+        return np.arange(
+            np.searchsorted(frames, frame, "left"), np.searchsorted(frames, frame, "right")
+        )
+
+    def person_rows(self, person_id: int) -> np.ndarray:
+        """Indices of the ground-truth rows of one person, in frame order."""
+        return np.flatnonzero(self.gt_table.ids == person_id)
+
+
+@dataclasses.dataclass
+class _Person:
+    """A person of the script before ids are given: foot points from frame ``start`` on.
+
+    ``marks`` holds the frames of the person's scripted moments and ``needed``, the frames the
+    scene must have for them to be seen.
+    """
+
+    start: int
+    feet: np.ndarray
+    role: str
+    entry_zone: int
+    exit_zone: int
+    top: np.ndarray
+    bottom: np.ndarray
+    marks: dict = dataclasses.field(default_factory=dict)
+
+
+def generate_video_scene(seed: int, config: VideoSceneConfig | None = None) -> VideoScene:
+    """Draws the script of a video scene (see the module docstring).
+
+    Args:
+        seed: non-negative integer; the same seed and config give the same scene (and frames).
+        config: the configuration; default ``VideoSceneConfig()``.
+
+    Returns:
+        The scene.
+
+    Raises:
+        InputError: ``num_frames`` too short for the scripted events (the message gives the
+            number needed), or a layout in which no route avoids the occluder.
+    """
+    config = config or VideoSceneConfig()
+    rng = np.random.default_rng(seed)
+    people = sorted(_Script(config, rng).people(), key=lambda person: person.start)
+    spread = HEIGHT_SPREAD_CLIP * config.height_spread
+    scales = np.clip(rng.normal(1.0, config.height_spread, len(people)), 1 - spread, 1 + spread)
+    phases = rng.uniform(0, 2 * np.pi, len(people))
+    gt_table, gt_phase, gt_walking = _ground_truth(people, scales, phases, config)
+    gust = _gusts(config.num_frames, rng)
+    det_table, det_ids = _detections(gt_table, gust, config, rng)
+    last_frames = np.array([person.start + len(person.feet) - 1 for person in people])
+    return VideoScene(
+        seed=seed,
+        config=config,
+        info=SequenceInfo(
+            name=config.name if config.name is not None else f"video-{seed}",
+            seq_length=config.num_frames,
+            im_width=config.image_width,
+            im_height=config.image_height,
+            frame_rate=config.frame_rate,
+        ),
+        gt_table=gt_table,
+        det_table=det_table,
+        det_target_ids=det_ids,
+        gt_phase=gt_phase,
+        gt_walking=gt_walking,
+        appearance=Appearance(
+            top=np.array([p.top for p in people], np.uint8).reshape(-1, 3),
+            bottom=np.array([p.bottom for p in people], np.uint8).reshape(-1, 3),
+            skin=SKIN[rng.integers(0, len(SKIN), len(people))].astype(np.uint8).reshape(-1, 3),
+            height_scale=scales,
+        ),
+        roles=tuple(person.role for person in people),
+        entry_zones=np.array([person.entry_zone for person in people], np.int64),
+        exit_zones=np.where(
+            last_frames <= config.num_frames, [person.exit_zone for person in people], -1
+        ).astype(np.int64),
+        events=_events(people, gt_table, config),
+        zones=np.array([config.pixels(zone.box) for zone in config.zones]),
+        occluder=np.array(config.pixels(config.occluder)),
+        vegetation=np.array(config.pixels(config.vegetation)),
+        gust=gust,
+        vegetation_offsets=_sway(gust, max(1, round(SWAY * config.image_width)), rng),
+        noise_offsets=rng.integers(0, NOISE_OFFSETS, (config.num_frames, 2)),
+    )
+
+
+class _Script:
+    """Draws the people of a scene: the scripted hard cases and the background walkers."""
+
+    def __init__(self, config: VideoSceneConfig, rng: np.random.Generator):
+        self.config = config
+        self.rng = rng
+        self.zones = np.array([config.pixels(zone.box) for zone in config.zones])
+        self.centres = self.zones[:, :2] + self.zones[:, 2:] / 2
+        width, height = config.image_width, config.image_height
+        self.ground = np.array([0.05 * width, (config.ground_row + 0.05) * height])
+        self.ground_end = np.array([0.95 * width, 0.95 * height])
+
+    def people(self) -> list[_Person]:
+        """Everybody, scripted people first; refuses a scene too short for their events."""
+        people = [
+            *self._crossing(),
+            *self._group(),
+            self._occlusion(),
+            self._standing(),
+            *self._walkers(),
+        ]
+        needed = max(person.marks.get("needed", 0) for person in people)
+        if needed > self.config.num_frames:
+            raise InputError(
+                f"num_frames {self.config.num_frames} is too short for the scripted events of "
+                f"this seed and layout: at least {needed} frames are needed"
+            )
+        return people
+
+    # -- drawing helpers ------------------------------------------------------------------
+
+    def _pace(self) -> float:
+        return self.config.walking_pace * self.rng.uniform(0.85, 1.15)
+
+    def _zone_point(self, zone: int) -> np.ndarray:
+        x, y, w, h = self.zones[zone]
+        return np.array([x, y]) + self.rng.uniform(0, 1, 2) * [w, h]
+
+    def _other_zone(self, zone: int) -> int:
+        return int(self.rng.choice([z for z in range(len(self.zones)) if z != zone]))
+
+    def _jitter(self, colour: np.ndarray, amount: int) -> np.ndarray:
+        return np.clip(colour + self.rng.integers(-amount, amount + 1, 3), 0, 255)
+
+    def _clothes(self) -> tuple[np.ndarray, np.ndarray]:
+        top, bottom = self.rng.choice(len(CLOTHING), 2, replace=False)
+        return (
+            self._jitter(CLOTHING[top], COLOUR_JITTER),
+            self._jitter(CLOTHING[bottom], COLOUR_JITTER),
+        )
+
+    def _ground_point(self, lower, upper) -> np.ndarray:
+        """A point uniform over a part of the ground, clear of the occluder.
+
+        Args:
+            lower, upper: corners of the part, fractions of the ground's extent.
+        """
+        while True:
+            point = self.ground + (self.ground_end - self.ground) * self.rng.uniform(lower, upper)
+            if self._clear_of_occluder(point):
+                return point
+
+    def _clear_of_occluder(self, point: np.ndarray) -> bool:
+        """Whether a person standing on ``point`` is a body width or more from the occluder."""
+        height = 1.2 * float(nominal_height(point[1], self.config))
+        x, y, w, h = person_boxes(point[None], np.array([height]), self.config.aspect_ratio)[0]
+        ox, oy, ow, oh = self.config.pixels(self.config.occluder)
+        return x > ox + ow + w or x + 2 * w < ox or y > oy + oh or y + h < oy
+
+    def _routes(self, draw) -> list[np.ndarray]:
+        """``draw()`` (a list of routes) drawn again until no route crosses the occluder."""
+        for _ in range(MAX_ROUTE_TRIES):
+            routes = draw()
+            if not any(crosses_occluder(route, self.config) for route in routes):
+                return routes
+        raise InputError(
+            f"no route between the zones avoids the occluder {self.config.occluder} after "
+            f"{MAX_ROUTE_TRIES} tries; move the occluder or the zones"
+        )
+
+    # -- background walkers -----------------------------------------------------------------
+
+    def _walkers(self) -> list[_Person]:
+        """``walkers_per_zone`` per zone, one entering in each of as many equal time slots."""
+        config = self.config
+        count = config.walkers_per_zone
+        last = max(config.num_frames - EXIT_MARGIN, FIRST_ENTRY + 1)
+        slot = (last - FIRST_ENTRY) / max(count, 1)
+        spread = (self.ground_end - self.ground) * [0.08, 0.06]
+        people = []
+        for zone in range(len(self.zones)):
+            for k in range(count):
+                start = FIRST_ENTRY + int((k + self.rng.uniform()) * slot)
+                exit_ = self._other_zone(zone)
+
+                def draw(zone=zone, exit_=exit_):
+                    entry, end = self._zone_point(zone), self._zone_point(exit_)
+                    middle = (entry + end) / 2 + self.rng.normal(0, 1, 2) * spread
+                    middle = np.clip(middle, self.ground, self.ground_end)
+                    return [np.stack([entry, middle, end])]
+
+                (route,) = self._routes(draw)
+                feet, _ = walk(route, self._pace(), config)
+                people.append(_Person(start, feet, "walker", zone, exit_, *self._clothes()))
+        return people
+
+    # -- scripted hard cases ------------------------------------------------------------------
+
+    def _crossing(self) -> list[_Person]:
+        """Two similarly dressed people from different zones reach one point in one frame."""
+        config = self.config
+        zone_a = int(self.rng.integers(len(self.zones)))
+        zone_b = self._other_zone(zone_a)
+        exit_a, exit_b = self._other_zone(zone_a), self._other_zone(zone_b)
+
+        def draw():
+            point = self._ground_point((0.2, 0.35), (0.6, 0.75))
+            offset = CROSSING_OFFSET * float(nominal_height(point[1], config))
+            nearer = point + np.array([0.0, offset])
+            return [
+                np.stack([self._zone_point(zone_a), point, self._zone_point(exit_a)]),
+                np.stack([self._zone_point(zone_b), nearer, self._zone_point(exit_b)]),
+            ]
+
+        routes = self._routes(draw)
+        walks = [walk(route, self._pace(), config) for route in routes]
+        meet = max(arrivals[1] for _, arrivals in walks) + FIRST_ENTRY
+        meet += int(self.rng.integers(0, 80))
+        top, bottom = self.rng.choice(len(CLOTHING), 2, replace=False)
+        people = []
+        for (feet, arrivals), entry, exit_ in zip(
+            walks, (zone_a, zone_b), (exit_a, exit_b), strict=True
+        ):
+            person = _Person(
+                int(meet - arrivals[1]),
+                feet,
+                "crossing",
+                entry,
+                exit_,
+                self._jitter(CLOTHING[top], SIMILAR_JITTER),
+                self._jitter(CLOTHING[bottom], SIMILAR_JITTER),
+            )
+            person.marks = {"needed": meet + EVENT_MARGIN}
+            people.append(person)
+        return people
+
+    def _group(self) -> list[_Person]:
+        """``GROUP_SIZE`` people side by side from one zone to a split point, then apart."""
+        config = self.config
+        fits = [zone for zone in range(len(self.zones)) if self._formation_fits(zone)]
+        if not fits:
+            raise InputError(
+                f"no zone is wide enough for a group of {GROUP_SIZE} walking side by side "
+                f"({GROUP_SPACING} body heights apart); widen a zone"
+            )
+        zone = int(self.rng.choice(fits))
+        others = self.rng.permutation([z for z in range(len(self.zones)) if z != zone])
+        exits = [int(others[k % len(others)]) for k in range(GROUP_SIZE)]
+        pace = self._pace()
+
+        def draw():
+            split = self._ground_point((0.3, 0.3), (0.7, 0.7))
+            leader, _ = walk(np.stack([self.centres[zone], split]), pace, config)
+            offsets = self._formation(split - self.centres[zone])
+            height = nominal_height(leader[:, 1], config)[None, :, None]
+            together = leader[None] + offsets[:, None] * height  # [GROUP_SIZE, n, 2]
+            ends = [self._zone_point(exit_) for exit_ in exits]
+            routes = [np.stack([path[-1], end]) for path, end in zip(together, ends, strict=True)]
+            return [*routes, *together]
+
+        routes = self._routes(draw)
+        start = FIRST_ENTRY + 20 + int(self.rng.integers(0, 80))
+        people = []
+        for k in range(GROUP_SIZE):
+            together = routes[GROUP_SIZE + k]
+            apart, _ = walk(routes[k], pace, config)
+            person = _Person(
+                start,
+                np.concatenate([together, apart[1:]]),
+                "group",
+                zone,
+                exits[k],
+                *self._clothes(),
+            )
+            split = start + len(together) - 1
+            person.marks = {"split": split, "needed": split + SPLIT_MARGIN}
+            people.append(person)
+        return people
+
+    def _formation(self, direction: np.ndarray) -> np.ndarray:
+        """Members' offsets across ``direction``, body heights, ``[GROUP_SIZE, 2]``."""
+        across = np.array([-direction[1], direction[0]]) / np.hypot(*direction)
+        spread = (np.arange(GROUP_SIZE) - (GROUP_SIZE - 1) / 2) * GROUP_SPACING
+        return spread[:, None] * across[None]
+
+    def _formation_fits(self, zone: int) -> bool:
+        """Whether a group entering at the zone's centre towards the middle of the ground has
+        every foot point inside the zone."""
+        x, y, w, h = self.zones[zone]
+        centre = self.centres[zone]
+        middle = (self.ground + self.ground_end) / 2
+        height = float(nominal_height(centre[1], self.config))
+        feet = centre + self._formation(middle - centre) * height
+        inside = (feet >= [x, y]) & (feet <= [x + w, y + h])
+        return bool(np.all(inside))
+
+    def _occlusion(self) -> _Person:
+        """A person walking along the row just behind the occluder, across its whole width."""
+        config = self.config
+        ox, oy, ow, oh = config.pixels(config.occluder)
+        row = oy + 0.95 * oh
+        width = config.image_width
+        left = np.array([max(ox - 0.5 * ow, 0.02 * width), row])
+        right = np.array([min(ox + 1.5 * ow, 0.98 * width), row])
+        to_left = np.hypot(*(self.centres - left).T)
+        to_right = np.hypot(*(self.centres - right).T)
+        entry = int(np.argmin(to_left))
+        to_right[entry] = np.inf
+        exit_ = int(np.argmin(to_right))
+        passage = [left, right]
+        if self.rng.uniform() < 0.5:
+            entry, exit_, passage = exit_, entry, passage[::-1]
+
+        def draw():
+            return [np.stack([self._zone_point(entry), *passage, self._zone_point(exit_)])]
+
+        (route,) = self._routes(draw)
+        feet, arrivals = walk(route, self._pace(), config)
+        start = FIRST_ENTRY + int(self.rng.integers(0, 60))
+        person = _Person(start, feet, "occlusion", entry, exit_, *self._clothes())
+        person.marks = {"needed": start + int(arrivals[2]) + EVENT_MARGIN}
+        return person
+
+    def _standing(self) -> _Person:
+        """A person who walks to a point, stands still for ``stand_frames``, and walks on."""
+        config = self.config
+        entry = int(self.rng.integers(len(self.zones)))
+        exit_ = self._other_zone(entry)
+
+        def draw():
+            point = self._ground_point((0.1, 0.3), (0.6, 0.85))
+            return [np.stack([self._zone_point(entry), point, self._zone_point(exit_)])]
+
+        (route,) = self._routes(draw)
+        feet, arrivals = walk(route, self._pace(), config, {1: config.stand_frames})
+        start = FIRST_ENTRY + int(self.rng.integers(0, 60))
+        person = _Person(start, feet, "standing", entry, exit_, *self._clothes())
+        first = start + int(arrivals[1])
+        person.marks = {
+            "stand": (first, first + config.stand_frames - 1),
+            "needed": first + config.stand_frames + EVENT_MARGIN,
+        }
+        return person
+
+
+def _ground_truth(people, scales, phases, config: VideoSceneConfig):
+    """The gt table (boxes, class 1, visibility) and each row's gait phase and walking flag."""
+    frames, ids, feet, heights, phase, walking = [], [], [], [], [], []
+    for index, person in enumerate(people):
+        count = min(len(person.feet), config.num_frames - person.start + 1)
+        track = person.feet[:count]
+        frames.append(person.start + np.arange(count))
+        ids.append(np.full(count, index + 1))
+        feet.append(track)
+        heights.append(scales[index] * nominal_height(track[:, 1], config))
+        phase.append(phases[index] + gait_phase(person.feet, config)[:count])
+        moved = np.any(np.diff(person.feet, axis=0) != 0, axis=1)
+        walking.append(np.concatenate([[True], moved])[:count])
+    frames, ids = np.concatenate(frames), np.concatenate(ids)
+    order = np.lexsort((ids, frames))
+    frames, ids = frames[order], ids[order]
+    boxes = person_boxes(np.concatenate(feet), np.concatenate(heights), config.aspect_ratio)
+    boxes = boxes[order]
+    visibility = np.zeros(len(frames))
+    occluder = np.array(config.pixels(config.occluder))
+    size = (config.image_width, config.image_height)
+    bounds = np.flatnonzero(np.diff(frames)) + 1
+    for rows in np.split(np.arange(len(frames)), bounds):
+        visibility[rows] = box_visibility(boxes[rows], occluder, size)
+    extra = np.stack([np.ones(len(frames)), visibility], axis=1)
+    table = MotTable.from_arrays(frames, ids, np.round(boxes, BOX_DECIMALS) + 0.0, None, extra)
+    return table, np.concatenate(phase)[order], np.concatenate(walking)[order]
+
+
+def _events(people, gt: MotTable, config: VideoSceneConfig) -> tuple[ScriptedEvent, ...]:
+    """The scripted events, from the people's marks and their ground truth."""
+    names = [zone.name for zone in config.zones]
+    events = []
+    rows = {pid: np.flatnonzero(gt.ids == pid) for pid in range(1, len(people) + 1)}
+    for pid, person in enumerate(people, start=1):
+        first = person.start
+        last = person.start + len(person.feet) - 1
+        events.append(ScriptedEvent("entry", (pid,), (first, first), names[person.entry_zone]))
+        if last <= config.num_frames:
+            events.append(ScriptedEvent("exit", (pid,), (last, last), names[person.exit_zone]))
+        if "stand" in person.marks:
+            events.append(ScriptedEvent("standing", (pid,), person.marks["stand"]))
+        if person.role == "occlusion":
+            hidden = _inside(gt.boxes[rows[pid]], np.array(config.pixels(config.occluder)))
+            frames = gt.frames[rows[pid]][hidden]
+            if not frames.size:
+                raise InputError(
+                    f"the occluder {config.occluder} never wholly hides the person walking "
+                    "behind it; make it larger"
+                )
+            events.append(ScriptedEvent("occlusion", (pid,), (int(frames[0]), int(frames[-1]))))
+    group = [pid for pid, person in enumerate(people, start=1) if person.role == "group"]
+    split = people[group[0] - 1].marks["split"]
+    events.append(ScriptedEvent("group", tuple(group), (people[group[0] - 1].start, split)))
+    pair = [pid for pid, person in enumerate(people, start=1) if person.role == "crossing"]
+    overlap = _overlap_frames(gt, rows[pair[0]], rows[pair[1]])
+    events.append(ScriptedEvent("crossing", tuple(pair), (int(overlap[0]), int(overlap[-1]))))
+    return tuple(sorted(events, key=lambda event: (event.frames[0], event.kind, event.ids)))
+
+
+def _inside(boxes: np.ndarray, outer: np.ndarray) -> np.ndarray:
+    """Whether each ``(x, y, w, h)`` box lies wholly inside the box ``outer``."""
+    return (
+        (boxes[:, 0] >= outer[0])
+        & (boxes[:, 1] >= outer[1])
+        & (boxes[:, 0] + boxes[:, 2] <= outer[0] + outer[2])
+        & (boxes[:, 1] + boxes[:, 3] <= outer[1] + outer[3])
+    )
+
+
+def _overlap_frames(gt: MotTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
+    """Frames in which the boxes of two people overlap (a positive intersection area)."""
+    common, index_a, index_b = np.intersect1d(
+        gt.frames[rows_a], gt.frames[rows_b], return_indices=True
+    )
+    a, b = gt.boxes[rows_a[index_a]], gt.boxes[rows_b[index_b]]
+    width = np.minimum(a[:, 0] + a[:, 2], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0], b[:, 0])
+    height = np.minimum(a[:, 1] + a[:, 3], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1], b[:, 1])
+    return common[(width > 0) & (height > 0)]
+
+
+def _gusts(num_frames: int, rng: np.random.Generator) -> np.ndarray:
+    """Gust frames: a two-state Markov chain (mean gust ``GUST_FRAMES``, mean calm
+    ``CALM_FRAMES``) started from its stationary law."""
+    gust = np.zeros(num_frames, bool)
+    draws = rng.random(num_frames)
+    state = draws[0] < GUST_FRAMES / (GUST_FRAMES + CALM_FRAMES)
+    for t in range(num_frames):
+        if t:
+            state ^= draws[t] < (1 / GUST_FRAMES if state else 1 / CALM_FRAMES)
+        gust[t] = state
+    return gust
+
+
+def _sway(gust: np.ndarray, largest: int, rng: np.random.Generator) -> np.ndarray:
+    """Integer ``(dx, dy)`` sway of the foliage per frame: ``s_t = r s_{t-1} + q_t n_t``,
+    ``n_t ~ N(0, I2)``, ``q_t`` the calm or gust innovation, offsets ``round(clip(s_t, -1, 1)
+    largest)``."""
+    innovation = np.where(gust, SWAY_INNOVATION[1], SWAY_INNOVATION[0])[:, None]
+    noise = rng.normal(size=(gust.size, 2)) * innovation
+    state = np.zeros(2)
+    sway = np.zeros((gust.size, 2))
+    for t in range(gust.size):
+        state = SWAY_PERSISTENCE * state + noise[t]
+        sway[t] = state
+    return np.round(np.clip(sway, -1, 1) * largest).astype(np.int64)
+
+
+def _detections(gt: MotTable, gust: np.ndarray, config: VideoSceneConfig, rng):
+    """``det.txt`` rows (see the module docstring) and the gt id of each (-1: false)."""
+    visibility = gt.extra[:, 1]
+    ramp = np.clip((visibility - UNSEEN) / (SEEN - UNSEEN), 0.0, 1.0)
+    found = rng.random(len(gt)) < config.detection_prob * ramp
+    s_w, s_h = config.measurement_noise
+    centres = xywh_to_cxcywh(gt.boxes[found])
+    noise = rng.normal(size=centres.shape) * centres[:, [2, 3, 2, 3]] * [s_w, s_h, s_w, s_h]
+    measured = centres + noise
+    num_frames = config.num_frames
+    uniform_counts = rng.poisson(config.clutter_rate, num_frames)
+    foliage_counts = rng.poisson(config.vegetation_clutter_rate * gust)
+    width, height = config.image_width, config.image_height
+    feet = rng.uniform([0, config.ground_row * height], [width, height], (uniform_counts.sum(), 2))
+    tall = nominal_height(feet[:, 1], config)
+    uniform = np.stack([feet[:, 0], feet[:, 1] - tall / 2, config.aspect_ratio * tall, tall], 1)
+    vx, vy, vw, vh = config.pixels(config.vegetation)
+    sizes = rng.uniform(0.2, 0.5, (foliage_counts.sum(), 2)) * [vw, vh]
+    corners = [vx, vy] + rng.uniform(0, 1, sizes.shape) * ([vw, vh] - sizes)
+    foliage = np.concatenate([corners + sizes / 2, sizes], 1)
+    boxes = np.concatenate([measured, uniform, foliage])
+    frames = np.concatenate(
+        [
+            gt.frames[found],
+            np.repeat(np.arange(1, num_frames + 1), uniform_counts),
+            np.repeat(np.arange(1, num_frames + 1), foliage_counts),
+        ]
+    )
+    target_ids = np.concatenate([gt.ids[found], np.full(len(uniform) + len(foliage), -1)])
+    scores = np.concatenate(
+        [
+            rng.beta(*TARGET_SCORE, int(found.sum())),
+            rng.beta(*CLUTTER_SCORE, len(uniform) + len(foliage)),
+        ]
+    )
+    order = np.lexsort((rng.permutation(len(frames)), frames))
+    corners = cxcywh_to_xywh(boxes[order])
+    top_left = np.clip(corners[:, :2], 0, [width - 1, height - 1])
+    bottom_right = np.clip(corners[:, :2] + corners[:, 2:], top_left + 1, [width, height])
+    top_left = np.round(top_left, BOX_DECIMALS)
+    sides = np.round(np.round(bottom_right, BOX_DECIMALS) - top_left, BOX_DECIMALS)
+    table = MotTable.from_arrays(
+        frames[order],
+        np.full(len(order), -1),
+        np.concatenate([top_left, sides], 1) + 0.0,
+        np.clip(np.round(scores[order], 4), 1e-4, 1.0),
+    )
+    return table, target_ids[order]
