@@ -108,10 +108,10 @@ class VideoZone:
 
 
 DEFAULT_VIDEO_ZONES: tuple[VideoZone, ...] = (
-    VideoZone("west", (0.0, 0.52, 0.0375, 0.21)),
-    VideoZone("east", (0.9625, 0.42, 0.0375, 0.2)),
-    VideoZone("south", (0.375, 0.95, 0.25, 0.05)),
-    VideoZone("door", (0.455, 0.23, 0.06, 0.03)),
+    VideoZone("west", (0.0, 0.53, 0.0375, 0.16)),
+    VideoZone("east", (0.9625, 0.43, 0.0375, 0.16)),
+    VideoZone("south", (0.42, 0.95, 0.16, 0.05)),
+    VideoZone("door", (0.46, 0.23, 0.05, 0.03)),
 )
 
 
@@ -120,7 +120,8 @@ class VideoSceneConfig:
     """Everything that defines a scripted video scene; see :mod:`~jaxtrack.datasets.video_scene`.
 
     Attributes:
-        name: sequence name (``seqinfo.ini``, ``<name>.mp4``); None: ``"video-<seed>"``.
+        name: sequence name (``seqinfo.ini``, ``<name>.mp4``; :func:`check_video_name`);
+            None: ``"video-<seed>"``.
         num_frames: number of frames ``T`` (numbered ``1..T``).
         image_width: frame width ``W``, pixels.
         image_height: frame height ``H``, pixels.
@@ -167,7 +168,7 @@ class VideoSceneConfig:
     aspect_ratio: float = 0.4
     height_spread: float = 0.05
     walking_pace: float = 0.8
-    walkers_per_zone: int = 6
+    walkers_per_zone: int = 5
     stand_frames: int = 100
     occluder: Box = (0.66, 0.375, 0.14, 0.225)
     vegetation: Box = (0.8, 0.04, 0.2, 0.26)
@@ -180,6 +181,8 @@ class VideoSceneConfig:
 
     def __post_init__(self) -> None:
         apply_rules(self, VIDEO_RULES, "")
+        if self.name is not None:
+            check_video_name(self.name)
         for field in ("occluder", "vegetation", "bright_patch"):
             _check_box(self, field, "")
         if not 2 <= len(self.zones) <= MAX_ZONES:
@@ -228,6 +231,23 @@ class VideoSceneConfig:
                 f"standing behind it ({self.aspect_ratio * person:.0f}x{person:.0f} pixels); "
                 "it must be at least 1/0.9 of their height and 1/0.6 of their width"
             )
+
+
+def check_video_name(name) -> str:
+    """A sequence name that can name its video file ``<name>.mp4`` inside the folder.
+
+    Raises:
+        InputError: not a string, empty, ``.`` or ``..``, or holding a path separator or a
+            control character (a new line would also break ``seqinfo.ini``).
+    """
+    if not isinstance(name, str):
+        raise InputError(f"name must be a string, got {name!r}")
+    if name in ("", ".", "..") or any(c in "/\\" or ord(c) < 32 for c in name):
+        raise InputError(
+            f"name {name!r} cannot name the video file <name>.mp4: it must be non-empty, not "
+            "'.' or '..', without '/', '\\' or control characters"
+        )
+    return name
 
 
 def video_config_to_dict(config: VideoSceneConfig) -> dict[str, Any]:

@@ -18,8 +18,9 @@ tone for the head. Nobody enters before frame ``FIRST_ENTRY``.
 **Scripted hard cases** (placed by the seed; :attr:`VideoScene.events`):
 
 * ``crossing``: two similarly dressed people (the same palette colours, within +-4 levels)
-  from different zones pass the same point in the same frame, one ``CROSSING_OFFSET`` body
-  heights nearer the camera; the event's frames are those in which their boxes overlap;
+  from different zones to different zones pass the same point in the same frame, one
+  ``CROSSING_OFFSET`` body heights nearer the camera; the event's frames are the first and
+  last in which their boxes overlap;
 * ``group``: ``GROUP_SIZE`` people enter together side by side (``GROUP_SPACING`` body heights
   apart, across the walking direction), walk to a split point and leave through different
   zones; frames: entry to split;
@@ -75,7 +76,7 @@ EXIT_MARGIN = 60
 #: People in the scripted group.
 GROUP_SIZE = 3
 #: Distance between group neighbours, body heights.
-GROUP_SPACING = 0.45
+GROUP_SPACING = 0.4
 #: The second person of the crossing passes this many body heights nearer the camera.
 CROSSING_OFFSET = 0.12
 #: Frames after a scripted moment that the scene must still show (a group's split needs more).
@@ -418,7 +419,10 @@ class _Script:
         config = self.config
         zone_a = int(self.rng.integers(len(self.zones)))
         zone_b = self._other_zone(zone_a)
-        exit_a, exit_b = self._other_zone(zone_a), self._other_zone(zone_b)
+        exit_a = self._other_zone(zone_a)
+        exit_b = int(
+            self.rng.choice([z for z in range(len(self.zones)) if z not in (zone_b, exit_a)])
+        )
 
         def draw():
             point = self._ground_point((0.2, 0.35), (0.6, 0.75))
