@@ -1,8 +1,10 @@
 """``jaxtrack inspect SEQ_DIR``: what a MOTChallenge sequence folder holds.
 
-Reports frames, image size, detection counts (total, per frame min/mean/max), ground-truth
-boxes and identities, and the detector's precision and recall against the ground truth at
-IoU >= 0.5 (optimal one-to-one assignment per frame; gt rows with ``conf == 0`` excluded).
+Reports frames, image size, where the frames are (``img1/`` or ``NAME.mp4`` / ``NAME.avi`` in
+the folder, with the video's frame count, size and rate), detection counts (total, per frame
+min/mean/max), ground-truth boxes and identities, and the detector's precision and recall
+against the ground truth at IoU >= 0.5 (optimal one-to-one assignment per frame; gt rows with
+``conf == 0`` excluded).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 
 from jaxtrack.commands.arguments import IOU, add_frames, add_json, ranged, refuse_ignored
 from jaxtrack.io import load_sequence
+from jaxtrack.io.video import VideoReader, find_frame_source
 from jaxtrack.metrics.detection import detection_precision_recall
 
 #: IoU threshold of a match (default of --iou).
@@ -51,6 +54,7 @@ def summarise(sequence_dir, frames=None, iou_threshold: float = DEFAULT_IOU) -> 
         "image_width": seq.info.im_width,
         "image_height": seq.info.im_height,
         "frame_rate": seq.info.frame_rate,
+        "frames_source": frames_source(seq.path, seq.info.name),
         "detections": len(seq.det_table),
         "detections_per_frame": {
             "min": int(counts.min()),
@@ -78,6 +82,29 @@ def summarise(sequence_dir, frames=None, iou_threshold: float = DEFAULT_IOU) -> 
     return summary
 
 
+def frames_source(sequence_dir, name: str) -> dict | None:
+    """The sequence's frames (``img1/``, else ``NAME.mp4`` / ``NAME.avi``) and what they hold.
+
+    Returns:
+        ``{"path", "frames", "width", "height", "fps"}`` (fps None when unknown), or None
+        when the folder has no frames.
+
+    Raises:
+        FileFormatError: the video or image folder is unreadable.
+    """
+    source = find_frame_source(sequence_dir, name)
+    if source is None:
+        return None
+    with VideoReader(source) as reader:
+        return {
+            "path": str(source),
+            "frames": reader.num_frames,
+            "width": reader.width,
+            "height": reader.height,
+            "fps": reader.fps,
+        }
+
+
 def run(args) -> int:
     if not (Path(args.sequence) / "gt" / "gt.txt").exists():
         refuse_ignored(args, ["iou"], "needs ground truth, and SEQ_DIR has no gt/gt.txt")
@@ -92,6 +119,7 @@ def run(args) -> int:
         f"frames        {summary['frames']}  ({summary['first_frame']}..{summary['last_frame']})",
         f"image         {summary['image_width']} x {summary['image_height']}"
         f"  at {summary['frame_rate'] or '?'} fps",
+        _source_line(summary["frames_source"]),
         f"detections    {summary['detections']}  per frame min {per_frame['min']}"
         f" / mean {per_frame['mean']:.2f} / max {per_frame['max']}",
     ]
@@ -106,3 +134,12 @@ def run(args) -> int:
         ]
     print("\n".join(lines))
     return 0
+
+
+def _source_line(source: dict | None) -> str:
+    if source is None:
+        return "frames from   none (no img1/ or NAME.mp4/.avi in the folder)"
+    return (
+        f"frames from   {source['path']}  ({source['frames']} frames, {source['width']} x "
+        f"{source['height']} at {source['fps'] or '?'} fps)"
+    )

@@ -77,6 +77,9 @@ DOOR = (70, 50, 40)
 BOARD_FRAME = (60, 60, 65)
 BOARD_PANEL = ((205, 70, 50), (235, 225, 200))
 LEAVES = ((25, 58, 25), (80, 140, 55))
+SKY = (175, 190, 210)
+#: Foliage gaps (sky) where the leaf field (standard normal, smoothed) exceeds this.
+FOLIAGE_GAP = 0.6
 #: Seed stream of the canvas (the script uses the scene's seed alone).
 CANVAS_STREAM = 1
 
@@ -339,9 +342,11 @@ def _billboard(image, occluder: np.ndarray) -> None:
 
 
 def _leaves(rng, shape) -> np.ndarray:
-    """A two-tone leaf texture (blobs of a few pixels) with grain, RGB uint8."""
-    cells = (max(2, shape[0] // 3), max(2, shape[1] // 3))
-    field = cv2.resize(rng.normal(size=cells).astype(np.float32), shape[::-1])
-    texture = np.where(field[..., None] > 0, LEAVES[1], LEAVES[0]).astype(np.float64)
+    """Foliage: dark and light leaf clumps (about a tenth of the region wide) with gaps of sky
+    (the smoothed field above ``FOLIAGE_GAP``), and grain; RGB uint8."""
+    cells = (max(2, shape[0] // 10), max(2, shape[1] // 10))
+    field = cv2.resize(rng.normal(size=cells).astype(np.float32), shape[::-1])[..., None]
+    texture = np.where(field > 0, LEAVES[1], LEAVES[0]).astype(np.float64)
+    texture = np.where(field > FOLIAGE_GAP, SKY, texture)
     texture += rng.normal(0, 8, (*shape, 1))
     return np.clip(np.round(texture), 0, 255).astype(np.uint8)

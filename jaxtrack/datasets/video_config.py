@@ -177,7 +177,7 @@ class VideoSceneConfig:
     detection_prob: float = 0.9
     measurement_noise: Pair = (0.04, 0.03)
     clutter_rate: float = 0.2
-    vegetation_clutter_rate: float = 1.0
+    vegetation_clutter_rate: float = 1.5
 
     def __post_init__(self) -> None:
         apply_rules(self, VIDEO_RULES, "")

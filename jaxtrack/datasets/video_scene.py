@@ -116,9 +116,9 @@ BOX_DECIMALS = 3
 #: Vegetation sway: largest offset (fraction of the image width, at least 1 pixel), its AR(1)
 #: persistence and per-frame innovation in calm and gust frames (units of the largest
 #: offset), and the mean lengths of gusts and of calm spells, frames.
-SWAY = 0.006
+SWAY = 0.008
 SWAY_PERSISTENCE = 0.75
-SWAY_INNOVATION = (0.1, 0.6)
+SWAY_INNOVATION = (0.05, 0.6)
 GUST_FRAMES, CALM_FRAMES = 12.0, 50.0
 #: Range of the per-frame offsets into the pixel-noise field, pixels.
 NOISE_OFFSETS = 64
