@@ -151,7 +151,7 @@ def build_canvas(scene: VideoScene) -> Canvas:
     image *= _lighting(config)[..., None]
     _billboard(image, scene.occluder)
     sway = int(np.abs(scene.vegetation_offsets).max(initial=0))
-    x0, y0, x1, y1 = _pixel_bounds(scene.vegetation)
+    x0, y0, x1, y1 = pixel_bounds(scene.vegetation)
     foliage = _leaves(rng, (y1 - y0 + 2 * sway, x1 - x0 + 2 * sway))
     image[y0:y1, x0:x1] = foliage[sway : sway + y1 - y0, sway : sway + x1 - x0]
     noise = np.round(
@@ -177,7 +177,7 @@ def render_frame(scene: VideoScene, canvas: Canvas, frame: int) -> np.ndarray:
         RGB ``uint8`` ``[H, W, 3]``.
     """
     image = canvas.background.copy()
-    x0, y0, x1, y1 = _pixel_bounds(scene.vegetation)
+    x0, y0, x1, y1 = pixel_bounds(scene.vegetation)
     sway = (canvas.foliage.shape[0] - (y1 - y0)) // 2
     dx, dy = scene.vegetation_offsets[frame - 1] + sway
     image[y0:y1, x0:x1] = canvas.foliage[dy : dy + y1 - y0, dx : dx + x1 - x0]
@@ -185,7 +185,7 @@ def render_frame(scene: VideoScene, canvas: Canvas, frame: int) -> np.ndarray:
     ids = scene.gt_table.ids[rows] - 1
     look = scene.appearance
     colours = np.stack([look.top[ids], look.bottom[ids], look.skin[ids]], axis=1)
-    ox0, oy0, ox1, oy1 = _pixel_bounds(scene.occluder)
+    ox0, oy0, ox1, oy1 = pixel_bounds(scene.occluder)
 
     def occluder(target):
         target[oy0:oy1, ox0:ox1] = canvas.background[oy0:oy1, ox0:ox1]
@@ -211,7 +211,7 @@ def render_labels(scene: VideoScene, frame: int) -> np.ndarray:
     labels = np.zeros((config.image_height, config.image_width), np.uint16)
     rows = scene.frame_rows(frame)
     ids = scene.gt_table.ids[rows]
-    ox0, oy0, ox1, oy1 = _pixel_bounds(scene.occluder)
+    ox0, oy0, ox1, oy1 = pixel_bounds(scene.occluder)
 
     def occluder(target):
         target[oy0:oy1, ox0:ox1] = 0
@@ -256,7 +256,7 @@ def _paint(target, scene: VideoScene, rows, colours, occluder) -> None:
         occluder(target)
 
 
-def _pixel_bounds(box: np.ndarray) -> tuple[int, int, int, int]:
+def pixel_bounds(box: np.ndarray) -> tuple[int, int, int, int]:
     """``(x0, y0, x1, y1)``: the pixel columns ``x0..x1 - 1`` and rows ``y0..y1 - 1`` of a box."""
     x, y, w, h = box
     return round(x), round(y), round(x + w), round(y + h)
@@ -333,7 +333,7 @@ def _lighting(config) -> np.ndarray:
 
 def _billboard(image, occluder: np.ndarray) -> None:
     """The occluder: a dark frame around a striped poster panel."""
-    x0, y0, x1, y1 = _pixel_bounds(occluder)
+    x0, y0, x1, y1 = pixel_bounds(occluder)
     image[y0:y1, x0:x1] = BOARD_FRAME
     border = max(1, (x1 - x0) // 12)
     stripes = max(1, (y1 - y0 - 2 * border) // 6)
