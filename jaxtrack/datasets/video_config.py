@@ -108,9 +108,9 @@ class VideoZone:
 
 
 DEFAULT_VIDEO_ZONES: tuple[VideoZone, ...] = (
-    VideoZone("west", (0.0, 0.53, 0.0375, 0.16)),
-    VideoZone("east", (0.9625, 0.43, 0.0375, 0.16)),
-    VideoZone("south", (0.42, 0.95, 0.16, 0.05)),
+    VideoZone("west", (0.0, 0.55, 0.0375, 0.12)),
+    VideoZone("east", (0.9625, 0.45, 0.0375, 0.12)),
+    VideoZone("south", (0.43, 0.92, 0.14, 0.05)),
     VideoZone("door", (0.46, 0.23, 0.05, 0.03)),
 )
 

@@ -6,14 +6,15 @@ ground truth (boxes, MOT16/17 visibility), detections for ``det.txt``, the true 
 each person and the scripted events. :mod:`jaxtrack.datasets.render` draws its frames and
 :mod:`jaxtrack.datasets.video_files` writes it as a MOTChallenge folder with ``<name>.mp4``.
 
-**People.** Everybody enters through a zone (foot point uniform in the zone's box; a group at
-the box centre) and walks a piecewise-linear route (:func:`~jaxtrack.datasets.video_paths.walk`:
-perspective speed, gait) to a point in another zone, where they leave. Routes never walk
-through the occluder's base (:func:`~jaxtrack.datasets.video_paths.crosses_occluder`; a route
-that would is drawn again). Each person has an own height scale ``s ~ N(1, height_spread)``
-and pace ``U(0.85, 1.15) walking_pace``, and a two-tone appearance: top and bottom colours
-from a clothing palette (plus a uniform per-channel change of up to +-15 levels) and a skin
-tone for the head. Nobody enters before frame ``FIRST_ENTRY``.
+**People.** Everybody enters through a zone (foot point normal about the zone's centre with
+a sixth of its size as standard deviation, clipped to its box; a group at the centre) and
+walks a piecewise-linear route (:func:`~jaxtrack.datasets.video_paths.walk`: perspective
+speed, gait) to a point in another zone, where they leave. Routes never walk through the
+occluder's base (:func:`~jaxtrack.datasets.video_paths.crosses_occluder`; a route that would is
+drawn again). Each person has an own height scale ``s ~ N(1, height_spread)`` and pace
+``U(0.85, 1.15) walking_pace``, and a two-tone appearance: top and bottom colours from a
+clothing palette (plus a uniform per-channel change of up to +-15 levels) and a skin tone for
+the head. Nobody enters before frame ``FIRST_ENTRY``.
 
 **Scripted hard cases** (placed by the seed; :attr:`VideoScene.events`):
 
@@ -76,12 +77,14 @@ EXIT_MARGIN = 60
 #: People in the scripted group.
 GROUP_SIZE = 3
 #: Distance between group neighbours, body heights.
-GROUP_SPACING = 0.4
+GROUP_SPACING = 0.35
 #: The second person of the crossing passes this many body heights nearer the camera.
 CROSSING_OFFSET = 0.12
 #: Frames after a scripted moment that the scene must still show (a group's split needs more).
 EVENT_MARGIN = 10
 SPLIT_MARGIN = 80
+#: Standard deviation of an entry or exit point about its zone's centre, in zone sizes.
+ZONE_SPREAD = 1 / 6
 #: Tries to draw a route that does not cross the occluder before the layout is refused.
 MAX_ROUTE_TRIES = 200
 #: Clothing palette (RGB) and skin tones.
@@ -341,8 +344,11 @@ class _Script:
         return self.config.walking_pace * self.rng.uniform(0.85, 1.15)
 
     def _zone_point(self, zone: int) -> np.ndarray:
+        """A foot point in a zone: normal about its centre, ``ZONE_SPREAD`` of its size as
+        standard deviation, clipped to its box (people keep to the middle of a path)."""
         x, y, w, h = self.zones[zone]
-        return np.array([x, y]) + self.rng.uniform(0, 1, 2) * [w, h]
+        point = self.centres[zone] + self.rng.normal(0, ZONE_SPREAD, 2) * [w, h]
+        return np.clip(point, [x, y], [x + w, y + h])
 
     def _other_zone(self, zone: int) -> int:
         return int(self.rng.choice([z for z in range(len(self.zones)) if z != zone]))

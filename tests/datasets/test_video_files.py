@@ -71,15 +71,19 @@ def test_video_decodes_close_to_the_rendered_frames(written, small_video_scene):
             assert np.percentile(error, 99) < MP4_P99_ERROR
 
 
-def test_background_subtraction_finds_the_people(written, small_video_scene):
-    # Horprasert on a 40-frame clip at full resolution (people are 20-60 pixels tall here);
-    # measured: 6.6 detections per frame for 7.7 people at least half visible, precision 0.83
-    # and recall 0.71 at IoU >= 0.5.
-    span = (60, 99)
-    found = detect_video(written / "video-3.mp4", span, DetectorConfig(scale=1.0, min_area=60))
-    gt = small_video_scene.gt_table.frame_span(*span)
-    seen = gt.select(gt.extra[:, 1] >= 0.5)
-    frames = span[1] - span[0] + 1
-    assert len(found.table) / frames == pytest.approx(len(seen) / frames, rel=0.25)
-    precision, recall = detection_precision_recall(found.table, seen, span, 0.5)
-    assert precision >= 0.7 and recall >= 0.6
+def test_background_subtraction_finds_the_people_and_the_gusts(written, small_video_scene):
+    # Horprasert over the whole 320x240 video at full resolution (people are 20-60 pixels
+    # tall; about 3 s). Measured: 7.8 detections per frame for 8.3 people at least half
+    # visible, precision 0.75 and recall 0.71 at IoU >= 0.5; 250 detections in the foliage,
+    # 89 % of them in gust frames (18 % of the frames).
+    scene = small_video_scene
+    found = detect_video(written / "video-3.mp4", None, DetectorConfig(scale=1.0, min_area=60))
+    seen = scene.gt_table.select(scene.visibility >= 0.5)
+    assert len(found.table) == pytest.approx(len(seen), rel=0.2)
+    precision, recall = detection_precision_recall(found.table, seen, (1, 500), 0.5)
+    assert precision >= 0.65 and recall >= 0.6
+    boxes = found.table.boxes
+    x, y, _, h = scene.vegetation  # the foliage reaches the right edge
+    foliage = (boxes[:, 0] + boxes[:, 2] / 2 >= x) & (boxes[:, 1] + boxes[:, 3] / 2 <= y + h)
+    assert foliage.sum() >= 50
+    assert scene.gust[found.table.frames[foliage] - 1].mean() >= 0.8 > scene.gust.mean()

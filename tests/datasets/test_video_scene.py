@@ -61,9 +61,7 @@ def test_every_zone_has_entries_in_the_first_300_frames(video_scene):
     # The precondition of learning the entry zones from frames 1:300 of the ground truth.
     names = [zone.name for zone in video_scene.config.zones]
     entries = [e.zone for e in video_scene.events if e.kind == "entry" and e.frames[0] <= 290]
-    assert {name: entries.count(name) for name in names} == pytest.approx(
-        {name: 5 for name in names}, abs=2
-    )
+    assert all(3 <= entries.count(name) <= 10 for name in names)
 
 
 def test_crossing_of_similarly_dressed_people(video_scene):
