@@ -34,6 +34,7 @@ WITH_PROGRESS = (
     "experiment sweep-magnitudes",
     "experiment compare-trackers",
     "experiment gradient-tuning",
+    "simulate",  # with --video
 )
 #: Commands that print results and so take --json.
 WITH_JSON = ("inspect", "track", "eval", "learn-context", "tune", "detect")

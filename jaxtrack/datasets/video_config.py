@@ -126,8 +126,8 @@ class VideoSceneConfig:
         image_width: frame width ``W``, pixels.
         image_height: frame height ``H``, pixels.
         frame_rate: frames per second (walking speed and gait are per second).
-        zones: the entry/exit zones (at least 2; every person enters through one and leaves
-            through another).
+        zones: the entry/exit zones (at least 2, on the ground: ``y >= ground_row``; every
+            person enters through one and leaves through another).
         ground_row: top row of the walkable ground (the foot of the back wall), fraction of
             ``H``; people's foot points stay at or below it.
         horizon_row: row ``r0`` where the perspective law gives height 0, fraction of ``H``
@@ -195,12 +195,16 @@ class VideoSceneConfig:
                 f"horizon_row {self.horizon_row} must lie above ground_row {self.ground_row}"
             )
         for zone in self.zones:
-            _, y, _, h = zone.box
-            if y + h < self.ground_row:
+            if zone.box[1] < self.ground_row:
                 raise InputError(
-                    f"zone {zone.name!r} lies above the ground (its bottom {y + h:g} is above "
-                    f"ground_row {self.ground_row:g}): people's feet could not reach it"
+                    f"zone {zone.name!r} reaches above the ground (its top {zone.box[1]:g} is "
+                    f"above ground_row {self.ground_row:g}): people's feet stay on the ground"
                 )
+        if self.occluder[1] + self.occluder[3] <= self.ground_row:
+            raise InputError(
+                f"occluder {self.occluder}: its bottom must stand on the ground, below "
+                f"ground_row {self.ground_row:g}"
+            )
         tallest = self.person_height(1.0) * (1 + HEIGHT_SPREAD_CLIP * self.height_spread)
         if tallest > self.image_height:
             raise InputError(

@@ -363,16 +363,26 @@ class _Script:
             self._jitter(CLOTHING[bottom], COLOUR_JITTER),
         )
 
-    def _ground_point(self, lower, upper) -> np.ndarray:
-        """A point uniform over a part of the ground, clear of the occluder.
+    def _ground_point(self, lower, upper, accept=None) -> np.ndarray:
+        """A point uniform over a part of the ground, clear of the occluder (and accepted).
 
         Args:
             lower, upper: corners of the part, fractions of the ground's extent.
+            accept: an extra condition on the point, or None.
+
+        Raises:
+            InputError: no such point in ``MAX_ROUTE_TRIES`` draws (the layout leaves no room).
         """
-        while True:
-            point = self.ground + (self.ground_end - self.ground) * self.rng.uniform(lower, upper)
-            if self._clear_of_occluder(point):
+        span = self.ground_end - self.ground
+        for _ in range(MAX_ROUTE_TRIES):
+            point = self.ground + span * self.rng.uniform(lower, upper)
+            if self._clear_of_occluder(point) and (accept is None or accept(point)):
                 return point
+        raise InputError(
+            f"no point of the ground between {lower} and {upper} (fractions of it) is clear of "
+            f"the occluder {self.config.occluder} and fits the scripted event after "
+            f"{MAX_ROUTE_TRIES} tries; move the occluder or the zones"
+        )
 
     def _clear_of_occluder(self, point: np.ndarray) -> bool:
         """Whether a person standing on ``point`` is a body width or more from the occluder."""
@@ -464,7 +474,8 @@ class _Script:
     def _group(self) -> list[_Person]:
         """``GROUP_SIZE`` people side by side from one zone to a split point, then apart."""
         config = self.config
-        fits = [zone for zone in range(len(self.zones)) if self._formation_fits(zone)]
+        middle = (self.ground + self.ground_end) / 2
+        fits = [z for z in range(len(self.zones)) if self._formation_fits(z, middle)]
         if not fits:
             raise InputError(
                 f"no zone is wide enough for a group of {GROUP_SIZE} walking side by side "
@@ -476,7 +487,9 @@ class _Script:
         pace = self._pace()
 
         def draw():
-            split = self._ground_point((0.3, 0.3), (0.7, 0.7))
+            split = self._ground_point(
+                (0.3, 0.3), (0.7, 0.7), lambda point: self._formation_fits(zone, point)
+            )
             leader, _ = walk(np.stack([self.centres[zone], split]), pace, config)
             offsets = self._formation(split - self.centres[zone])
             height = nominal_height(leader[:, 1], config)[None, :, None]
@@ -510,16 +523,14 @@ class _Script:
         spread = (np.arange(GROUP_SIZE) - (GROUP_SIZE - 1) / 2) * GROUP_SPACING
         return spread[:, None] * across[None]
 
-    def _formation_fits(self, zone: int) -> bool:
-        """Whether a group entering at the zone's centre towards the middle of the ground has
-        every foot point inside the zone."""
+    def _formation_fits(self, zone: int, target: np.ndarray) -> bool:
+        """Whether a group entering at the zone's centre, heading for ``target``, has every
+        member's foot point inside the zone."""
         x, y, w, h = self.zones[zone]
         centre = self.centres[zone]
-        middle = (self.ground + self.ground_end) / 2
         height = float(nominal_height(centre[1], self.config))
-        feet = centre + self._formation(middle - centre) * height
-        inside = (feet >= [x, y]) & (feet <= [x + w, y + h])
-        return bool(np.all(inside))
+        feet = centre + self._formation(target - centre) * height
+        return bool(np.all((feet >= [x, y]) & (feet <= [x + w, y + h])))
 
     def _occlusion(self) -> _Person:
         """A person walking along the row just behind the occluder, across its whole width."""

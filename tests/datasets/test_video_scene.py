@@ -187,3 +187,9 @@ def test_layout_in_fractions_scales_the_whole_scene(video_scene, small_video_sce
 def test_too_short_a_scene_is_refused():
     with pytest.raises(InputError, match=r"num_frames 150 is too short .* at least \d+ frames"):
         generate_video_scene(3, VideoSceneConfig(num_frames=150))
+
+
+def test_a_layout_without_room_for_the_events_is_refused():
+    blocked = VideoSceneConfig(occluder=(0.2, 0.3, 0.6, 0.6))  # covers the middle of the ground
+    with pytest.raises(InputError, match="clear of the occluder"):
+        generate_video_scene(0, blocked)
