@@ -47,28 +47,29 @@ BRIGHT_GAIN = 0.35
 #: Vertical bob of the body while walking: ``BOB h |sin(phase)|``, pixels.
 BOB = 0.02
 #: Figure quads (torso, left arm, right arm, left leg, right leg), 4 vertices each, as
-#: ``(a_x, b_x, a_y, bobbed)``: a vertex of a person with foot point ``(f_x, f_y)``, height
-#: ``h``, box top ``t = f_y - h``, stride ``s = sin(phase)`` (0 while standing) and bob ``b``
-#: lies at ``x = f_x + h (a_x + b_x s)``, ``y = t + a_y h + bobbed b``. Every vertex stays within
-#: ``0.19 h`` of the centre column: inside the box (``0.2 h`` half-width at aspect 0.4).
+#: ``(a_x, b_x, a_y, bobbed)``: a vertex of a person with foot point ``(f_x, f_y)``, box width
+#: ``w`` and height ``h``, box top ``t = f_y - h``, stride ``s = sin(phase)`` (0 while
+#: standing) and bob ``b`` lies at ``x = f_x + w (a_x + b_x s)``, ``y = t + a_y h + bobbed b``.
+#: Every vertex stays within ``0.475 w`` of the centre column, inside the box.
 FIGURE = np.array(
     [
-        [(-0.13, 0, 0.17, 1), (0.13, 0, 0.17, 1), (0.105, 0, 0.53, 1), (-0.105, 0, 0.53, 1)],
+        [(-0.325, 0, 0.17, 1), (0.325, 0, 0.17, 1), (0.2625, 0, 0.53, 1), (-0.2625, 0, 0.53, 1)],
         [
-            (-0.14, 0, 0.18, 1),
-            (-0.09, 0, 0.18, 1),
-            (-0.095, -0.05, 0.5, 1),
-            (-0.135, -0.05, 0.5, 1),
+            (-0.35, 0, 0.18, 1),
+            (-0.225, 0, 0.18, 1),
+            (-0.2375, -0.125, 0.5, 1),
+            (-0.3375, -0.125, 0.5, 1),
         ],
-        [(0.09, 0, 0.18, 1), (0.14, 0, 0.18, 1), (0.135, 0.05, 0.5, 1), (0.095, 0.05, 0.5, 1)],
-        [(-0.095, 0, 0.5, 1), (-0.005, 0, 0.5, 1), (0.01, 0.12, 1.0, 0), (-0.07, 0.12, 1.0, 0)],
-        [(0.005, 0, 0.5, 1), (0.095, 0, 0.5, 1), (0.07, -0.12, 1.0, 0), (-0.01, -0.12, 1.0, 0)],
+        [(0.225, 0, 0.18, 1), (0.35, 0, 0.18, 1), (0.3375, 0.125, 0.5, 1), (0.2375, 0.125, 0.5, 1)],
+        [(-0.2375, 0, 0.5, 1), (-0.0125, 0, 0.5, 1), (0.025, 0.3, 1.0, 0), (-0.175, 0.3, 1.0, 0)],
+        [(0.0125, 0, 0.5, 1), (0.2375, 0, 0.5, 1), (0.175, -0.3, 1.0, 0), (-0.025, -0.3, 1.0, 0)],
     ]
 )
 #: Which appearance colour (0 top, 1 bottom) fills each quad; quads are drawn legs first.
 QUAD_COLOURS = (0, 0, 0, 1, 1)
 DRAW_ORDER = (3, 4, 0, 1, 2)
-#: Head: centre ``HEAD[0] h`` below the box top (plus the bob), radius ``HEAD[1] h``.
+#: Head: centre ``HEAD[0] h`` below the box top (plus the bob), radius ``HEAD[1] h`` (within
+#: the box for aspect ratios from 0.3).
 HEAD = (0.09, 0.075)
 #: Colours (RGB) of the ground, wall, door, billboard frame and panel, and the foliage.
 GROUND = (150, 146, 138)
@@ -115,13 +116,13 @@ def figure_polygons(
         (torso, left arm, right arm, left leg, right leg; :data:`FIGURE`), pixels.
     """
     stride = np.sin(phase) * walking
-    height = boxes[:, 3]
-    centre = boxes[:, 0] + boxes[:, 2] / 2
+    width, height = boxes[:, 2], boxes[:, 3]
+    centre = boxes[:, 0] + width / 2
     top = boxes[:, 1]
     bob = BOB * height * np.abs(stride)
     ax, bx, ay, bobbed = (FIGURE[..., k][None] for k in range(4))
-    h = height[:, None, None]
-    xs = centre[:, None, None] + h * (ax + bx * stride[:, None, None])
+    w, h = width[:, None, None], height[:, None, None]
+    xs = centre[:, None, None] + w * (ax + bx * stride[:, None, None])
     ys = top[:, None, None] + h * ay + bobbed * bob[:, None, None]
     heads = np.stack([centre, top + HEAD[0] * height + bob, HEAD[1] * height], axis=1)
     return heads, np.stack([xs, ys], axis=-1)

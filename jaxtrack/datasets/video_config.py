@@ -59,7 +59,7 @@ VIDEO_RULES: dict[str, Rule] = {
     "ground_row": Rule("image fraction", float, 0.0, 0.9),
     "horizon_row": Rule("image fraction", float, -10.0, 0.9),
     "height_per_row": Rule("person height per row of foot position", float, 0.01, 1.0),
-    "aspect_ratio": Rule("width / height", float, 0.1, 1.0),
+    "aspect_ratio": Rule("width / height", float, 0.3, 0.6),
     "height_spread": Rule("relative standard deviation", float, 0.0, 0.2),
     "walking_pace": Rule("body heights per second", float, 0.1, 5.0),
     "walkers_per_zone": Rule("people", int, 0, MAX_WALKERS_PER_ZONE),

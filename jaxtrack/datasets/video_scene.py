@@ -49,6 +49,11 @@ and, in gust frames (the vegetation moves, :attr:`VideoScene.gust`),
 ``Poisson(vegetation_clutter_rate)`` boxes inside the vegetation region (a fifth to a half of
 its size). Scores ``Beta(6, 1.5)`` (true) and ``Beta(3, 3)`` (false); detection boxes are
 clipped to the image; both tables are rounded to 1/1000 pixel.
+
+**Foliage and noise** (drawn here, used by the renderer): gusts are a two-state Markov chain
+(mean gust ``GUST_FRAMES``, mean calm ``CALM_FRAMES`` frames); the foliage sways by an AR(1)
+offset whose innovation is larger in gusts (:attr:`VideoScene.vegetation_offsets`); each frame
+draws an offset into the pixel-noise field (:attr:`VideoScene.noise_offsets`).
 """
 
 from __future__ import annotations
@@ -85,7 +90,8 @@ EVENT_MARGIN = 10
 SPLIT_MARGIN = 80
 #: Standard deviation of an entry or exit point about its zone's centre, in zone sizes.
 ZONE_SPREAD = 1 / 6
-#: Tries to draw a route that does not cross the occluder before the layout is refused.
+#: Draws of a route that avoids the occluder (or of a ground point clear of it) before the
+#: layout is refused.
 MAX_ROUTE_TRIES = 200
 #: Clothing palette (RGB) and skin tones.
 CLOTHING = np.array(
