@@ -110,3 +110,10 @@ def test_bad_arguments_exit_2(run_cli, tmp_path, capsys, args, message):
     assert error.startswith("jaxtrack simulate: error:") and message in error
     assert not (tmp_path / "x").exists()
     assert (tmp_path / "mot" / "seqinfo.ini").read_text() == "[Sequence]\n"
+
+
+def test_inspect_says_when_a_folder_has_no_frames(run_cli, mot15_root, capsys):
+    assert run_cli("inspect", mot15_root / "PETS09-S2L1", "--json") == 0
+    assert json.loads(capsys.readouterr().out)["frames_source"] is None
+    assert run_cli("inspect", mot15_root / "PETS09-S2L1") == 0
+    assert "frames from   none (no img1/ or NAME.mp4/.avi in the folder)" in capsys.readouterr().out

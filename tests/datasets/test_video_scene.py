@@ -7,7 +7,7 @@ import pytest
 
 from jaxtrack.datasets import VideoSceneConfig, generate_video_scene
 from jaxtrack.datasets.video_paths import nominal_height
-from jaxtrack.datasets.video_scene import FIRST_ENTRY, SIMILAR_JITTER
+from jaxtrack.datasets.video_script import FIRST_ENTRY, SIMILAR_JITTER
 from jaxtrack.errors import InputError
 
 
