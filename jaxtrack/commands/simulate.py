@@ -64,7 +64,8 @@ splitting, a person passing behind the billboard, a person standing still. It wr
 
 With --video, --scene-config takes the video scene's fields (see --video --print-config; the
 layout is in fractions of the image size, so image_width/image_height rescale the same
-scene), and --family and --preview-frame do not apply."""
+scene), --family and --preview-frame do not apply, and --quiet turns the progress bar of the
+rendering off (without --video there is none)."""
 
 EPILOG = """\
 examples:
@@ -116,8 +117,8 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--name",
-        help="sequence name in seqinfo.ini (default: the folder's name; with --family, "
-        "FAMILY-SEED)",
+        help="sequence name in seqinfo.ini, and of NAME.mp4 with --video (default: the "
+        "folder's name; with --family, FAMILY-SEED)",
     )
     parser.add_argument(
         "--preview-frame",
