@@ -1,0 +1,130 @@
+"""Activity mask: where the training trajectories went (Fusion Sec. 2.3, the active area map).
+
+Fusion maps "the coordinates of all the trajectories from the training set ... on the scene"
+and applies morphological filtering to get a binary mask of the active areas. Here, on a grid
+of square cells of side ``c`` pixels (cell ``(i, j)`` covers ``[j c, (j + 1) c) x [i c, (i +
+1) c)``):
+
+1. each trajectory's box centres, joined frame to frame by straight segments (so that a fast
+   walker leaves no holes), are sampled every ``c / 2`` pixels at most and mark their cells;
+2. dilation by a disk of radius ``r`` pixels (a person covers more than the line of their
+   centre), then closing by the same disk (fills the gaps between nearby paths), with the
+   outside of the image empty (``scipy.ndimage``).
+
+Building the mask is host-side NumPy/SciPy; :func:`in_active_area` is the per-frame query
+(JAX, jit- and vmap-able).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+from scipy import ndimage
+
+from jaxtrack.boxes import xywh_to_cxcywh
+
+#: Side of an activity cell, pixels.
+ACTIVITY_CELL = 8
+#: Radius of the dilation and closing disk, pixels.
+ACTIVITY_RADIUS = 16.0
+
+
+def grid_shape(width: float, height: float, cell_size: float) -> tuple[int, int]:
+    """``(rows, columns)`` of the cells covering a ``width x height`` image."""
+    return int(np.ceil(height / cell_size)), int(np.ceil(width / cell_size))
+
+
+def path_points(frames: np.ndarray, ids: np.ndarray, boxes: np.ndarray, step: float) -> np.ndarray:
+    """Box centres of each trajectory joined by segments sampled at most ``step`` apart.
+
+    Args:
+        frames: ``[num_rows]`` frame of each box.
+        ids: ``[num_rows]`` trajectory of each box.
+        boxes: ``[num_rows, 4]`` ``(x, y, w, h)``.
+        step: largest distance between consecutive samples of a segment, pixels.
+
+    Returns:
+        ``[num_samples, 2]`` points: every centre, and points evenly spaced on each segment
+        between the centres of consecutive boxes of a trajectory.
+    """
+    frames = np.asarray(frames, np.int64).reshape(-1)
+    ids = np.asarray(ids, np.int64).reshape(-1)
+    order = np.lexsort((frames, ids))
+    centres = xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4)[order])[:, :2]
+    same = ids[order][1:] == ids[order][:-1]
+    start, end = centres[:-1][same], centres[1:][same]
+    pieces = np.ceil(np.linalg.norm(end - start, axis=1) / step).astype(np.int64)
+    pieces = np.maximum(pieces, 1)
+    segment = np.repeat(np.arange(pieces.size), pieces)
+    offsets = np.arange(segment.size) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    fraction = (offsets / pieces[segment])[:, None]
+    inner = start[segment] + fraction * (end[segment] - start[segment])
+    return np.concatenate([centres, inner]).reshape(-1, 2)
+
+
+def disk(radius_cells: float) -> np.ndarray:
+    """Boolean disk ``i^2 + j^2 <= radius^2`` on the cell grid (odd side)."""
+    half = int(np.floor(radius_cells))
+    offsets = np.arange(-half, half + 1)
+    return offsets[:, None] ** 2 + offsets[None, :] ** 2 <= radius_cells**2
+
+
+def activity_mask(
+    frames: np.ndarray,
+    ids: np.ndarray,
+    boxes: np.ndarray,
+    width: float,
+    height: float,
+    cell_size: int = ACTIVITY_CELL,
+    radius: float = ACTIVITY_RADIUS,
+) -> np.ndarray:
+    """The cells the trajectories' centres pass through, dilated then closed (module doc).
+
+    Args:
+        frames: ``[num_rows]`` frame of each box.
+        ids: ``[num_rows]`` trajectory of each box.
+        boxes: ``[num_rows, 4]`` ``(x, y, w, h)``.
+        width: image width, pixels.
+        height: image height, pixels.
+        cell_size: cell side ``c``, pixels.
+        radius: disk radius ``r``, pixels.
+
+    Returns:
+        ``[rows, columns]`` boolean mask (:func:`grid_shape`).
+    """
+    rows, columns = grid_shape(width, height, cell_size)
+    points = path_points(frames, ids, boxes, cell_size / 2)
+    cells = np.floor(points / cell_size).astype(np.int64)
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < columns) & (cells[:, 1] >= 0)
+    inside &= cells[:, 1] < rows
+    structure = disk(radius / cell_size)
+    pad = structure.shape[0]
+    hits = np.zeros((rows + 2 * pad, columns + 2 * pad), bool)
+    hits[cells[inside, 1] + pad, cells[inside, 0] + pad] = True
+    dilated = ndimage.binary_dilation(hits, structure)
+    closed = ndimage.binary_closing(dilated, structure)
+    return closed[pad:-pad, pad:-pad]
+
+
+def in_active_area(
+    activity: Bool[Array, "rows columns"], cell_size: float, points: Float[Array, "*batch 2"]
+) -> Bool[Array, "*batch"]:
+    """Whether each point ``(x, y)`` lies in an active cell (False outside the grid).
+
+    Pure JAX (jit- and vmap-able).
+
+    Args:
+        activity: ``[rows, columns]`` mask from :func:`activity_mask`.
+        cell_size: its cell side, pixels.
+        points: ``[..., 2]`` positions.
+
+    Returns:
+        ``[...]`` booleans.
+    """
+    activity = jnp.asarray(activity)
+    rows, columns = activity.shape
+    cells = jnp.floor(jnp.asarray(points) / cell_size).astype(jnp.int32)
+    column, row = cells[..., 0], cells[..., 1]
+    inside = (column >= 0) & (column < columns) & (row >= 0) & (row < rows)
+    return inside & activity[jnp.clip(row, 0, rows - 1), jnp.clip(column, 0, columns - 1)]
