@@ -87,12 +87,12 @@ class SceneZones(NamedTuple):
         activity: ``[rows, columns]`` boolean mask of the active cells (cell ``(i, j)``
             covers pixels ``[j c, (j + 1) c) x [i c, (i + 1) c)``), or None when unknown
             (zones from a birth intensity).
-        cell_size: ``c``, the side of an activity cell in pixels.
+        cell_size: ``c``, the side of an activity cell in pixels (None without a mask).
     """
 
     boxes: Float[Array, "num_zones 4"]
     activity: np.ndarray | None
-    cell_size: float
+    cell_size: float | None
 
 
 class Endpoints(NamedTuple):
@@ -358,7 +358,7 @@ def zones_from_intensity(
     height: float,
     min_share: float = MIN_SHARE,
     num_std: float = NUM_STD,
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """Zone boxes from a birth intensity's Gaussian components (PHD-context eq. 19-21).
 
     A component ``m`` of ``p(x | b) = pi_u u(x) + (1 - pi_u) sum_m w_m N(x; mu_m, Sigma_m)``
@@ -373,7 +373,8 @@ def zones_from_intensity(
         num_std: half-size in standard deviations.
 
     Returns:
-        ``[num_zones, 4]`` boxes ``(x, y, w, h)``, largest share first.
+        ``(boxes, shares)``: ``[num_zones, 4]`` boxes ``(x, y, w, h)`` and ``[num_zones]``
+        their components' shares, largest share first.
     """
     dims = np.asarray(BIRTH_POSITION_DIMS)
     share = (1.0 - float(intensity.uniform_weight)) * np.asarray(intensity.weights, np.float64)
@@ -386,7 +387,7 @@ def zones_from_intensity(
         _clipped_box(mean, num_std * std, width, height)
         for mean, std in zip(means, stds, strict=True)
     ]
-    return np.asarray(boxes, np.float64).reshape(-1, 4)
+    return np.asarray(boxes, np.float64).reshape(-1, 4), share[chosen]
 
 
 def zone_distance(
