@@ -66,8 +66,9 @@ its points, padded by {PADDING:g} x the diagonal and clipped to the image, with 
 of entries (starts) and exits (ends). A zone where people come and go is one zone.
 
 Activity mask. The paths of the trajectories' centres on {ACTIVITY_CELL}-pixel cells,
-dilated then closed by a {ACTIVITY_RADIUS:g}-pixel disk; written beside ZONES.json as
-<stem>.activity.png, one pixel per cell (255 active).
+closed by a {2 * ACTIVITY_RADIUS:g}-pixel disk (joins nearby paths), then dilated by a
+{ACTIVITY_RADIUS:g}-pixel one; written beside ZONES.json as <stem>.activity.png, one pixel
+per cell (255 active).
 
 Trajectory sources (--from):
   tracks    the default tracker (PHD, uniform intensities) run on the span (default)

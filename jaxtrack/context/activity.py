@@ -7,9 +7,10 @@ of square cells of side ``c`` pixels (cell ``(i, j)`` covers ``[j c, (j + 1) c) 
 
 1. each trajectory's box centres, joined frame to frame by straight segments (so that a fast
    walker leaves no holes), are sampled every ``c / 2`` pixels at most and mark their cells;
-2. dilation by a disk of radius ``r`` pixels (a person covers more than the line of their
-   centre), then closing by the same disk (fills the gaps between nearby paths), with the
-   outside of the image empty (``scipy.ndimage``).
+2. closing by a disk of radius ``2 r`` pixels (fills the gaps between paths less than about
+   ``4 r`` apart: a walkway crossed by several people is active as a whole), then dilation
+   by a disk of radius ``r`` (a person covers more than the line of their centre); the
+   outside of the image is empty (``scipy.ndimage``).
 
 Building the mask is host-side NumPy/SciPy; :func:`in_active_area` is the per-frame query
 (JAX, jit- and vmap-able).
@@ -26,7 +27,7 @@ from jaxtrack.boxes import xywh_to_cxcywh
 
 #: Side of an activity cell, pixels.
 ACTIVITY_CELL = 8
-#: Radius of the dilation and closing disk, pixels.
+#: Radius of the dilation disk, pixels (the closing disk's is twice as large).
 ACTIVITY_RADIUS = 16.0
 
 
@@ -79,7 +80,7 @@ def activity_mask(
     cell_size: int = ACTIVITY_CELL,
     radius: float = ACTIVITY_RADIUS,
 ) -> np.ndarray:
-    """The cells the trajectories' centres pass through, dilated then closed (module doc).
+    """The cells the trajectories' centres pass through, closed then dilated (module doc).
 
     Args:
         frames: ``[num_rows]`` frame of each box.
@@ -88,7 +89,7 @@ def activity_mask(
         width: image width, pixels.
         height: image height, pixels.
         cell_size: cell side ``c``, pixels.
-        radius: disk radius ``r``, pixels.
+        radius: dilation radius ``r``, pixels (closing radius ``2 r``).
 
     Returns:
         ``[rows, columns]`` boolean mask (:func:`grid_shape`).
@@ -98,13 +99,12 @@ def activity_mask(
     cells = np.floor(points / cell_size).astype(np.int64)
     inside = (cells[:, 0] >= 0) & (cells[:, 0] < columns) & (cells[:, 1] >= 0)
     inside &= cells[:, 1] < rows
-    structure = disk(radius / cell_size)
-    pad = structure.shape[0]
+    closing, dilation = disk(2 * radius / cell_size), disk(radius / cell_size)
+    pad = closing.shape[0] + dilation.shape[0]  # nothing reaches the padded border
     hits = np.zeros((rows + 2 * pad, columns + 2 * pad), bool)
     hits[cells[inside, 1] + pad, cells[inside, 0] + pad] = True
-    dilated = ndimage.binary_dilation(hits, structure)
-    closed = ndimage.binary_closing(dilated, structure)
-    return closed[pad:-pad, pad:-pad]
+    closed = ndimage.binary_closing(hits, closing)
+    return ndimage.binary_dilation(closed, dilation)[pad:-pad, pad:-pad]
 
 
 def in_active_area(

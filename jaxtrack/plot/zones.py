@@ -63,13 +63,14 @@ def draw_zones(
         ax.add_patch(
             Rectangle(box[:2], box[2], box[3], fill=False, edgecolor=ZONE_COLOUR, linewidth=2)
         )
+        right_half = box[0] + box[2] / 2 > width / 2  # labels grow towards the image centre
         ax.text(
-            box[0] + box[2] / 2,
+            box[0] + box[2] if right_half else box[0],
             box[1] + box[3] / 2,
             label,
             color="black",
             fontsize=8,
-            ha="center",
+            ha="right" if right_half else "left",
             va="center",
             bbox={"facecolor": ZONE_COLOUR, "alpha": 0.8, "pad": 1.5, "linewidth": 0},
         )
