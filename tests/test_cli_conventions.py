@@ -25,6 +25,7 @@ WITH_PROGRESS = (
     "demo",
     "track",
     "learn-context",
+    "learn-zones",
     "tune",
     "detect",
     "track-video",
@@ -36,7 +37,7 @@ WITH_PROGRESS = (
     "experiment gradient-tuning",
 )
 #: Commands that print results and so take --json.
-WITH_JSON = ("inspect", "track", "eval", "learn-context", "tune", "detect")
+WITH_JSON = ("inspect", "track", "eval", "learn-context", "learn-zones", "tune", "detect")
 
 
 def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:

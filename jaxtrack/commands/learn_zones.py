@@ -180,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
         written = save_zones(args.out, zones, image_size, details, source)
         if args.figure:
             bar.set_description_str("drawing")
-            _figure(args, info, zones, details, learned, source["frames"][0])
+            _figure(args, info, zones, details, learned, (source["frames"] or [1])[0])
             bar.update(1)
     report = {
         "out": str(args.out),
@@ -248,13 +248,12 @@ def _clusters(learned: LearnedZones) -> dict:
 
 
 def _context_zones(path: str, image_size: tuple[int, int]):
-    """``(zones, details, summary)`` from the birth intensity of a context file."""
+    """``(zones, details, summary)`` from the birth intensity of a context file (its training
+    span from its metadata, None when it has none, e.g. a synthetic scene's true context)."""
     birth, _, metadata = load_context(path)
     boxes, shares = zones_from_intensity(birth, *image_size)
     details = [{"share": round(float(share), 4)} for share in shares]
-    if "frames" not in metadata:
-        raise FileFormatError(path, None, "the context's metadata has no training 'frames'")
-    summary = {"frames": list(metadata["frames"]), "min_share": MIN_SHARE}
+    summary = {"frames": metadata.get("frames"), "min_share": MIN_SHARE}
     return SceneZones(boxes=boxes, activity=None, cell_size=None), details, summary
 
 
@@ -282,10 +281,10 @@ def _figure(args, info, zones: SceneZones, details, learned, frame: int) -> None
 
 def _listing(report: dict, zones: SceneZones) -> str:
     """The human-readable summary."""
-    first, last = report["frames"]
+    span = "" if report["frames"] is None else " frames {}:{},".format(*report["frames"])
     lines = [
-        f"wrote {report['out']} ({len(report['zones'])} zones from {report['from']}, frames "
-        f"{first}:{last}, {report['seconds']:.1f} s)"
+        f"wrote {report['out']} ({len(report['zones'])} zones from {report['from']},{span} "
+        f"{report['seconds']:.1f} s)"
     ]
     if "points" in report:
         points, clusters = report["points"], report["clusters"]

@@ -20,23 +20,12 @@ from jaxtrack.context.zones import (
     zone_distance,
     zones_from_intensity,
 )
-from jaxtrack.datasets.scene_config import EntryZone, SceneConfig
+from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.datasets.synthetic import generate_scene
 from jaxtrack.errors import InputError
+from tests.context.zone_scenes import CROSSING_FRAMES, CROSSING_SCENE, CROSSING_ZONES
 
 WIDTH, HEIGHT = 768, 576
-
-#: Four entry/exit zones on the image borders, centred where a box of the scene's perspective
-#: size just fits in the image; people walk to the opposite zone and leave the image there,
-#: so every zone sees entries and exits.
-CROSSING_ZONES = (
-    EntryZone("west", (18.0, 330.0), (3.0, 12.0), (4.0, -0.33), (0.2, 0.05)),
-    EntryZone("east", (750.0, 270.0), (3.0, 12.0), (-4.0, 0.33), (0.2, 0.05)),
-    EntryZone("north", (300.0, 20.0), (12.0, 3.0), (0.38, 2.5), (0.05, 0.2)),
-    EntryZone("south", (380.0, 518.0), (12.0, 3.0), (-0.38, -2.5), (0.05, 0.2)),
-)
-#: Frames of the scene: about 15 entries per zone.
-CROSSING_FRAMES = 1000
 
 
 def boxes_at(centres, size=(20.0, 40.0)) -> np.ndarray:
@@ -152,8 +141,7 @@ def test_interior_endpoints_are_not_a_zone():
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_zones_of_a_synthetic_scene_with_known_zones(seed):
-    config = SceneConfig(num_frames=CROSSING_FRAMES, zones=CROSSING_ZONES)
-    gt = generate_scene(seed, config).gt_table
+    gt = generate_scene(seed, CROSSING_SCENE).gt_table
     learned = learn_zones(gt.frames, gt.ids, gt.boxes, (1, CROSSING_FRAMES), WIDTH, HEIGHT)
     centres = box_centres(learned.scene.boxes)
     for zone in CROSSING_ZONES:
