@@ -1,15 +1,17 @@
 """Activity mask: where the training trajectories went (Fusion Sec. 2.3, the active area map).
 
 Fusion maps "the coordinates of all the trajectories from the training set ... on the scene"
-and applies morphological filtering to get a binary mask of the active areas. Here, on a grid
-of square cells of side ``c`` pixels (cell ``(i, j)`` covers ``[j c, (j + 1) c) x [i c, (i +
-1) c)``):
+and applies morphological filtering to get a binary mask of the active areas. The coordinate
+of a box is its foot point, the middle of its bottom edge ``(x + w / 2, y + h)``
+(:func:`foot_points`): where a person stands on the ground, the same point the entry/exit
+zones are made of (:mod:`jaxtrack.context.zones`). On a grid of square cells of side ``c``
+pixels (cell ``(i, j)`` covers ``[j c, (j + 1) c) x [i c, (i + 1) c)``):
 
-1. each trajectory's box centres, joined frame to frame by straight segments (so that a fast
+1. each trajectory's foot points, joined frame to frame by straight segments (so that a fast
    walker leaves no holes), are sampled every ``c / 2`` pixels at most and mark their cells;
 2. closing by a disk of radius ``2 r`` pixels (fills the gaps between paths less than about
    ``4 r`` apart: a walkway crossed by several people is active as a whole), then dilation
-   by a disk of radius ``r`` (a person covers more than the line of their centre); the
+   by a disk of radius ``r`` (a person covers more than the line of their feet); the
    outside of the image is empty (``scipy.ndimage``).
 
 Building the mask is host-side NumPy/SciPy; :func:`in_active_area` is the per-frame query
@@ -23,8 +25,6 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 from scipy import ndimage
 
-from jaxtrack.boxes import xywh_to_cxcywh
-
 #: Side of an activity cell, pixels.
 ACTIVITY_CELL = 8
 #: Radius of the dilation disk, pixels (the closing disk's is twice as large).
@@ -36,8 +36,14 @@ def grid_shape(width: float, height: float, cell_size: float) -> tuple[int, int]
     return int(np.ceil(height / cell_size)), int(np.ceil(width / cell_size))
 
 
+def foot_points(boxes: np.ndarray) -> np.ndarray:
+    """Middle of the bottom edge ``(x + w / 2, y + h)`` of ``[n, 4]`` boxes ``(x, y, w, h)``."""
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    return np.stack([boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3]], axis=1)
+
+
 def path_points(frames: np.ndarray, ids: np.ndarray, boxes: np.ndarray, step: float) -> np.ndarray:
-    """Box centres of each trajectory joined by segments sampled at most ``step`` apart.
+    """Foot points of each trajectory joined by segments sampled at most ``step`` apart.
 
     Args:
         frames: ``[num_rows]`` frame of each box.
@@ -46,22 +52,22 @@ def path_points(frames: np.ndarray, ids: np.ndarray, boxes: np.ndarray, step: fl
         step: largest distance between consecutive samples of a segment, pixels.
 
     Returns:
-        ``[num_samples, 2]`` points: every centre, and points evenly spaced on each segment
-        between the centres of consecutive boxes of a trajectory.
+        ``[num_samples, 2]`` points: every foot point, and points evenly spaced on each
+        segment between the foot points of consecutive boxes of a trajectory.
     """
     frames = np.asarray(frames, np.int64).reshape(-1)
     ids = np.asarray(ids, np.int64).reshape(-1)
     order = np.lexsort((frames, ids))
-    centres = xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4)[order])[:, :2]
+    feet = foot_points(np.asarray(boxes, np.float64).reshape(-1, 4)[order])
     same = ids[order][1:] == ids[order][:-1]
-    start, end = centres[:-1][same], centres[1:][same]
+    start, end = feet[:-1][same], feet[1:][same]
     pieces = np.ceil(np.linalg.norm(end - start, axis=1) / step).astype(np.int64)
     pieces = np.maximum(pieces, 1)
     segment = np.repeat(np.arange(pieces.size), pieces)
     offsets = np.arange(segment.size) - np.repeat(np.cumsum(pieces) - pieces, pieces)
     fraction = (offsets / pieces[segment])[:, None]
     inner = start[segment] + fraction * (end[segment] - start[segment])
-    return np.concatenate([centres, inner]).reshape(-1, 2)
+    return np.concatenate([feet, inner]).reshape(-1, 2)
 
 
 def disk(radius_cells: float) -> np.ndarray:
@@ -80,7 +86,7 @@ def activity_mask(
     cell_size: int = ACTIVITY_CELL,
     radius: float = ACTIVITY_RADIUS,
 ) -> np.ndarray:
-    """The cells the trajectories' centres pass through, closed then dilated (module doc).
+    """The cells the trajectories' feet pass through, closed then dilated (module doc).
 
     Args:
         frames: ``[num_rows]`` frame of each box.
@@ -117,7 +123,7 @@ def in_active_area(
     Args:
         activity: ``[rows, columns]`` mask from :func:`activity_mask`.
         cell_size: its cell side, pixels.
-        points: ``[..., 2]`` positions.
+        points: ``[..., 2]`` foot points ``(x, y)``.
 
     Returns:
         ``[...]`` booleans.

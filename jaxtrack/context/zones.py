@@ -7,11 +7,14 @@ clustered by Euclidean distance, each cluster marking a zone, and the clusters i
 convex hull of the others are excluded ("a person cannot enter or exit from the inner area of
 the hull"). The choices the paper leaves open, made here (each a parameter):
 
-* **Point.** A trajectory's start (end) point is the *centre* of its first (last) box: every
-  tracker of the toolkit has the box centre in its state (PHD-context ``(y1, y2)``, CMT
-  ``(Px, Py)``), so a zone is a region of centres, tested directly against a state, and the
-  synthetic scenes define their zones the same way. (Feet would shift a zone by half a
-  person's height, which perspective makes vary across the image.)
+* **Point.** A trajectory's start (end) point is the *foot point* of its first (last) box,
+  the middle of its bottom edge ``(x + w / 2, y + h)``
+  (:func:`~jaxtrack.context.activity.foot_points`): an entry is a place on the ground where
+  people come in (a door, a path leaving the image), and the feet stay on it whatever a
+  person's height, while the box centre moves by half of it (with perspective, by different
+  amounts across the image). The synthetic video's scripted zones are such ground regions.
+  A tracker whose state is a box centre ``(cx, cy)`` with height ``h`` tests
+  ``(cx, cy + h / 2)``.
 * **Span margin.** A trajectory starting in the first ``margin_frames`` frames of the span
   gives no start point, one ending in its last ``margin_frames`` frames no end point.
 * **Entry and exit together.** Start and end points are clustered as one set (the paper's
@@ -37,7 +40,7 @@ the hull"). The choices the paper leaves open, made here (each a parameter):
 
 :func:`zones_from_intensity` gives zones from a learned birth intensity (PHD-context eq.
 19-21): each Gaussian component with a large enough share of the density becomes the box
-``mean +- num_std std`` of its centre position.
+``mean +- num_std std`` of its foot point.
 
 Learning is host-side NumPy/SciPy; :func:`zone_distance` is the per-frame query (JAX,
 jit- and vmap-able).
@@ -53,10 +56,8 @@ from jaxtyping import Array, Float
 from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.spatial import ConvexHull, QhullError
 
-from jaxtrack.boxes import xywh_to_cxcywh
-from jaxtrack.context.activity import ACTIVITY_CELL, ACTIVITY_RADIUS, activity_mask
+from jaxtrack.context.activity import ACTIVITY_CELL, ACTIVITY_RADIUS, activity_mask, foot_points
 from jaxtrack.context.intensity import Intensity
-from jaxtrack.context.learn import BIRTH_POSITION_DIMS
 from jaxtrack.errors import InputError
 
 #: Frames at each end of the training span whose trajectory starts / ends are not entries /
@@ -75,6 +76,8 @@ NUM_STD = 2.0
 MAD_TO_STD = 1.4826
 #: Padding of a zone box learned from points (fraction of the image diagonal).
 PADDING = 0.02
+#: ``F``: the foot point ``(y1, y2 + h / 2)`` of a birth state ``(y1, vy1, y2, vy2, w, h)``.
+FOOT_MAP = np.array([[1.0, 0, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0.5]])
 #: Smallest share of the birth density ``(1 - pi_u) w_m`` of a component that makes a zone.
 MIN_SHARE = 0.05
 
@@ -99,7 +102,7 @@ class Endpoints(NamedTuple):
     """Start and end points of trajectories.
 
     Attributes:
-        points: ``[num_points, 2]`` box centres ``(x, y)``.
+        points: ``[num_points, 2]`` foot points ``(x, y)``.
         is_entry: ``[num_points]`` True for a start point, False for an end point.
         frames: ``[num_points]`` 1-based frame of each point.
         ids: ``[num_points]`` trajectory of each point.
@@ -166,7 +169,7 @@ def trajectory_endpoints(
         raise ValueError(f"margin_frames must be >= 0, got {margin_frames}")
     frames = np.asarray(frames, np.int64).reshape(-1)
     ids = np.asarray(ids, np.int64).reshape(-1)
-    centres = xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4))[:, :2]
+    feet = foot_points(boxes)
     order = np.lexsort((frames, ids))
     _, starts, counts = np.unique(ids[order], return_index=True, return_counts=True)
     first_rows = order[starts]
@@ -176,7 +179,7 @@ def trajectory_endpoints(
     taken = np.stack([is_start, is_end], axis=1)
     rows = np.stack([first_rows, last_rows], axis=1)[taken]
     return Endpoints(
-        points=centres[rows].reshape(-1, 2),
+        points=feet[rows].reshape(-1, 2),
         is_entry=np.broadcast_to([True, False], taken.shape)[taken],
         frames=frames[rows],
         ids=ids[rows],
@@ -362,8 +365,9 @@ def zones_from_intensity(
     """Zone boxes from a birth intensity's Gaussian components (PHD-context eq. 19-21).
 
     A component ``m`` of ``p(x | b) = pi_u u(x) + (1 - pi_u) sum_m w_m N(x; mu_m, Sigma_m)``
-    whose share ``(1 - pi_u) w_m`` is at least ``min_share`` becomes the box ``mu_m +-
-    num_std sigma_m`` over the centre position ``(y1, y2)``, clipped to the image.
+    whose share ``(1 - pi_u) w_m`` is at least ``min_share`` becomes the box ``F mu_m +-
+    num_std sqrt(diag(F Sigma_m F^T))`` of the foot point ``F x = (y1, y2 + h / 2)`` (a
+    linear map of the state, so exactly Gaussian), clipped to the image.
 
     Args:
         intensity: a 6-D birth intensity over ``(y1, vy1, y2, vy2, w, h)``.
@@ -376,12 +380,11 @@ def zones_from_intensity(
         ``(boxes, shares)``: ``[num_zones, 4]`` boxes ``(x, y, w, h)`` and ``[num_zones]``
         their components' shares, largest share first.
     """
-    dims = np.asarray(BIRTH_POSITION_DIMS)
     share = (1.0 - float(intensity.uniform_weight)) * np.asarray(intensity.weights, np.float64)
     chosen = np.flatnonzero(share >= min_share)
     chosen = chosen[np.argsort(-share[chosen], kind="stable")]
-    means = np.asarray(intensity.means, np.float64)[chosen][:, dims]
-    covs = np.asarray(intensity.covs, np.float64)[chosen][:, dims][:, :, dims]
+    means = np.asarray(intensity.means, np.float64)[chosen] @ FOOT_MAP.T
+    covs = FOOT_MAP @ np.asarray(intensity.covs, np.float64)[chosen] @ FOOT_MAP.T
     stds = np.sqrt(np.diagonal(covs, axis1=1, axis2=2))
     boxes = [
         _clipped_box(mean, num_std * std, width, height)
@@ -393,7 +396,7 @@ def zones_from_intensity(
 def zone_distance(
     boxes: Float[Array, "num_zones 4"], points: Float[Array, "*batch 2"]
 ) -> Float[Array, "*batch"]:
-    """Euclidean distance from each point to the nearest zone box (0 inside one).
+    """Euclidean distance from each (foot) point to the nearest zone box (0 inside one).
 
     CMT's ``d_B`` (object-to-entry/exit-zone distance, CMT eq. 9): for a box ``(x, y, w, h)``
     the distance of ``p`` is ``|(max(x - p1, 0, p1 - x - w), max(y - p2, 0, p2 - y - h))|``.
@@ -401,7 +404,8 @@ def zone_distance(
 
     Args:
         boxes: ``[num_zones, 4]`` ``(x, y, w, h)``.
-        points: ``[..., 2]`` positions ``(x, y)``.
+        points: ``[..., 2]`` foot points ``(x, y)`` (:func:`~jaxtrack.context.activity.
+            foot_points`).
 
     Returns:
         ``[...]`` distances in pixels; ``inf`` when there is no zone.

@@ -13,7 +13,8 @@ The JSON file (format version 1)::
     }
 
 Each zone is an entry/exit zone, an axis-aligned box ``x, y, w, h`` (top-left corner,
-pixels) of box *centres* (:mod:`jaxtrack.context.zones`); ``entries`` and ``exits`` (the
+pixels) of *foot points*, the middles of the boxes' bottom edges
+(:mod:`jaxtrack.context.zones`); ``entries`` and ``exits`` (the
 training trajectories that started / ended in it) or ``share`` (of a birth intensity's
 density) are optional. ``activity_mask`` names a grey PNG beside the JSON file (a path
 relative to the JSON file's folder), one pixel per cell of ``activity_cell`` pixels,

@@ -19,10 +19,9 @@ WIDTH, HEIGHT, CELL = 768, 576, 8
 
 
 def walker(identity: int, y: float, x0: float, x1: float, frames: int = 50):
-    """``(frames, ids, boxes)`` of a 10x20 box whose centre goes from ``(x0, y)`` to
-    ``(x1, y)``."""
+    """``(frames, ids, boxes)`` of a 10x20 box whose feet go from ``(x0, y)`` to ``(x1, y)``."""
     xs = np.linspace(x0, x1, frames)
-    boxes = np.c_[xs - 5, np.full(frames, y - 10.0), np.full(frames, 10.0), np.full(frames, 20.0)]
+    boxes = np.c_[xs - 5, np.full(frames, y - 20.0), np.full(frames, 10.0), np.full(frames, 20.0)]
     return np.arange(1, frames + 1), np.full(frames, identity), boxes
 
 
@@ -38,12 +37,12 @@ def test_path_points_fill_segments_within_the_step():
         float,
     )
     points = path_points(frames, ids, boxes, step=4.0)
-    first = points[points[:, 1] == 5]  # trajectory 1 along y = 5, x from 5 to 95
+    first = points[points[:, 1] == 10]  # trajectory 1: feet along y = 10, x from 5 to 95
     xs = np.unique(first[:, 0])
     assert xs.min() == 5 and xs.max() == 95 and np.max(np.diff(xs)) <= 4.0
-    second = points[points[:, 1] > 5]  # trajectory 2: a 3 px step, no extra point needed
-    np.testing.assert_allclose(np.unique(second[:, 1]), [55, 58])
-    assert not np.any((points[:, 1] > 5) & (points[:, 1] < 55))  # no segment across ids
+    second = points[points[:, 1] > 10]  # trajectory 2: a 3 px step, no extra point needed
+    np.testing.assert_allclose(np.unique(second[:, 1]), [60, 63])
+    assert not np.any((points[:, 1] > 10) & (points[:, 1] < 60))  # no segment across ids
 
 
 def test_a_straight_path_gives_its_cells_dilated_by_the_radius():

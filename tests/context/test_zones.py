@@ -23,15 +23,21 @@ from jaxtrack.context.zones import (
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.datasets.synthetic import generate_scene
 from jaxtrack.errors import InputError
-from tests.context.zone_scenes import CROSSING_FRAMES, CROSSING_SCENE, CROSSING_ZONES
+from tests.context.zone_scenes import (
+    CROSSING_FRAMES,
+    CROSSING_SCENE,
+    CROSSING_ZONES,
+    zone_feet,
+)
 
 WIDTH, HEIGHT = 768, 576
 
 
-def boxes_at(centres, size=(20.0, 40.0)) -> np.ndarray:
-    """``(x, y, w, h)`` boxes of the given centres."""
-    centres = np.asarray(centres, float).reshape(-1, 2)
-    return np.c_[centres - np.asarray(size) / 2, np.broadcast_to(size, centres.shape)]
+def boxes_at(feet, size=(20.0, 40.0)) -> np.ndarray:
+    """``(x, y, w, h)`` boxes with the given foot points (middles of their bottom edges)."""
+    feet = np.asarray(feet, float).reshape(-1, 2)
+    corner = feet - [size[0] / 2, size[1]]
+    return np.c_[corner, np.broadcast_to(size, feet.shape)]
 
 
 def box_centres(boxes) -> np.ndarray:
@@ -39,7 +45,7 @@ def box_centres(boxes) -> np.ndarray:
     return boxes[:, :2] + boxes[:, 2:] / 2
 
 
-def test_endpoints_skip_the_span_margins_and_take_box_centres():
+def test_endpoints_skip_the_span_margins_and_take_foot_points():
     # id 1: frames 1-10 (there from the start); id 2: 4-20; id 3: 8-30 (still there at the
     # end); id 4: one box at frame 12. Rows shuffled.
     rows = [(f, 1, f, 0) for f in range(1, 11)]
@@ -144,8 +150,8 @@ def test_zones_of_a_synthetic_scene_with_known_zones(seed):
     gt = generate_scene(seed, CROSSING_SCENE).gt_table
     learned = learn_zones(gt.frames, gt.ids, gt.boxes, (1, CROSSING_FRAMES), WIDTH, HEIGHT)
     centres = box_centres(learned.scene.boxes)
-    for zone in CROSSING_ZONES:
-        distance = np.linalg.norm(centres - zone.centre, axis=1)
+    for zone, feet in zip(CROSSING_ZONES, zone_feet(CROSSING_ZONES, CROSSING_SCENE), strict=True):
+        distance = np.linalg.norm(centres - feet, axis=1)
         nearest = int(np.argmin(distance))
         assert distance[nearest] <= 20.0, zone.name
         assert learned.entries[nearest] > 0 and learned.exits[nearest] > 0, zone.name
@@ -166,15 +172,17 @@ def test_no_start_or_end_inside_the_margins_is_an_error():
 
 
 def test_zones_from_the_true_birth_intensity_sit_on_the_true_zones():
-    scene = generate_scene(0, SceneConfig(num_frames=50))
+    config = SceneConfig(num_frames=50)
+    scene = generate_scene(0, config)
     boxes, shares = zones_from_intensity(scene.birth_intensity, WIDTH, HEIGHT)
-    zones = scene.config.zones
+    zones = config.zones
     weights = np.array([zone.weight for zone in zones])
     np.testing.assert_allclose(np.sort(shares), np.sort(weights / weights.sum()), rtol=1e-6)
     assert np.all(np.diff(shares) <= 0)  # largest first
-    for zone in zones:  # the truth's Gaussians are the zones: centres exact, 2-std boxes
-        k = int(np.argmin(np.linalg.norm(box_centres(boxes) - zone.centre, axis=1)))
-        np.testing.assert_allclose(box_centres(boxes)[k], zone.centre, atol=1e-3)
+    # the truth's Gaussians are the zones: their mean feet exact, 2-std boxes
+    for zone, feet in zip(zones, zone_feet(zones, config), strict=True):
+        k = int(np.argmin(np.linalg.norm(box_centres(boxes) - feet, axis=1)))
+        np.testing.assert_allclose(box_centres(boxes)[k], feet, atol=1e-3)
         assert boxes[k, 2] == pytest.approx(4 * zone.position_std[0], rel=1e-4)
 
 
@@ -192,7 +200,10 @@ def test_zones_from_intensity_weigh_by_the_gaussian_share_and_clip():
     )
     boxes, shares = zones_from_intensity(intensity, WIDTH, HEIGHT, min_share=0.1)
     np.testing.assert_allclose(shares, [0.35, 0.125])  # the third has 0.025 < 0.1
-    np.testing.assert_allclose(boxes, [[0, 260, 30, 80], [380, 160, 40, 80]], atol=1e-4)
+    # feet y2 + h / 2: means 300 + 40 and 200 + 40, std sqrt(400 + 1 / 4)
+    half = 2 * np.sqrt(400.25)
+    expected = [[0, 340 - half, 30, 2 * half], [380, 240 - half, 40, 2 * half]]
+    np.testing.assert_allclose(boxes, expected, atol=1e-4)
 
 
 def loop_distance(boxes, point) -> float:
