@@ -15,11 +15,11 @@ mean IoU, FP, FN, IDSW, Frag, MT/PT/ML, Recall, Precision), identity (IDF1, IDP,
 (DetA, AssA, LocA; means over IoU thresholds 0.05..0.95), VACE / CLEAR-2007 (MODA, MODP
 pooled; VACE_MODA, VACE_MODP averaged over frames; VACE_MOTA with a log10 identity-switch
 penalty), set distances (OSPA, GOSPA with alpha = 2; frame averages) and CMT's error rates
-(below). Ground truth follows
-TrackEval's MOT15 conventions: gt rows with conf 0 are dropped, tracker boxes on them still
-count; --distractors applies the MOT16/17 rules instead. --frames A:B scores only that span
-(gt and results are cut to it). --json prints one JSON object with
-the scores as fractions (or counts). Bad files exit with status 2 and name the file and line.
+(below). Ground truth follows TrackEval's MOT15 conventions: gt rows with conf 0 are
+dropped, tracker boxes on them still count; --distractors applies the MOT16/17 rules
+instead. --frames A:B scores only that span (gt and results are cut to it). --json prints
+one JSON object with the scores as fractions (or counts). Bad files exit with status 2 and
+name the file and line.
 
 CMT error rates (Cui et al. Sec. VII-B), on the CLEAR matching (per frame, one-to-one
 Hungarian assignment among pairs with IoU >= 0.5, keeping the previous correspondences

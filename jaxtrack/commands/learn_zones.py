@@ -58,25 +58,26 @@ format: jaxtrack.io.zones).
 Zones. The start and end points of the trajectories (foot points: the middle of a box's
 bottom edge, where a person stands) are clustered together, leaving out the starts in the
 span's first --margin frames (people already there) and the ends in its last --margin
-frames (still there): average linkage, cut at {CLUSTER_DISTANCE:g} x the image diagonal. A cluster of fewer than {MIN_POINTS} points is
-noise; one whose centre lies more than {INTERIOR_MARGIN:g} x the diagonal inside the convex
-hull of the other clusters' centres is interior (nobody enters mid-scene). Each other
-cluster is a zone: the box median +- {NUM_STD:g} robust standard deviations (1.4826 MAD) of
-its points, padded by {PADDING:g} x the diagonal and clipped to the image, with its counts
-of entries (starts) and exits (ends). A zone where people come and go is one zone.
+frames (still there): average linkage cut at {CLUSTER_DISTANCE:g} x the image diagonal.
+A cluster of fewer than {MIN_POINTS} points is noise; one whose centre lies more than
+{INTERIOR_MARGIN:g} x the diagonal inside the convex hull of the other clusters' centres is
+interior (nobody enters mid-scene). Each other cluster is a zone: the box median +-
+{NUM_STD:g} robust standard deviations (1.4826 MAD) of its points, padded by {PADDING:g} x
+the diagonal and clipped to the image, with its counts of entries (starts) and exits
+(ends). A zone where people come and go is one zone.
 
 Activity mask. The paths of the trajectories' foot points on {ACTIVITY_CELL}-pixel cells,
 closed by a {2 * ACTIVITY_RADIUS:g}-pixel disk (joins nearby paths), then dilated by a
-{ACTIVITY_RADIUS:g}-pixel one; written beside ZONES.json as <stem>.activity.png, one pixel
-per cell (255 active).
+{ACTIVITY_RADIUS:g}-pixel disk; written beside ZONES.json as <stem>.activity.png, one
+pixel per cell (255: active).
 
 Trajectory sources (--from):
   tracks    the default tracker (PHD, uniform intensities) run on the span (default)
   gt        the ground truth (rows with conf 0 left out)
-  CTX.npz   a context from `jaxtrack learn-context`: each Gaussian of its birth intensity
-            with at least {MIN_SHARE:g} of the density is a zone, its foot point's mean
-            +- {NUM_STD:g} std (no trajectories: no activity mask; --frames, --margin and
-            --seed do not apply)
+  CTX.npz   a context from `jaxtrack learn-context`: each Gaussian of its birth
+            intensity with at least {MIN_SHARE:g} of the density is a zone, the mean
+            +- {NUM_STD:g} std of its foot point (no trajectories: no activity mask;
+            --frames, --margin and --seed do not apply)
 
 --figure PNG draws the zones over the span's first frame, taken from --video, else from
 the sequence's img1/ or <name>.mp4/.avi (a blank background when it has none)."""
