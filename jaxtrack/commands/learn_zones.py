@@ -150,7 +150,8 @@ def run(args: argparse.Namespace) -> int:
     info = read_seqinfo(Path(args.sequence) / "seqinfo.ini")
     image_size = (info.im_width, info.im_height)
     start = time.perf_counter()
-    steps = 2 + (args.source == "tracks") + bool(args.figure)
+    # steps: reading the context, or loading, (tracking,) learning; (drawing)
+    steps = (1 if from_context else 2 + (args.source == "tracks")) + bool(args.figure)
     with tqdm(total=steps, desc="learn-zones", unit="step", disable=args.quiet) as bar:
         started: list[str] = []
 
