@@ -28,6 +28,7 @@ COMMANDS = (
     "eval",
     "label_clutter",
     "learn_context",
+    "learn_zones",
     "tune",
     "detect",
     "track_video",

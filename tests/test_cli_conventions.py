@@ -25,6 +25,7 @@ WITH_PROGRESS = (
     "demo",
     "track",
     "learn-context",
+    "learn-zones",
     "tune",
     "detect",
     "track-video",
@@ -37,7 +38,7 @@ WITH_PROGRESS = (
     "simulate",  # with --video
 )
 #: Commands that print results and so take --json.
-WITH_JSON = ("inspect", "track", "eval", "learn-context", "tune", "detect")
+WITH_JSON = ("inspect", "track", "eval", "learn-context", "learn-zones", "tune", "detect")
 
 
 def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:

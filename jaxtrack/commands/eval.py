@@ -14,11 +14,25 @@ Metrics (numbers identical to TrackEval 1.3.0 where it has them): CLEAR MOT (MOT
 mean IoU, FP, FN, IDSW, Frag, MT/PT/ML, Recall, Precision), identity (IDF1, IDP, IDR), HOTA
 (DetA, AssA, LocA; means over IoU thresholds 0.05..0.95), VACE / CLEAR-2007 (MODA, MODP
 pooled; VACE_MODA, VACE_MODP averaged over frames; VACE_MOTA with a log10 identity-switch
-penalty) and set distances (OSPA, GOSPA with alpha = 2; frame averages). Ground truth follows
-TrackEval's MOT15 conventions: gt rows with conf 0 are dropped, tracker boxes on them still
-count; --distractors applies the MOT16/17 rules instead. --frames A:B scores only that span
-(gt and results are cut to it). --json prints one JSON object with
-the scores as fractions (or counts). Bad files exit with status 2 and name the file and line.
+penalty), set distances (OSPA, GOSPA with alpha = 2; frame averages) and CMT's error rates
+(below). Ground truth follows TrackEval's MOT15 conventions: gt rows with conf 0 are
+dropped, tracker boxes on them still count; --distractors applies the MOT16/17 rules
+instead. --frames A:B scores only that span (gt and results are cut to it). --json prints
+one JSON object with the scores as fractions (or counts). Bad files exit with status 2 and
+name the file and line.
+
+CMT error rates (Cui et al. Sec. VII-B), on the CLEAR matching (per frame, one-to-one
+Hungarian assignment among pairs with IoU >= 0.5, keeping the previous correspondences
+first); F = frames of the span:
+  OE  falsely tracked frames / F: frames with a missed gt target, an identity switch
+      (a target matched to another track than the one it was last matched to) or an
+      unmatched tracker box
+  SE  frames with at least one identity switch / F
+  DE  (entering targets not matched within --delay-tolerance frames of their first frame
+      + exiting targets whose last track is still an unmatched box in each of the
+      --delay-tolerance + 1 frames after their last frame) / (entering + exiting targets);
+      a target enters when its first frame is after the span's first, exits when its
+      last frame is before the span's last
 """
 
 from __future__ import annotations
@@ -31,6 +45,7 @@ import numpy as np
 
 from jaxtrack.commands.arguments import (
     DISTANCE,
+    FRAMES_OR_NONE,
     IOU,
     OSPA_ORDER,
     add_frames,
@@ -41,6 +56,8 @@ from jaxtrack.commands.arguments import (
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
+from jaxtrack.metrics.cmt import ADDITIVE_FIELDS as CMT_COUNTS
+from jaxtrack.metrics.cmt import DEFAULT_TOLERANCE
 
 #: Minimum IoU of a match (default of --iou-threshold).
 DEFAULT_IOU_THRESHOLD = 0.5
@@ -64,15 +81,32 @@ TABLE_COLUMNS = (
     "ML",
     "GT_IDs",
     "OSPA",
+    "OE",
+    "DE",
+    "SE",
 )
 #: Scores printed as plain numbers rather than percentages.
-NOT_PERCENT = ("FP", "FN", "IDSW", "Frag", "MT", "PT", "ML", "GT_IDs", "TP", "IDTP", "IDFN", "IDFP")
+NOT_PERCENT = (
+    "FP",
+    "FN",
+    "IDSW",
+    "Frag",
+    "MT",
+    "PT",
+    "ML",
+    "GT_IDs",
+    "TP",
+    "IDTP",
+    "IDFN",
+    "IDFP",
+    *CMT_COUNTS,
+)
 
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "eval",
-        help="score tracker output against ground truth (CLEAR, VACE, IDF1, HOTA, OSPA)",
+        help="score tracker output against ground truth (CLEAR, VACE, IDF1, HOTA, OSPA, CMT)",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -137,6 +171,14 @@ def register(subparsers) -> None:
         default="iou",
         help="OSPA/GOSPA base distance: 1 - IoU (default) or box-centre distance in pixels",
     )
+    parser.add_argument(
+        "--delay-tolerance",
+        type=ranged(FRAMES_OR_NONE),
+        default=DEFAULT_TOLERANCE,
+        metavar="N",
+        help=f"CMT's DE: frames allowed to pick up an entering target or release an exiting "
+        f"one (default {DEFAULT_TOLERANCE}; the paper states none)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -151,6 +193,7 @@ def run(args) -> int:
         ospa_cutoff=args.ospa_c,
         ospa_order=args.ospa_p,
         ospa_distance=args.ospa_distance,
+        delay_tolerance=args.delay_tolerance,
     )
     if args.benchmark or args.results:
         return _run_benchmark(args, config)

@@ -1,4 +1,5 @@
-"""Tracking metrics, TrackEval-exact: CLEAR MOT, VACE (MODA/MODP), identity, HOTA, OSPA/GOSPA.
+"""Tracking metrics, TrackEval-exact: CLEAR MOT, VACE (MODA/MODP), identity, HOTA, OSPA/GOSPA;
+and CMT's error rates OE, DE, SE (on the CLEAR matching, :mod:`jaxtrack.metrics.cmt`).
 
 Start with :func:`evaluate_sequence` (one sequence, every metric) and
 :func:`combine_sequences` (a benchmark's combined row); :func:`evaluate_tracks` scores padded

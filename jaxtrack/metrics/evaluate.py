@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from jaxtrack.errors import InputError
-from jaxtrack.metrics import clear, hota, identity, ospa, vace
+from jaxtrack.metrics import clear, cmt, hota, identity, ospa, vace
 from jaxtrack.metrics.preprocess import prepare_sequence
 
 #: The scores ``jaxtrack eval --json`` prints, in this order.
@@ -45,6 +45,9 @@ SUMMARY_KEYS = (
     "VACE_MODP",
     "OSPA",
     "GOSPA",
+    "OE",
+    "DE",
+    "SE",
 )
 
 
@@ -65,6 +68,8 @@ class EvalConfig:
         ospa_order: OSPA/GOSPA order ``p``.
         ospa_distance: ``"iou"`` (``1 - IoU``) or ``"centre"`` (pixels).
         vace_log_base: base of the identity-switch logarithm in VACE_MOTA.
+        delay_tolerance: frames a tracker may take to pick up an entering target or release
+            an exiting one without a delay error (CMT's DE, :mod:`jaxtrack.metrics.cmt`).
     """
 
     iou_threshold: float = 0.5
@@ -74,6 +79,7 @@ class EvalConfig:
     ospa_order: float = 1.0
     ospa_distance: str = "iou"
     vace_log_base: float = 10.0
+    delay_tolerance: int = cmt.DEFAULT_TOLERANCE
 
     def __post_init__(self):
         if not (0.0 < self.iou_threshold <= 1.0):
@@ -86,6 +92,16 @@ class EvalConfig:
             )
         if not (np.isfinite(self.vace_log_base) and self.vace_log_base > 1):
             raise InputError(f"VACE log base must be > 1, got {self.vace_log_base}")
+        tolerance = self.delay_tolerance
+        if (
+            isinstance(tolerance, bool)
+            or not isinstance(tolerance, int | np.integer)
+            or tolerance < 0
+        ):
+            raise InputError(
+                f"delay tolerance must be a whole number of frames >= 0, "
+                f"got {self.delay_tolerance!r}"
+            )
         try:
             ospa.check_parameters(self.ospa_cutoff, self.ospa_order, self.ospa_distance)
         except ValueError as err:
@@ -107,6 +123,7 @@ class Evaluation:
         hota: HOTA per-threshold arrays.
         vace: VACE sums (:data:`jaxtrack.metrics.vace.ADDITIVE_FIELDS`).
         set_distance: OSPA/GOSPA per-frame sums and ``num_frames``.
+        cmt: CMT error counts (:data:`jaxtrack.metrics.cmt.ADDITIVE_FIELDS`).
         single_sequence: False for a combination of sequences.
     """
 
@@ -115,17 +132,19 @@ class Evaluation:
     hota: dict
     vace: dict
     set_distance: dict
+    cmt: dict
     single_sequence: bool = True
 
     def scores(self) -> dict:
         """Every score: the ``SUMMARY_KEYS`` first, then details (CLEAR/identity counts,
-        HOTA sub-scores, OSPA/GOSPA components)."""
+        HOTA sub-scores, OSPA/GOSPA components, CMT error counts)."""
         scores = {}
         scores.update(clear.clear_scores(self.clear, self.single_sequence))
         scores.update(identity.identity_scores(self.identity))
         scores.update(hota.hota_scores(self.hota))
         scores.update(vace.vace_scores(self.vace, self.single_sequence))
         scores.update(ospa.set_distance_scores(self.set_distance))
+        scores.update(cmt.cmt_scores(self.cmt))
         ordered = {key: scores[key] for key in SUMMARY_KEYS}
         ordered.update({key: value for key, value in scores.items() if key not in ordered})
         ordered.update({key: int(self.identity[key]) for key in identity.ADDITIVE_FIELDS})
@@ -173,6 +192,7 @@ def evaluate_sequence(gt, result, frames: tuple[int, int] | None = None, config=
         set_distance=ospa.set_distance_fields(
             data, config.ospa_cutoff, config.ospa_order, config.ospa_distance
         ),
+        cmt=cmt.cmt_fields(data, matching, config.delay_tolerance),
     )
 
 
@@ -199,5 +219,6 @@ def combine_sequences(evaluations) -> Evaluation:
         hota=hota.combine_hota([evaluation.hota for evaluation in evaluations]),
         vace=summed("vace"),
         set_distance=summed("set_distance"),
+        cmt=summed("cmt"),
         single_sequence=False,
     )

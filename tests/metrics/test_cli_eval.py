@@ -17,7 +17,7 @@ from jaxtrack.metrics.synthetic import SCENARIOS, corrupt
 JSON_KEYS = [
     "MOTA", "MOTP", "MODA", "MODP", "IDF1", "IDP", "IDR", "HOTA", "DetA", "AssA", "LocA",
     "FP", "FN", "IDSW", "Frag", "MT", "PT", "ML", "GT_IDs", "Recall", "Precision",
-    "VACE_MOTA", "VACE_MODA", "VACE_MODP", "OSPA", "GOSPA",
+    "VACE_MOTA", "VACE_MODA", "VACE_MODP", "OSPA", "GOSPA", "OE", "DE", "SE",
 ]  # fmt: skip
 
 

@@ -1,0 +1,97 @@
+"""Learning a sequence's scene zones: what ``jaxtrack learn-zones`` does, as library code.
+
+:func:`learn_sequence_zones` takes the trajectories of a training span (the ground truth, or
+the tracks of the default tracker run with uniform intensities, as ``learn-context`` runs
+it) and learns their entry/exit zones and activity mask
+(:func:`jaxtrack.context.zones.learn_zones`, Fusion Sec. 2.3).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from jaxtrack.context.zones import MARGIN_FRAMES, LearnedZones, learn_zones
+from jaxtrack.errors import InputError
+from jaxtrack.io.motchallenge import MotSequence, load_sequence
+from jaxtrack.pipelines.context import uniform_tracker_rows
+from jaxtrack.types import MotTable
+
+#: The trajectory sources.
+SOURCES = ("gt", "tracks")
+
+
+def training_trajectories(sequence: MotSequence, source: str, seed: int = 0) -> MotTable:
+    """The trajectories of a loaded span: its ground truth or a tracker run's output.
+
+    Args:
+        sequence: the loaded training span.
+        source: ``"gt"`` (rows with ``conf == 0`` left out) or ``"tracks"`` (the default
+            PHD tracker with uniform intensities, :func:`~jaxtrack.pipelines.context.
+            uniform_tracker_rows`).
+        seed: PRNG seed of the tracker run.
+
+    Returns:
+        The rows.
+
+    Raises:
+        InputError: an unknown source, or ``"gt"`` for a sequence without ground truth.
+    """
+    if source not in SOURCES:
+        raise InputError(f"trajectory source must be one of {', '.join(SOURCES)}, got {source!r}")
+    if source == "tracks":
+        return uniform_tracker_rows(sequence, seed)
+    if sequence.gt_table is None:
+        raise InputError(f"{sequence.path}: no ground truth (gt/gt.txt); use --from tracks")
+    return sequence.gt_table.select(~sequence.gt_table.ignored)
+
+
+def learn_sequence_zones(
+    sequence: MotSequence | str | Path,
+    frames: tuple[int, int] | str | None = None,
+    *,
+    source: str = "tracks",
+    seed: int = 0,
+    margin_frames: int = MARGIN_FRAMES,
+    progress: Callable[[str], None] | None = None,
+) -> LearnedZones:
+    """Entry/exit zones and activity mask of a sequence's training span.
+
+    Args:
+        sequence: a sequence folder (loaded with ``frames``) or a loaded
+            :class:`~jaxtrack.io.MotSequence` (its own span is used; ``frames`` must be None).
+        frames: the training span ``(first, last)`` or ``"A:B"``; default: all frames.
+        source: ``"gt"`` or ``"tracks"`` (:func:`training_trajectories`).
+        seed: seeds the tracker run.
+        margin_frames: trajectories starting (ending) in the span's first (last) frames give
+            no start (end) point (:func:`~jaxtrack.context.zones.trajectory_endpoints`).
+        progress: called with a short description before each long step.
+
+    Returns:
+        The :class:`~jaxtrack.context.zones.LearnedZones`.
+
+    Raises:
+        InputError: a bad span or source, or no trajectory starting or ending in the span.
+    """
+    notify = progress or (lambda _: None)
+    if isinstance(sequence, MotSequence):
+        if frames is not None:
+            raise InputError("give frames only with a sequence folder, not a loaded sequence")
+    else:
+        notify("loading sequence")
+        sequence = load_sequence(sequence, frames=frames)
+    span = (sequence.first_frame, sequence.last_frame)
+    if source == "tracks":
+        notify(f"tracking frames {span[0]}:{span[1]} with uniform intensities")
+    rows = training_trajectories(sequence, source, seed)
+    notify("learning zones")
+    info = sequence.info
+    return learn_zones(
+        rows.frames,
+        rows.ids,
+        rows.boxes,
+        span,
+        info.im_width,
+        info.im_height,
+        margin_frames=margin_frames,
+    )
