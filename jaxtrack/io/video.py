@@ -21,6 +21,7 @@ import numpy as np
 
 from jaxtrack.errors import FileFormatError, InputError, InputWarning
 from jaxtrack.limits import FRAME_COUNT, FRAME_RATE, IMAGE_SIZE, MAX_FRAMES
+from jaxtrack.types import SequenceInfo
 
 #: File extensions (lower case) of the images an image folder may hold.
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
@@ -250,6 +251,47 @@ def find_frame_source(
         if candidate.is_file():
             return candidate
     return None
+
+
+def open_sequence_frames(
+    sequence_dir: str | Path, info: SequenceInfo, video: str | Path | None = None
+) -> VideoReader:
+    """Opens the frames of a MOTChallenge sequence (:func:`find_frame_source`) and checks
+    them against its ``seqinfo.ini``: as many frames as ``seqLength``, of ``imWidth`` x
+    ``imHeight`` pixels (frame ``k`` of the reader is then MOT frame ``k``).
+
+    Args:
+        sequence_dir: the sequence folder.
+        info: its sequence information.
+        video: a video file or image folder to use instead of the folder's own frames.
+
+    Returns:
+        The open reader (the caller closes it).
+
+    Raises:
+        InputError: no frames found (naming the paths looked for).
+        FileFormatError: frames that do not open, or whose count or size differ from
+            ``seqinfo.ini``'s.
+    """
+    source = find_frame_source(sequence_dir, info.name, video)
+    if source is None:
+        folder = Path(sequence_dir)
+        looked = ", ".join(str(folder / f"{info.name}{ext}") for ext in VIDEO_EXTENSIONS)
+        raise InputError(
+            f"no frames for {folder}: looked for {folder / 'img1'}/ and {looked}; "
+            "give a video file or image folder (--video)"
+        )
+    reader = VideoReader(source, fps=info.frame_rate)
+    found = (reader.num_frames, reader.width, reader.height)
+    if found != (info.seq_length, info.im_width, info.im_height):
+        reader.close()
+        raise FileFormatError(
+            source,
+            None,
+            f"holds {found[0]} frames of {found[1]}x{found[2]} but {info.name}'s seqinfo.ini "
+            f"says {info.seq_length} frames of {info.im_width}x{info.im_height}",
+        )
+    return reader
 
 
 #: Codec of written ``.mp4`` / ``.avi`` files (MPEG-4 part 2, in every OpenCV build).
