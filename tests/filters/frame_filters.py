@@ -1,4 +1,5 @@
-"""A test-only filter that looks at the images: the mean colour under each detection.
+"""Test-only filters that look at the images: the mean colour under each detection, and a
+checksum of the frame.
 
 It steps on :class:`~jaxtrack.types.FrameInputs` like the appearance trackers will, and its
 outputs are simple enough to check against frames read directly: each detection's mean RGB
@@ -7,6 +8,9 @@ oracle), a score ``colour . channel_weights`` (so params enter the step), a per-
 uniform draw from the frame's key (so the per-frame keys can be compared across chunkings)
 and the frame's checksum. As a registered tracker (``MEAN_COLOUR_ENTRY``) it reports each
 detection as a track whose id is its slot + 1 and whose score is its mean colour.
+``CHECKSUM`` only adds up each frame's pixel values (the frame is really read, nothing else
+is done): the cheapest filter a streamed run can have. :func:`random_video` and
+:func:`random_detections` make small clips for them.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from jaxtrack.filters.base import Filter
 from jaxtrack.filters.registry import TrackerEntry
 from jaxtrack.parameters import frozen_properties
 from jaxtrack.resources import MemoryEstimate
-from jaxtrack.types import FrameInputs, Tracks
+from jaxtrack.types import PAD_BOX, Detections, FrameInputs, Tracks
 
 
 class MeanColourParams(NamedTuple):
@@ -129,3 +133,42 @@ MEAN_COLOUR_ENTRY = TrackerEntry(
     memory=mean_colour_memory,
     uses_frames=True,
 )
+
+
+def checksum_init(key, params):
+    del key, params
+    return jnp.zeros((), jnp.uint32)
+
+
+def checksum_step(key, state, params, inputs: FrameInputs):
+    """Adds up every pixel value of the frame (wrapping uint32): a filter that reads the
+    whole frame and does nothing else."""
+    del key, params
+    total = jnp.sum(inputs.frame, dtype=jnp.uint32)
+    return state + total, total
+
+
+CHECKSUM = Filter(checksum_init, checksum_step)
+
+
+#: The size of the random clips: frames of 24 x 32 pixels, 4 detection slots.
+HEIGHT, WIDTH, NUM_FRAMES, SLOTS = 24, 32, 11, 4
+
+
+def random_video(seed: int, num_frames: int = NUM_FRAMES, height: int = HEIGHT) -> np.ndarray:
+    """Random RGB ``uint8`` frames ``[num_frames, height, WIDTH, 3]``."""
+    return np.random.default_rng(seed).integers(0, 256, (num_frames, height, WIDTH, 3), np.uint8)
+
+
+def random_detections(seed: int, num_frames: int = NUM_FRAMES, slots: int = SLOTS) -> Detections:
+    """Boxes partly outside the image included; 0..slots detections per frame."""
+    rng = np.random.default_rng(seed)
+    boxes = np.column_stack(
+        [rng.uniform(-5, WIDTH, num_frames * slots), rng.uniform(-5, HEIGHT, num_frames * slots)]
+        + [rng.uniform(1, 15, num_frames * slots) for _ in range(2)]
+    ).reshape(num_frames, slots, 4)
+    mask = rng.random((num_frames, slots)) < 0.6
+    mask[0] = True
+    boxes[~mask] = PAD_BOX
+    scores = np.where(mask, 1.0, 0.0)
+    return Detections(boxes.astype(np.float32), scores.astype(np.float32), mask)

@@ -12,33 +12,24 @@ import pytest
 
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import _chunk_functions, run
-from jaxtrack.types import PAD_BOX, Detections, FrameInputs
-from tests.filters.frame_filters import MEAN_COLOUR, RED, MeanColourParams, numpy_mean_colours
+from jaxtrack.types import FrameInputs
+from tests.filters.frame_filters import (
+    HEIGHT,
+    MEAN_COLOUR,
+    NUM_FRAMES,
+    RED,
+    SLOTS,
+    MeanColourParams,
+    numpy_mean_colours,
+    random_detections,
+    random_video,
+)
 
-HEIGHT, WIDTH, NUM_FRAMES, SLOTS = 24, 32, 11, 4
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 _compiles: list[str] = []
 jax.monitoring.register_event_duration_secs_listener(
     lambda name, *_, **__: _compiles.append(name) if name == COMPILE_EVENT else None
 )
-
-
-def random_video(seed: int, num_frames: int = NUM_FRAMES, height: int = HEIGHT) -> np.ndarray:
-    return np.random.default_rng(seed).integers(0, 256, (num_frames, height, WIDTH, 3), np.uint8)
-
-
-def random_detections(seed: int, num_frames: int = NUM_FRAMES, slots: int = SLOTS) -> Detections:
-    """Boxes partly outside the image included; 0..slots detections per frame."""
-    rng = np.random.default_rng(seed)
-    boxes = np.column_stack(
-        [rng.uniform(-5, WIDTH, num_frames * slots), rng.uniform(-5, HEIGHT, num_frames * slots)]
-        + [rng.uniform(1, 15, num_frames * slots) for _ in range(2)]
-    ).reshape(num_frames, slots, 4)
-    mask = rng.random((num_frames, slots)) < 0.6
-    mask[0] = True
-    boxes[~mask] = PAD_BOX
-    scores = np.where(mask, 1.0, 0.0)
-    return Detections(boxes.astype(np.float32), scores.astype(np.float32), mask)
 
 
 VIDEO = random_video(0)
