@@ -189,8 +189,10 @@ def run(
     """
     if chunk_frames is not None and chunk_frames <= 0:
         raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
-    if chunk_frames is None and (fit_capacity or frames is not None):
-        raise ValueError("fit_capacity and frames need chunk_frames (a host loop over chunks)")
+    if fit_capacity and chunk_frames is None:
+        raise ValueError("fit_capacity needs chunk_frames (a host loop over chunks)")
+    if frames is not None and chunk_frames is None:
+        raise ValueError("frames need chunk_frames (a host loop over chunks)")
     if chunk_frames is not None and not isinstance(inputs, Detections):
         raise ValueError("a chunked run takes Detections; give its images as frames=")
     key_init, key_frames = jax.random.split(key)
