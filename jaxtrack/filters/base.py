@@ -36,7 +36,9 @@ FrameOutput = Callable[[Any, Any, Array], Any]
 
 #: The images of a chunked run (``frames=`` of :func:`run`): ``frames(start, stop)`` returns
 #: those of the run's frames ``start..stop-1`` (0-based, as the detections) as RGB ``uint8``
-#: ``[stop - start, height, width, 3]``. The runner asks for each frame once, in order.
+#: ``[stop - start, height, width, 3]``. The runner asks for each frame once, in order, and
+#: is done with a chunk's array (which JAX may read without a copy while the chunk runs)
+#: when it asks for the chunk after next: a source may then refill that array.
 FrameSource = Callable[[int, int], np.ndarray]
 
 
@@ -268,7 +270,8 @@ def _run_chunks(filt, key_init, frame_keys, params, inputs, frames, chunk_frames
     """:func:`run` with ``chunk_frames``: a host loop over the cached, jitted chunk scan.
 
     Chunk ``k``'s outputs are brought to the host after chunk ``k + 1`` is dispatched, so
-    that its inputs (its frames) are prepared while chunk ``k`` runs."""
+    that chunk ``k + 1``'s inputs (its frames) are prepared while chunk ``k`` runs, and
+    chunk ``k`` has finished when chunk ``k + 2``'s frames are asked for (:data:`FrameSource`)."""
     inputs = jax.tree.map(np.asarray, inputs)
     num_frames, slots = inputs.mask.shape
     if fit:

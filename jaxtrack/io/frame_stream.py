@@ -2,17 +2,21 @@
 jit"): the frame source of a chunked run (``frames=`` of :func:`~jaxtrack.filters.base.run`).
 
 One thread reads the span's frames in order with a :class:`~jaxtrack.io.video.VideoReader`
-(a video file then decodes forward, never seeks) into a queue of at most ``lookahead``
-frames; the runner takes them out chunk by chunk. While the filter runs chunk ``k`` on the
-device, the thread decodes chunk ``k + 1``: OpenCV and XLA release the GIL, so the two
-overlap, and the run takes about the longer of decoding and filtering instead of their sum.
-A frame-by-frame queue rather than a future per chunk, so that chunks of any length (a
-``fit_capacity`` run's crowded frames) are served from the same read-ahead.
+(a video file then decodes forward, never seeks) into ``lookahead`` frame slots; the runner
+takes them out chunk by chunk. While the filter runs chunk ``k`` on the device, the thread
+decodes chunk ``k + 1``: OpenCV and XLA release the GIL, so the two overlap, and the run
+takes about the longer of decoding and filtering instead of their sum. Frame by frame
+rather than a future per chunk, so that chunks of any length (a ``fit_capacity`` run's
+crowded frames) are served from the same read-ahead.
 
-Memory: the queue holds ``lookahead`` frames and the runner at most three chunks of
-``chunk_frames`` (the one it is filling, the one queued on the device and the one running),
-so a streamed run holds about :func:`stream_bytes` of images, whatever the video's length;
-no whole video, and no frame as float, is ever held.
+Memory: every array is allocated once, when the stream opens or at its first chunks: the
+``lookahead`` frame slots and :data:`RING` chunk arrays. The chunk arrays are aligned to
+:data:`ALIGNMENT` bytes, so that XLA's CPU client reads them in place instead of copying
+each chunk into fresh memory (whose pages the kernel maps and zeroes again: 0.6-0.8 ms a
+768x576 frame in place against 1.9 ms with the copy, for the no-op filter of
+``benchmarks/stream_speed.py``). A streamed run thus holds :func:`stream_bytes` of images
+whatever the video's length (no whole video, no frame as float) and allocates nothing per
+frame.
 """
 
 from __future__ import annotations
@@ -25,20 +29,36 @@ import numpy as np
 from jaxtrack.errors import InputError
 from jaxtrack.io.video import VideoReader
 
-#: How often (seconds) a thread waiting on a full queue checks whether the stream was closed.
+#: How often (seconds) a thread waiting for a free slot checks whether the stream was closed.
 _POLL_SECONDS = 0.05
+#: Chunk arrays the stream fills in turn. The runner is done with a chunk's images when it
+#: asks for the chunk after next (:data:`~jaxtrack.filters.base.FrameSource`), so three
+#: arrays suffice.
+RING = 3
+#: Byte alignment of the chunk arrays: XLA's CPU client uses a NumPy argument's memory in
+#: place when it is 64-byte aligned, and copies it otherwise.
+ALIGNMENT = 64
 
 
 def stream_bytes(height: int, width: int, chunk_frames: int) -> int:
-    """Bytes of images a streamed run holds at most: ``4 chunk_frames + 1`` RGB ``uint8``
-    frames (``chunk_frames`` queued ahead, one being decoded, three chunks in the runner).
+    """Bytes of images a streamed run holds: ``(RING + 1) chunk_frames`` RGB ``uint8``
+    frames (``chunk_frames`` slots decoded ahead, :data:`RING` chunk arrays).
 
     Args:
         height: frame height in pixels.
         width: frame width in pixels.
         chunk_frames: frames per chunk, also the read-ahead.
     """
-    return (4 * int(chunk_frames) + 1) * int(height) * int(width) * 3
+    return (RING + 1) * int(chunk_frames) * int(height) * int(width) * 3
+
+
+def aligned_frames(count: int, height: int, width: int) -> np.ndarray:
+    """An uninitialised ``uint8`` array ``[count, height, width, 3]`` whose data starts on an
+    :data:`ALIGNMENT`-byte boundary."""
+    size = count * height * width * 3
+    raw = np.empty(size + ALIGNMENT, np.uint8)
+    offset = -raw.ctypes.data % ALIGNMENT
+    return raw[offset : offset + size].reshape(count, height, width, 3)
 
 
 class FrameStream:
@@ -46,9 +66,10 @@ class FrameStream:
 
     ``stream(start, stop)`` returns the frames ``first + start .. first + stop - 1`` (offsets
     from 0, as the run's detections) as RGB ``uint8`` ``[stop - start, height, width, 3]``.
-    Frames are handed out once, in order. Use as a context manager (or call :meth:`close`),
-    which stops the thread; the reader stays open (its owner closes it) and must not be read
-    by anyone else while the stream is open.
+    Frames are handed out once, in order, in one of :data:`RING` arrays filled in turn (a
+    returned array is overwritten three calls later). Use as a context manager (or call
+    :meth:`close`), which stops the thread; the reader stays open (its owner closes it) and
+    must not be read by anyone else while the stream is open.
 
     Args:
         reader: an open video file or image folder.
@@ -77,29 +98,38 @@ class FrameStream:
         self._reader = reader
         self._first = first
         self._next = 0
-        self._queue: queue.Queue = queue.Queue(maxsize=lookahead)
+        self._chunks = 0
+        self._ring: list[np.ndarray | None] = [None] * RING
+        self._slots = np.empty((lookahead, self.height, self.width, 3), np.uint8)
+        self._free: queue.Queue = queue.Queue()
+        for slot in range(lookahead):
+            self._free.put(slot)
+        self._decoded: queue.Queue = queue.Queue()
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._decode, name="frame-stream", daemon=True)
         self._thread.start()
 
     def _decode(self) -> None:
-        """The thread: every frame of the span in order, or the error that stopped it."""
+        """The thread: every frame of the span in order into a free slot, or the error that
+        stopped it, onto the decoded queue."""
         try:
             for frame in range(self._first, self._first + self.num_frames):
-                if not self._put(self._reader.read(frame)):
+                slot = self._free_slot()
+                if slot is None:
                     return
+                self._reader.read(frame, out=self._slots[slot])
+                self._decoded.put(slot)
         except Exception as err:  # raised again by __call__, in the runner's thread
-            self._put(err)
+            self._decoded.put(err)
 
-    def _put(self, item) -> bool:
-        """Queues ``item`` once there is room; False when the stream was closed meanwhile."""
+    def _free_slot(self) -> int | None:
+        """A slot once one is free; None when the stream was closed meanwhile."""
         while not self._closed.is_set():
             try:
-                self._queue.put(item, timeout=_POLL_SECONDS)
-                return True
-            except queue.Full:
+                return self._free.get(timeout=_POLL_SECONDS)
+            except queue.Empty:
                 continue
-        return False
+        return None
 
     def __call__(self, start: int, stop: int) -> np.ndarray:
         """The frames at offsets ``start..stop-1`` (the next ones not yet handed out).
@@ -115,22 +145,29 @@ class FrameStream:
                 f"frames are streamed in order: expected offsets {self._next}..n with "
                 f"n <= {self.num_frames}, got {start}..{stop}"
             )
-        images = np.empty((stop - start, self.height, self.width, 3), np.uint8)
+        images = self._chunk_array(stop - start)
         for k in range(stop - start):
-            item = self._queue.get()
-            if isinstance(item, Exception):
+            slot = self._decoded.get()
+            if isinstance(slot, Exception):
                 self.close()
-                raise item
-            images[k] = item
+                raise slot
+            images[k] = self._slots[slot]
+            self._free.put(slot)
         self._next = stop
         return images
 
+    def _chunk_array(self, count: int) -> np.ndarray:
+        """The next of the :data:`RING` chunk arrays, grown to ``count`` frames if needed."""
+        index = self._chunks % RING
+        self._chunks += 1
+        if self._ring[index] is None or self._ring[index].shape[0] < count:
+            self._ring[index] = aligned_frames(count, self.height, self.width)
+        return self._ring[index][:count]
+
     def close(self) -> None:
-        """Stops the thread (it finishes the frame it is decoding) and drops queued frames."""
+        """Stops the thread (it finishes the frame it is decoding)."""
         self._closed.set()
         self._thread.join()
-        while not self._queue.empty():
-            self._queue.get_nowait()
 
     def __enter__(self) -> FrameStream:
         return self

@@ -12,6 +12,7 @@ import pytest
 
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import _chunk_functions, run
+from jaxtrack.io.frame_stream import aligned_frames
 from jaxtrack.types import FrameInputs
 from tests.filters.frame_filters import (
     HEIGHT,
@@ -76,6 +77,32 @@ def test_chunked_frames_equal_one_scan_over_frames_in_memory(chunk_frames):
     starts = list(range(0, NUM_FRAMES, chunk_frames))
     assert frames.calls == [(s, min(s + chunk_frames, NUM_FRAMES)) for s in starts]
     assert int(state.frames_seen) == NUM_FRAMES
+
+
+class RefillingFrames(RecordingFrames):
+    """A source that overwrites the array it returned two calls before, as the runner allows
+    (:data:`~jaxtrack.filters.base.FrameSource`): three arrays in turn, aligned so that JAX
+    reads them in place."""
+
+    def __init__(self, video: np.ndarray, chunk_frames: int):
+        super().__init__(video)
+        self.ring = [aligned_frames(chunk_frames, *video.shape[1:3]) for _ in range(3)]
+
+    def __call__(self, start: int, stop: int) -> np.ndarray:
+        if len(self.calls) >= 2:
+            self.ring[(len(self.calls) - 2) % 3][...] = 255  # the chunk before last: done
+        out = self.ring[len(self.calls) % 3][: stop - start]
+        out[...] = super().__call__(start, stop)
+        return out
+
+
+def test_a_source_may_refill_the_array_of_the_chunk_before_last():
+    state, info = run(
+        MEAN_COLOUR, KEY, RED, DETECTIONS, chunk_frames=2, frames=RefillingFrames(VIDEO, 2)
+    )
+    expected_state, expected = one_scan()
+    _equal(info, expected, rtol=1e-6)
+    _equal(state, expected_state)
 
 
 def test_outputs_match_a_numpy_oracle_per_frame():

@@ -16,7 +16,7 @@ import pytest
 
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.filters.base import run
-from jaxtrack.io.frame_stream import FrameStream
+from jaxtrack.io.frame_stream import ALIGNMENT, FrameStream
 from jaxtrack.io.video import VideoReader
 from jaxtrack.types import FrameInputs
 from tests.data import REPO_ROOT
@@ -61,6 +61,26 @@ def test_stream_gives_the_readers_frames_in_chunks_of_any_length(clip):
     np.testing.assert_array_equal(np.concatenate(chunks), VIDEO[2:10])
 
 
+def test_read_into_an_array(clip):
+    with VideoReader(clip) as reader:
+        out = np.zeros((24, 32, 3), np.uint8)
+        for frame in (1, 2, 5, 3):  # forward, skipping ahead, back (a seek in a video)
+            assert reader.read(frame, out=out) is out
+            np.testing.assert_array_equal(out, VIDEO[frame - 1])
+            np.testing.assert_array_equal(reader.read(frame), VIDEO[frame - 1])
+        for bad in (np.zeros((24, 31, 3), np.uint8), np.zeros((24, 32, 3)), out[:, ::-1]):
+            with pytest.raises(InputError, match=r"out must be a C-contiguous uint8 array"):
+                reader.read(1, out=bad)
+
+
+def test_chunk_arrays_are_aligned_and_reused_three_calls_later(clip):
+    with VideoReader(clip) as reader, FrameStream(reader, 1, NUM_FRAMES, lookahead=2) as stream:
+        chunks = [stream(0, 3), stream(3, 6), stream(6, 8), stream(8, 11)]
+    assert all(chunk.ctypes.data % ALIGNMENT == 0 for chunk in chunks)
+    assert np.shares_memory(chunks[0], chunks[3]) and not np.shares_memory(chunks[0], chunks[1])
+    np.testing.assert_array_equal(chunks[3], VIDEO[8:11])
+
+
 def test_streamed_run_equals_the_run_over_frames_in_memory(clip):
     detections = random_detections(1)
     key = jax.random.key(2)
@@ -79,11 +99,12 @@ class CountingReader:
         self.reads: list[int] = []
         self.fail_at = fail_at
 
-    def read(self, frame: int) -> np.ndarray:
+    def read(self, frame: int, out: np.ndarray) -> np.ndarray:
         if frame == self.fail_at:
             raise FileFormatError(self.path, None, f"frame {frame} does not decode")
         self.reads.append(frame)
-        return VIDEO[frame - 1]
+        out[...] = VIDEO[frame - 1]
+        return out
 
 
 def wait_for(condition, seconds: float = 5.0) -> None:
@@ -95,13 +116,13 @@ def wait_for(condition, seconds: float = 5.0) -> None:
 def test_read_ahead_is_bounded_and_close_stops_the_thread():
     reader = CountingReader()
     stream = FrameStream(reader, 1, NUM_FRAMES, lookahead=3)
-    wait_for(lambda: len(reader.reads) >= 4)
+    wait_for(lambda: len(reader.reads) >= 3)
     time.sleep(0.2)
-    assert reader.reads == [1, 2, 3, 4]  # 3 queued, the 4th waiting for room
+    assert reader.reads == [1, 2, 3]  # three slots filled, the thread waits for one
     np.testing.assert_array_equal(stream(0, 2), VIDEO[:2])
-    wait_for(lambda: len(reader.reads) >= 6)
+    wait_for(lambda: len(reader.reads) >= 5)
     time.sleep(0.2)
-    assert len(reader.reads) == 6
+    assert reader.reads == [1, 2, 3, 4, 5]
     stream.close()
     assert not stream._thread.is_alive()
     with pytest.raises(InputError, match="is closed"):
@@ -137,7 +158,7 @@ STREAMED_RUN = """
 import json, jax
 from pathlib import Path
 from jaxtrack.filters.base import run
-from jaxtrack.io.frame_stream import FrameStream
+from jaxtrack.io.frame_stream import ALIGNMENT, FrameStream
 from jaxtrack.io.video import VideoReader
 from jaxtrack.types import Detections
 from tests.filters.frame_filters import CHECKSUM, random_detections
