@@ -10,13 +10,11 @@ rather than a future per chunk, so that chunks of any length (a ``fit_capacity``
 crowded frames) are served from the same read-ahead.
 
 Memory: every array is allocated once, when the stream opens or at its first chunks: the
-``lookahead`` frame slots and :data:`RING` chunk arrays. The chunk arrays are aligned to
-:data:`ALIGNMENT` bytes, so that XLA's CPU client reads them in place instead of copying
-each chunk into fresh memory (whose pages the kernel maps and zeroes again: 0.6-0.8 ms a
-768x576 frame in place against 1.9 ms with the copy, for the no-op filter of
-``benchmarks/stream_speed.py``). A streamed run thus holds :func:`stream_bytes` of images
-whatever the video's length (no whole video, no frame as float) and allocates nothing per
-frame.
+``lookahead`` frame slots and :data:`RING` chunk arrays, aligned so that the runner reads
+them in place (:func:`~jaxtrack.filters.base.aligned_frames`; a copy of each chunk into
+fresh memory, whose pages the kernel maps and zeroes again, more than doubled the time per
+frame of a cheap filter). A streamed run thus holds :func:`stream_bytes` of images whatever
+the video's length (no whole video, no frame as float) and allocates nothing per frame.
 """
 
 from __future__ import annotations
@@ -27,6 +25,7 @@ import threading
 import numpy as np
 
 from jaxtrack.errors import InputError
+from jaxtrack.filters.base import aligned_frames
 from jaxtrack.io.video import VideoReader
 
 #: How often (seconds) a thread waiting for a free slot checks whether the stream was closed.
@@ -35,30 +34,19 @@ _POLL_SECONDS = 0.05
 #: asks for the chunk after next (:data:`~jaxtrack.filters.base.FrameSource`), so three
 #: arrays suffice.
 RING = 3
-#: Byte alignment of the chunk arrays: XLA's CPU client uses a NumPy argument's memory in
-#: place when it is 64-byte aligned, and copies it otherwise.
-ALIGNMENT = 64
 
 
 def stream_bytes(height: int, width: int, chunk_frames: int) -> int:
-    """Bytes of images a streamed run holds: ``(RING + 1) chunk_frames`` RGB ``uint8``
-    frames (``chunk_frames`` slots decoded ahead, :data:`RING` chunk arrays).
+    """Bytes of images a streamed run holds at most: ``(RING + 2) chunk_frames`` RGB
+    ``uint8`` frames (``chunk_frames`` slots decoded ahead, :data:`RING` chunk arrays and the
+    runner's copy of the last chunk, padded to ``chunk_frames``).
 
     Args:
         height: frame height in pixels.
         width: frame width in pixels.
         chunk_frames: frames per chunk, also the read-ahead.
     """
-    return (RING + 1) * int(chunk_frames) * int(height) * int(width) * 3
-
-
-def aligned_frames(count: int, height: int, width: int) -> np.ndarray:
-    """An uninitialised ``uint8`` array ``[count, height, width, 3]`` whose data starts on an
-    :data:`ALIGNMENT`-byte boundary."""
-    size = count * height * width * 3
-    raw = np.empty(size + ALIGNMENT, np.uint8)
-    offset = -raw.ctypes.data % ALIGNMENT
-    return raw[offset : offset + size].reshape(count, height, width, 3)
+    return (RING + 2) * int(chunk_frames) * int(height) * int(width) * 3
 
 
 class FrameStream:

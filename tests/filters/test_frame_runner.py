@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import _chunk_functions, run
-from jaxtrack.io.frame_stream import aligned_frames
+from jaxtrack.filters.base import _chunk_functions, aligned_frames, run
 from jaxtrack.types import FrameInputs
 from tests.filters.frame_filters import (
     HEIGHT,

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from jaxtrack.errors import FileFormatError, InputError
-from jaxtrack.filters.base import run
-from jaxtrack.io.frame_stream import ALIGNMENT, FrameStream
+from jaxtrack.filters.base import FRAME_ALIGNMENT, run
+from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
 from jaxtrack.types import FrameInputs
 from tests.data import REPO_ROOT
@@ -76,7 +76,7 @@ def test_read_into_an_array(clip):
 def test_chunk_arrays_are_aligned_and_reused_three_calls_later(clip):
     with VideoReader(clip) as reader, FrameStream(reader, 1, NUM_FRAMES, lookahead=2) as stream:
         chunks = [stream(0, 3), stream(3, 6), stream(6, 8), stream(8, 11)]
-    assert all(chunk.ctypes.data % ALIGNMENT == 0 for chunk in chunks)
+    assert all(chunk.ctypes.data % FRAME_ALIGNMENT == 0 for chunk in chunks)
     assert np.shares_memory(chunks[0], chunks[3]) and not np.shares_memory(chunks[0], chunks[1])
     np.testing.assert_array_equal(chunks[3], VIDEO[8:11])
 
@@ -157,8 +157,8 @@ def test_frames_out_of_order_or_outside_the_span_are_errors():
 STREAMED_RUN = """
 import json, jax
 from pathlib import Path
-from jaxtrack.filters.base import run
-from jaxtrack.io.frame_stream import ALIGNMENT, FrameStream
+from jaxtrack.filters.base import FRAME_ALIGNMENT, run
+from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
 from jaxtrack.types import Detections
 from tests.filters.frame_filters import CHECKSUM, random_detections
