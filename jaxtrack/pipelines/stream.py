@@ -32,9 +32,9 @@ from jaxtrack.pipelines.tracking import (
 )
 from jaxtrack.types import MotTable
 
-#: Frames per compiled call of a streamed run: 32 frames of 768x576 are 42 MB of images, so
-#: a run holds about 170 MB of them (``stream_bytes``); longer chunks were no faster
-#: (``benchmarks/stream_speed.py``).
+#: Frames per compiled call of a streamed run: 32 frames of 768x576 are 42 MB of images, and
+#: a run holds at most five chunks of them (``stream_bytes``); 16 and 32 frames streamed
+#: equally fast, 128 slower and with 0.6 GB more memory (``benchmarks/stream_speed.py``).
 STREAM_CHUNK_FRAMES = 32
 
 
@@ -54,7 +54,8 @@ def track_streamed(
             :func:`~jaxtrack.io.video.open_sequence_frames`); read from ``seq.first_frame``
             to ``seq.last_frame`` and left open.
         config: the tracker's configuration (its registry entry must use frames).
-        seed: PRNG seed (key ``PRNGKey(seed)``, as :func:`track_sequences` uses).
+        seed: PRNG seed (key ``PRNGKey(seed)``, as
+            :func:`~jaxtrack.pipelines.tracking.track_sequences` uses).
         params: the tracker's parameters (default: the registry's for the sequence).
         chunk_frames: frames per compiled call, and frames decoded ahead.
 

@@ -153,18 +153,19 @@ def test_frames_out_of_order_or_outside_the_span_are_errors():
 
 
 #: Streams vtest.avi (795 frames of 768x576) through the chunked runner with the checksum
-#: filter in chunks of 16; prints the checksum and the process's peak resident memory.
+#: filter in chunks of the streamed tracker's length; prints the checksum and the process's
+#: peak resident memory.
 STREAMED_RUN = """
 import json, jax
 from pathlib import Path
-from jaxtrack.filters.base import FRAME_ALIGNMENT, run
+from jaxtrack.filters.base import run
 from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
-from jaxtrack.types import Detections
+from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES as CHUNK
 from tests.filters.frame_filters import CHECKSUM, random_detections
-with VideoReader({video!r}) as reader, FrameStream(reader, 1, 795, 16) as stream:
-    state, _ = run(CHECKSUM, jax.random.key(0), None, random_detections(0, 795), chunk_frames=16,
-                   frames=stream)
+with VideoReader({video!r}) as reader, FrameStream(reader, 1, 795, CHUNK) as stream:
+    state, _ = run(CHECKSUM, jax.random.key(0), None, random_detections(0, 795),
+                   chunk_frames=CHUNK, frames=stream)
 status = Path("/proc/self/status").read_text().splitlines()
 peak = next(int(line.split()[1]) * 1024 for line in status if line.startswith("VmHWM:"))
 print(json.dumps({{"checksum": int(state), "peak_bytes": peak}}))
