@@ -153,3 +153,14 @@ def test_video_without_figure_is_refused_for_a_tracker_without_frames(sequence, 
     argv = ["track", "--benchmark", str(tmp_path), "--out", str(tmp_path / "all")]
     line = run_refused(capsys, tmp_path, [*argv, "--detections", str(tmp_path / "d.txt")])
     assert "--detections applies to one sequence, not to --benchmark" in line
+
+
+def test_detections_option_for_a_tracker_without_frames(mot15_root, tmp_path):
+    """--detections naming the folder's own det.txt gives the same results as without."""
+    campus = mot15_root / "TUD-Campus"
+    argv = ["track", str(campus), "--tracker", "kalman", "--frames", "5:40"]
+    assert main([*argv, "--out", str(tmp_path / "own.txt")]) == 0
+    det = str(campus / "det" / "det.txt")
+    assert main([*argv, "--detections", det, "--out", str(tmp_path / "given.txt")]) == 0
+    own = (tmp_path / "own.txt").read_text()
+    assert own and (tmp_path / "given.txt").read_text() == own

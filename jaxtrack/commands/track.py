@@ -40,7 +40,8 @@ trackers) gets each frame beside its detections, streamed from the sequence's fr
 ``SEQ_DIR/<name>.mp4`` or ``.avi``; their frame count and size must be those of
 ``seqinfo.ini``. The frames are decoded a chunk ahead while the tracker runs, so a run holds
 a few chunks of frames, never the whole video. For the other trackers ``--video`` is only
-the image behind ``--figure``.
+the image behind ``--figure``. PETS09-S2L1's frames are ``vtest.avi``:
+``jaxtrack track mot15/PETS09-S2L1 --tracker NAME --video video/vtest.avi --out r.txt``.
 
 The configuration used (the tracker included) is written beside the results as
 ``<RES>.config.json``.
