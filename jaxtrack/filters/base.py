@@ -313,13 +313,15 @@ def _run_chunks(filt, key_init, frame_keys, params, inputs, frames, chunk_frames
         )
         if running is not None:
             outputs.append(_host_outputs(*running))
-        running = (output, chunk.stop - chunk.start)
+        running = (state, output, chunk.stop - chunk.start)
     outputs.append(_host_outputs(*running))
     return state, _concatenate(outputs)
 
 
-def _host_outputs(output: Any, used: int) -> Any:
-    """A chunk's outputs on the host, its ``used`` real frames only (waits for the chunk)."""
+def _host_outputs(state: Any, output: Any, used: int) -> Any:
+    """A chunk's outputs on the host, its ``used`` real frames only, once the chunk has
+    finished (its final ``state`` is ready)."""
+    jax.block_until_ready(state)
     return jax.tree.map(lambda x: np.asarray(x)[:used], output)
 
 

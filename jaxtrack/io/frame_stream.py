@@ -31,9 +31,9 @@ from jaxtrack.io.video import VideoReader
 #: How often (seconds) a thread waiting for a free slot checks whether the stream was closed.
 _POLL_SECONDS = 0.05
 #: Chunk arrays the stream fills in turn. The runner is done with a chunk's images when it
-#: asks for the chunk after next (:data:`~jaxtrack.filters.base.FrameSource`), so three
-#: arrays suffice.
-RING = 3
+#: asks for the chunk after next (:data:`~jaxtrack.filters.base.FrameSource`), so two
+#: arrays suffice: one the device may be reading, one being filled.
+RING = 2
 
 
 def stream_bytes(height: int, width: int, chunk_frames: int) -> int:
@@ -55,7 +55,7 @@ class FrameStream:
     ``stream(start, stop)`` returns the frames ``first + start .. first + stop - 1`` (offsets
     from 0, as the run's detections) as RGB ``uint8`` ``[stop - start, height, width, 3]``.
     Frames are handed out once, in order, in one of :data:`RING` arrays filled in turn (a
-    returned array is overwritten three calls later). Use as a context manager (or call
+    returned array is overwritten two calls later). Use as a context manager (or call
     :meth:`close`), which stops the thread; the reader stays open (its owner closes it) and
     must not be read by anyone else while the stream is open.
 

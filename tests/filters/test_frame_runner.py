@@ -79,8 +79,9 @@ def test_chunked_frames_equal_one_scan_over_frames_in_memory(chunk_frames):
 
 
 class RefillingFrames(RecordingFrames):
-    """A source that overwrites the array it returned two calls before, as the runner allows
-    (:data:`~jaxtrack.filters.base.FrameSource`): three arrays in turn, aligned so that JAX
+    """A source that spoils the array it returned two calls before, as the runner allows
+    (:data:`~jaxtrack.filters.base.FrameSource`): a chunk still reading it would see 255s
+    until the array is refilled on the next call. Three arrays in turn, aligned so that JAX
     reads them in place."""
 
     def __init__(self, video: np.ndarray, chunk_frames: int):
@@ -89,7 +90,7 @@ class RefillingFrames(RecordingFrames):
 
     def __call__(self, start: int, stop: int) -> np.ndarray:
         if len(self.calls) >= 2:
-            self.ring[(len(self.calls) - 2) % 3][...] = 255  # the chunk before last: done
+            self.ring[(len(self.calls) - 2) % 3][...] = 255
         out = self.ring[len(self.calls) % 3][: stop - start]
         out[...] = super().__call__(start, stop)
         return out
