@@ -33,8 +33,9 @@ from jaxtrack.pipelines.tracking import (
 from jaxtrack.types import MotTable
 
 #: Frames per compiled call of a streamed run: 32 frames of 768x576 are 42 MB of images, and
-#: a run holds at most five chunks of them (``stream_bytes``); 16 and 32 frames streamed
-#: equally fast, 128 slower and with 0.6 GB more memory (``benchmarks/stream_speed.py``).
+#: a run holds at most four chunks of them (``stream_bytes``). Chunks of 16, 32 and 128
+#: frames streamed vtest.avi equally fast (870-910 frames/s), 128 with 0.5 GB more memory
+#: (``benchmarks/stream_speed.py``).
 STREAM_CHUNK_FRAMES = 32
 
 
