@@ -1,13 +1,15 @@
 """Test-only filters that look at the images: the mean colour under each detection, and a
 checksum of the frame.
 
-It steps on :class:`~jaxtrack.types.FrameInputs` like the appearance trackers will, and its
-outputs are simple enough to check against frames read directly: each detection's mean RGB
-over the pixels its rounded box covers (an integral image under jit; NumPy slices in the
-oracle), a score ``colour . channel_weights`` (so params enter the step), a per-frame
-uniform draw from the frame's key (so the per-frame keys can be compared across chunkings)
-and the frame's checksum. As a registered tracker (``MEAN_COLOUR_ENTRY``) it reports each
-detection as a track whose id is its slot + 1 and whose score is its mean colour.
+The mean-colour filter (``MEAN_COLOUR``) steps on :class:`~jaxtrack.types.FrameInputs` like
+the appearance trackers will, and its outputs are simple enough to check against frames read
+directly: each detection's mean RGB over the pixels its rounded box covers (an integral
+image under jit; NumPy slices in the oracle), a score ``colour . channel_weights`` (so params
+enter the step), a per-frame uniform draw from the frame's key (so the per-frame keys can be
+compared across chunkings) and the frame's checksum. As a registered tracker
+(``MEAN_COLOUR_ENTRY``) it reports each detection as a track whose id is its slot + 1 and
+whose score is its mean colour.
+
 ``CHECKSUM`` only adds up each frame's pixel values (the frame is really read, nothing else
 is done): the cheapest filter a streamed run can have. :func:`random_video` and
 :func:`random_detections` make small clips for them.
@@ -49,9 +51,9 @@ class MeanColourInfo(NamedTuple):
 
 def pixel_span(x, w, size):
     """The pixels ``[first, stop)`` a box side covers: its rounded ends, clipped to the image."""
-    return jnp.clip(jnp.round(x), 0, size).astype(jnp.int32), jnp.clip(
-        jnp.round(x + w), 0, size
-    ).astype(jnp.int32)
+    first = jnp.clip(jnp.round(x), 0, size)
+    stop = jnp.clip(jnp.round(x + w), 0, size)
+    return first.astype(jnp.int32), stop.astype(jnp.int32)
 
 
 def mean_colour(integral: jax.Array, box: jax.Array) -> jax.Array:
