@@ -7,7 +7,7 @@ hold safe values (a unit box at the origin, score 0, id -1) so that logs and div
 finite before masking.
 
 Dimension names used in annotations: ``num_frames``, ``max_detections``, ``max_objects``,
-``num_particles``, ``state_dim``, ``meas_dim``, ``num_components``.
+``num_particles``, ``state_dim``, ``meas_dim``, ``num_components``, ``height``, ``width``.
 
 :class:`MotTable` holds rows (one box each) host-side in NumPy: MOTChallenge files as read,
 and tracker output (:func:`jaxtrack.association.offline.track_rows` /
@@ -20,7 +20,7 @@ import dataclasses
 from typing import NamedTuple
 
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float, Int, UInt8
 
 #: Value written into padded box slots: a 1x1 box at the origin (positive size, finite logs).
 PAD_BOX = (0.0, 0.0, 1.0, 1.0)
@@ -38,6 +38,23 @@ class Detections(NamedTuple):
     boxes: Float[Array, "num_frames max_detections 4"]
     scores: Float[Array, "num_frames max_detections"]
     mask: Bool[Array, "num_frames max_detections"]
+
+
+class FrameInputs(NamedTuple):
+    """What a filter that looks at the images gets per frame: detections and the frame.
+
+    The inputs of such a filter's ``step(key, state, params, inputs_t)`` (DESIGN.md, "Frames
+    under jit"); :func:`~jaxtrack.filters.base.run` stacks them over frames (a leading
+    ``num_frames`` axis on every leaf) and, chunked, reads the frames chunk by chunk.
+
+    Attributes:
+        detections: the frame's padded :class:`Detections` (``[max_detections]`` leaves).
+        frame: the image, RGB ``uint8`` ``[height, width, 3]`` (as
+            :class:`~jaxtrack.io.video.VideoReader` reads it); zeros in a skipped padded frame.
+    """
+
+    detections: Detections
+    frame: UInt8[Array, "height width 3"]
 
 
 class GroundTruth(NamedTuple):

@@ -1,9 +1,13 @@
 """``jaxtrack track``: run the particle PHD tracker on MOTChallenge sequences.
 
 One sequence:  ``jaxtrack track SEQ_DIR --out RES.txt [--frames A:B] [--config FILE]
-[--context CTX.npz [--variant GM|A1..A6]] [--figure PNG [--figure-frame N]]``
+[--detections DET.txt] [--context CTX.npz [--variant GM|A1..A6]] [--figure PNG
+[--figure-frame N]]``
 All sequences: ``jaxtrack track --benchmark MOT_ROOT --out RES_DIR`` (one ``<SEQ>.txt`` each,
 one compile per detection capacity; each sequence's result is the one it gets alone)
+
+The detections are ``SEQ_DIR/det/det.txt`` unless ``--detections DET.txt`` gives others
+(e.g. from ``jaxtrack detect`` on the sequence's frames).
 
 The default configuration (uniform birth and clutter intensities, UM) is the same for every
 sequence; image size and frame rate come from each ``seqinfo.ini``. ``--config FILE.json``
@@ -30,6 +34,15 @@ model; ``jaxtrack.filters.kalman``) with ``--preset default`` (Mahalanobis gate)
 frame). Its configuration (``KalmanConfig``) takes ``preset``, ``output`` and ``max_gap``;
 ``--context`` and ``--figure`` are for the PHD tracker.
 
+A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance
+trackers) gets each frame beside its detections, streamed from the sequence's frames:
+``--video FILE`` (a video file or image folder), else ``SEQ_DIR/img1/``, else
+``SEQ_DIR/<name>.mp4`` or ``.avi``; their frame count and size must be those of
+``seqinfo.ini``. The frames are decoded a chunk ahead while the tracker runs, so a run holds
+a few chunks of frames, never the whole video. For the other trackers ``--video`` is only
+the image behind ``--figure``. PETS09-S2L1's frames are ``vtest.avi``:
+``jaxtrack track mot15/PETS09-S2L1 --tracker NAME --video video/vtest.avi --out r.txt``.
+
 The configuration used (the tracker included) is written beside the results as
 ``<RES>.config.json``.
 """
@@ -42,6 +55,7 @@ import time
 from pathlib import Path
 
 import jax
+from tqdm import tqdm
 
 from jaxtrack.commands.arguments import (
     DEFAULT_VARIANT,
@@ -70,12 +84,20 @@ from jaxtrack.commands.paths import (
     video_input,
 )
 from jaxtrack.configs import TrackerConfig
+from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
 from jaxtrack.filters.kalman import KALMAN_PRESETS
 from jaxtrack.filters.registry import build_tracker, tracker_entry
-from jaxtrack.io import load_sequence, write_results
-from jaxtrack.io.video import VideoReader, find_frame_source
+from jaxtrack.io import (
+    load_sequence,
+    parse_frame_span,
+    read_mot_file,
+    read_seqinfo,
+    write_results,
+)
+from jaxtrack.io.video import VideoReader, find_frame_source, open_sequence_frames
 from jaxtrack.limits import FRAME_NUMBER
+from jaxtrack.pipelines.stream import track_streamed
 from jaxtrack.pipelines.tracking import (
     load_tracker_context,
     phd_frame_snapshot,
@@ -88,7 +110,7 @@ from jaxtrack.plot.tracks import phd_frame_figure
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "track",
-        help="run the particle PHD (or Kalman) tracker on a sequence folder or benchmark root",
+        help="run a tracker (PHD by default) on a sequence folder or benchmark root",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -96,6 +118,11 @@ def register(subparsers) -> None:
     parser.add_argument("--benchmark", metavar="MOT_ROOT", help="folder of sequence folders")
     add_out(parser, "result file (RES.txt), or a folder with --benchmark")
     add_frames(parser)
+    parser.add_argument(
+        "--detections",
+        metavar="DET.txt",
+        help="detections to track instead of SEQ_DIR/det/det.txt (e.g. from jaxtrack detect)",
+    )
     add_config(parser)
     add_seed(parser)
     add_context_arguments(parser, "see above")
@@ -115,7 +142,10 @@ def register(subparsers) -> None:
         help="MOT frame number of --figure (default: the middle of the span)",
     )
     parser.add_argument(
-        "--video", metavar="FILE", help="video or image folder behind --figure (default: found)"
+        "--video",
+        metavar="FILE",
+        help="the sequence's frames (video file or image folder) for a tracker that uses "
+        "frames, or behind --figure (default: SEQ_DIR/img1/, else SEQ_DIR/<name>.mp4/.avi)",
     )
     add_quiet(parser)
     add_json(parser)
@@ -130,32 +160,72 @@ def track_sequence(
     frames=None,
     context_path: str | None = None,
     variant: str = "GM",
+    detections: str | None = None,
+    video: str | None = None,
 ) -> tuple[int, int]:
     """Tracks one sequence folder and writes MOTChallenge results.
+
+    Args:
+        sequence_dir: the sequence folder.
+        out_path: the result file (``<RES>.config.json`` is written beside it).
+        config: the tracker's configuration.
+        seed: PRNG seed.
+        frames: 1-based inclusive span (``--frames``), or None for every frame.
+        context_path: a learned context (``--context``), or None.
+        variant: the context's parts used.
+        detections: a detections file used instead of ``det/det.txt``, or None.
+        video: for a tracker that uses frames, its frames instead of those found in the
+            folder (:func:`~jaxtrack.io.video.open_sequence_frames`).
 
     Returns:
         The number of result rows (boxes) and of frames tracked.
     """
-    seq = load_sequence(sequence_dir, frames=frames)
+    seq = load_tracked_sequence(sequence_dir, frames, detections)
     context = load_tracker_context(context_path)
     _, params = build_tracker(config, seq.info, context, variant)
-    (rows,) = track_sequences([seq], config, seed, [params])
+    used = {}
+    if tracker_entry(config.tracker).uses_frames:
+        with open_sequence_frames(sequence_dir, seq.info, video) as reader:
+            rows = track_streamed(seq, reader, config, seed, params)
+        used["video"] = str(reader.path)
+    else:
+        (rows,) = track_sequences([seq], config, seed, [params])
+    if detections is not None:
+        used["detections"] = str(detections)
     if not tracker_entry(config.tracker).takes_context:
         variant = None
     elif context is None:
         variant = "UM"
-    _write(out_path, rows, config, seed, seq, context_path, variant)
+    _write(out_path, rows, config, seed, seq, context_path, variant, used)
     return len(rows.frames), seq.num_frames
+
+
+def load_tracked_sequence(sequence_dir, frames=None, detections: str | None = None):
+    """A sequence folder (or span) with its ``det/det.txt``, or with ``detections`` instead.
+
+    Raises:
+        FileFormatError: a missing or malformed ``seqinfo.ini`` or detections file.
+        InputError: a bad frame span.
+    """
+    if detections is None:
+        return load_sequence(sequence_dir, frames=frames)
+    info = read_seqinfo(Path(sequence_dir) / "seqinfo.ini")
+    table = read_mot_file(detections, "det", info=info)
+    return video_sequence(sequence_dir, table, parse_frame_span(frames, info.seq_length), info)
 
 
 def run(args) -> int:
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
     if args.benchmark is not None:
-        options = ("frames", "context", "variant", "figure", "figure_frame", "video")
+        options = ("frames", "detections", "context", "variant", "figure", "figure_frame", "video")
         refuse_ignored(args, options, "applies to one sequence, not to --benchmark")
     if args.figure is None:
-        refuse_ignored(args, ["figure_frame", "video"], "needs --figure (it is only read for it)")
+        refuse_ignored(args, ["figure_frame"], "needs --figure (it is only read for it)")
+        if not tracker_entry(args.tracker).uses_frames:
+            refuse_ignored(
+                args, ["video"], f"needs --figure (the {args.tracker} tracker reads no frames)"
+            )
     config = _config(args)
     variant = context_variant(args) or DEFAULT_VARIANT
     if args.sequence is None:
@@ -169,6 +239,7 @@ def run(args) -> int:
         [
             *sequence_inputs(args.sequence),
             *file_input(args.config, f"the tracker configuration --config {args.config}"),
+            *file_input(args.detections, f"the detections --detections {args.detections}"),
             *file_input(args.context, f"the context --context {args.context}"),
             *video_input(args.video, f"the frames --video {args.video}"),
         ],
@@ -182,6 +253,8 @@ def run(args) -> int:
         args.frames,
         args.context,
         variant,
+        args.detections,
+        args.video,
     )
     seconds = time.perf_counter() - start
     summary = {"out": str(args.out), "rows": rows, "frames": frames, "seconds": seconds}
@@ -232,9 +305,13 @@ def _benchmark(args, config: TrackerConfig) -> int:
     out.mkdir(parents=True, exist_ok=True)
     sequences = [load_sequence(folder) for folder in folders]
     start = time.perf_counter()
-    results = track_sequences(sequences, config, args.seed, progress=not args.quiet)
+    if tracker_entry(config.tracker).uses_frames:
+        results, used = _track_streamed_all(sequences, config, args.seed, not args.quiet)
+    else:
+        results = track_sequences(sequences, config, args.seed, progress=not args.quiet)
+        used = [{} for _ in sequences]
     variant = "UM" if tracker_entry(config.tracker).takes_context else None
-    for seq, rows in zip(sequences, results, strict=True):
+    for seq, rows, seq_used in zip(sequences, results, used, strict=True):
         _write(
             out / f"{seq.path.name}.txt",
             rows,
@@ -243,6 +320,7 @@ def _benchmark(args, config: TrackerConfig) -> int:
             seq,
             None,
             variant,
+            seq_used,
         )
     frames = sum(seq.num_frames for seq in sequences)
     seconds = time.perf_counter() - start
@@ -258,10 +336,35 @@ def _benchmark(args, config: TrackerConfig) -> int:
     return 0
 
 
-def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
+def _track_streamed_all(sequences, config: TrackerConfig, seed: int, progress: bool):
+    """Each sequence with a tracker that uses frames (found in its folder, all checked before
+    the first is tracked); the results and, per sequence, the frames used."""
+    readers = []
+    try:
+        for seq in sequences:
+            readers.append(open_sequence_frames(seq.path, seq.info))
+        results = [
+            track_streamed(seq, reader, config, seed)
+            for seq, reader in tqdm(
+                list(zip(sequences, readers, strict=True)),
+                desc="tracking",
+                unit="seq",
+                disable=not progress,
+            )
+        ]
+    finally:
+        for reader in readers:
+            reader.close()
+    return results, [{"video": str(reader.path)} for reader in readers]
+
+
+def _write(out_path, rows, config, seed, seq, context_path, variant, inputs) -> None:
+    """Writes the results and ``<RES>.config.json`` (``inputs``: the detections and frames
+    used, when not the folder's ``det/det.txt`` alone)."""
     write_results(out_path, rows.frames, rows.ids, rows.boxes, rows.confs)
     used = {**tracker_description(config), "seed": seed}
     used["sequence"] = str(seq.path)
+    used.update(inputs)
     if variant is not None:
         used["variant"] = variant
     used["frames"] = [seq.first_frame, seq.last_frame]
@@ -272,7 +375,7 @@ def _write(out_path, rows, config, seed, seq, context_path, variant) -> None:
 
 def _figure(args, config: TrackerConfig, variant: str) -> tuple[Path, int]:
     """Draws ``--figure`` (PHD-context Fig. 3) for the span tracked; its path and frame."""
-    seq = load_sequence(args.sequence, frames=args.frames)
+    seq = load_tracked_sequence(args.sequence, args.frames, args.detections)
     frame = args.figure_frame or (seq.first_frame + seq.last_frame) // 2
     if not seq.first_frame <= frame <= seq.last_frame:
         raise InputError(

@@ -12,7 +12,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-from jaxtrack.types import PAD_BOX, Detections
+from jaxtrack.errors import InputError
+from jaxtrack.types import PAD_BOX, Detections, FrameInputs
 
 
 class Filter(NamedTuple):
@@ -20,17 +21,30 @@ class Filter(NamedTuple):
 
     Attributes:
         init: ``(key, params) -> state``.
-        step: ``(key, state, params, detections_t) -> (state, info)``, where
-            ``detections_t`` is one frame of :class:`~jaxtrack.types.Detections`.
+        step: ``(key, state, params, inputs_t) -> (state, info)``, where ``inputs_t`` is one
+            frame of :class:`~jaxtrack.types.Detections`, or, for a filter that looks at the
+            images, of :class:`~jaxtrack.types.FrameInputs` (detections and frame).
     """
 
     init: Callable[[Array, Any], Any]
-    step: Callable[[Array, Any, Any, Detections], tuple[Any, Any]]
+    step: Callable[[Array, Any, Any, Any], tuple[Any, Any]]
 
 
 #: A per-frame output: ``(state_t, info_t, frame_index) -> output_t`` (``state_t`` the carry
 #: after frame ``t``); :func:`run` stacks it over the frames instead of the infos.
 FrameOutput = Callable[[Any, Any, Array], Any]
+
+#: The images of a chunked run (``frames=`` of :func:`run`): ``frames(start, stop)`` returns
+#: those of the run's frames ``start..stop-1`` (0-based, as the detections) as RGB ``uint8``
+#: ``[stop - start, height, width, 3]``. The runner asks for each frame once, in order, and
+#: is done with a chunk's array (which JAX may read without a copy while the chunk runs)
+#: when it asks for the chunk after next: a source may then refill that array.
+FrameSource = Callable[[int, int], np.ndarray]
+#: Byte alignment of the frame arrays a chunked run is given (:func:`aligned_frames`): XLA's
+#: CPU client uses a NumPy argument's memory in place when it is 64-byte aligned, and copies
+#: it into fresh memory otherwise (0.6-0.8 ms a 768x576 frame in place against 1.9 ms with
+#: the copy, for the no-op filter of ``benchmarks/stream_speed.py``).
+FRAME_ALIGNMENT = 64
 
 
 #: Smallest detection capacity of a chunk with ``fit_capacity`` (a power of two).
@@ -116,6 +130,7 @@ def run(
     chunk_frames: int | None = None,
     fit_capacity: bool = False,
     frame_output: FrameOutput | None = None,
+    frames: FrameSource | None = None,
 ) -> tuple[Any, Any]:
     """Runs a filter over a sequence with ``lax.scan``: the one scan driver.
 
@@ -143,11 +158,23 @@ def run(
     Per-frame outputs whose shapes follow the capacity (e.g. the PHD tracker's estimates and
     tracks) are padded with zeros (``False`` in masks) to the largest chunk's.
 
+    A filter that looks at the images takes :class:`~jaxtrack.types.FrameInputs` per frame
+    (DESIGN.md, "Frames under jit"). Unchunked, ``inputs`` are then ``FrameInputs`` stacked
+    over frames (the images in memory: short clips, tests). Chunked, ``inputs`` stay the
+    detections and ``frames`` (a :data:`FrameSource`) gives each chunk's images just before
+    the chunk is called; the frames padding a short chunk are zeros (and skipped). The loop
+    hands a chunk to JAX (asynchronous dispatch) and asks for the next chunk's frames
+    before it waits for the previous chunk's outputs, so a source that decodes ahead in a
+    background thread (:class:`~jaxtrack.io.frame_stream.FrameStream`) decodes while the
+    filter runs, and no more than a few chunks of images need exist at once. The compile
+    is per frame size too.
+
     Args:
         filt: the filter (e.g. :func:`~jaxtrack.filters.phd.phd_filter`).
         key: PRNG key.
         params: the filter's parameter PyTree.
-        inputs: padded detections ``[num_frames, max_detections]``.
+        inputs: padded detections ``[num_frames, max_detections]``, or (unchunked)
+            :class:`~jaxtrack.types.FrameInputs` stacked over ``num_frames``.
         checkpoint: wrap each frame in ``jax.checkpoint``, so that a backward pass stores
             one carry per frame and recomputes the frame's intermediates.
         chunk_frames: frames per compiled call (> 0), or None for one scan.
@@ -155,20 +182,29 @@ def run(
             frames (see above).
         frame_output: what to stack per frame instead of the infos (e.g. a per-frame loss
             of the posterior state, which then need not be stored for every frame).
+        frames: with ``chunk_frames``, the images of the frames (see above); the filter
+            then gets ``FrameInputs(detections_t, frame_t)``.
 
     Returns:
         The final state and the per-frame outputs stacked over ``num_frames`` (NumPy arrays
         when chunked).
 
     Raises:
-        ValueError: ``chunk_frames`` not positive, or ``fit_capacity`` without it.
+        ValueError: ``chunk_frames`` not positive; ``fit_capacity`` or ``frames`` without
+            it; chunked ``inputs`` that are not :class:`~jaxtrack.types.Detections`.
+        InputError: ``frames`` returned images of the wrong count, dtype or shape, or of
+            another size than the first chunk's.
     """
     if chunk_frames is not None and chunk_frames <= 0:
         raise ValueError(f"chunk_frames must be positive, got {chunk_frames}")
     if fit_capacity and chunk_frames is None:
         raise ValueError("fit_capacity needs chunk_frames (a host loop over chunks)")
+    if frames is not None and chunk_frames is None:
+        raise ValueError("frames need chunk_frames (a host loop over chunks)")
+    if chunk_frames is not None and not isinstance(inputs, Detections):
+        raise ValueError("a chunked run takes Detections; give its images as frames=")
     key_init, key_frames = jax.random.split(key)
-    num_frames = int(np.shape(inputs.mask)[0])
+    num_frames = int(np.shape(jax.tree.leaves(inputs)[0])[0])
     frame_keys = jax.random.split(key_frames, num_frames)
     if chunk_frames is not None:
         return _run_chunks(
@@ -177,6 +213,7 @@ def run(
             frame_keys,
             params,
             inputs,
+            frames,
             chunk_frames,
             fit_capacity,
             checkpoint,
@@ -235,8 +272,12 @@ def _chunk_scan(
     return scan
 
 
-def _run_chunks(filt, key_init, frame_keys, params, inputs, chunk_frames, fit, *options):
-    """:func:`run` with ``chunk_frames``: a host loop over the cached, jitted chunk scan."""
+def _run_chunks(filt, key_init, frame_keys, params, inputs, frames, chunk_frames, fit, *options):
+    """:func:`run` with ``chunk_frames``: a host loop over the cached, jitted chunk scan.
+
+    Chunk ``k``'s outputs are brought to the host after chunk ``k + 1`` is dispatched, so
+    that chunk ``k + 1``'s inputs (its frames) are prepared while chunk ``k`` runs, and
+    chunk ``k`` has finished when chunk ``k + 2``'s frames are asked for (:data:`FrameSource`)."""
     inputs = jax.tree.map(np.asarray, inputs)
     num_frames, slots = inputs.mask.shape
     if fit:
@@ -251,25 +292,73 @@ def _run_chunks(filt, key_init, frame_keys, params, inputs, chunk_frames, fit, *
         raise ValueError("a chunked run needs at least one frame")
     init, scan_chunk, quick_scan_chunk = _chunk_functions(filt, *options)
     state = init(key_init, params)
-    outputs = []
+    outputs, running, frame_size = [], None, None
     for chunk in chunks:
-        frames = np.arange(chunk.start, chunk.start + chunk_frames)
-        window = np.minimum(frames, max(num_frames - 1, 0))
+        indices = np.arange(chunk.start, chunk.start + chunk_frames)
+        window = np.minimum(indices, max(num_frames - 1, 0))
         chunk_inputs = _fit_slots(jax.tree.map(lambda x, w=window: x[w], inputs), chunk.capacity)
-        valid = frames < chunk.stop
+        valid = indices < chunk.stop
         chunk_inputs.mask[~valid] = False
+        if frames is not None:
+            images, frame_size = _chunk_frames(frames, chunk, chunk_frames, frame_size)
+            chunk_inputs = FrameInputs(chunk_inputs, images)
         quick = chunk.crowded and (chunk.stop - chunk.start) * chunk.capacity <= QUICK_COMPILE_WORK
         state, output = (quick_scan_chunk if quick else scan_chunk)(
             state,
             params,
             frame_keys[window],
             chunk_inputs,
-            frames,
+            indices,
             valid,
         )
-        used = chunk.stop - chunk.start
-        outputs.append(jax.tree.map(lambda x, n=used: np.asarray(x)[:n], output))
+        if running is not None:
+            outputs.append(_host_outputs(*running))
+        running = (state, output, chunk.stop - chunk.start)
+    outputs.append(_host_outputs(*running))
     return state, _concatenate(outputs)
+
+
+def _host_outputs(state: Any, output: Any, used: int) -> Any:
+    """A chunk's outputs on the host, its ``used`` real frames only, once the chunk has
+    finished (its final ``state`` is ready)."""
+    jax.block_until_ready(state)
+    return jax.tree.map(lambda x: np.asarray(x)[:used], output)
+
+
+def _chunk_frames(
+    frames: FrameSource, chunk: Chunk, chunk_frames: int, size: tuple[int, int] | None
+) -> tuple[np.ndarray, tuple[int, int]]:
+    """A chunk's images from ``frames``, padded with zero frames to ``chunk_frames``, and
+    their ``(height, width)``: the first chunk's, which every chunk must keep.
+
+    Raises:
+        InputError: images of the wrong count, dtype or shape.
+    """
+    used = chunk.stop - chunk.start
+    images = np.asarray(frames(chunk.start, chunk.stop))
+    first = size is None
+    size = tuple(images.shape[1:3]) if first else size
+    if images.dtype != np.uint8 or images.shape != (used, *size, 3):
+        raise InputError(
+            f"frames({chunk.start}, {chunk.stop}) gave {images.dtype} images of shape "
+            f"{images.shape}; expected uint8 [{used}, height, width, 3]"
+            + ("" if first else f" with the first chunk's height and width {size}")
+        )
+    if used < chunk_frames:
+        padded = aligned_frames(chunk_frames, *size)
+        padded[:used] = images
+        padded[used:] = 0
+        images = padded
+    return images, size
+
+
+def aligned_frames(count: int, height: int, width: int) -> np.ndarray:
+    """An uninitialised ``uint8`` array ``[count, height, width, 3]`` whose data starts on an
+    :data:`FRAME_ALIGNMENT`-byte boundary, so that a chunked run reads it in place."""
+    size = count * height * width * 3
+    raw = np.empty(size + FRAME_ALIGNMENT, np.uint8)
+    offset = -raw.ctypes.data % FRAME_ALIGNMENT
+    return raw[offset : offset + size].reshape(count, height, width, 3)
 
 
 def _compact(inputs: Detections) -> Detections:

@@ -4,7 +4,10 @@ A tracker is a :class:`TrackerEntry`: its frozen configuration type
 (:class:`~jaxtrack.configs.TrackerConfig`), one function from (configuration, sequence info,
 optional context, variant) to ``(Filter, params)``, and the parameter-properties tree of its
 params (:mod:`jaxtrack.parameters`). Builders return the same filter object for the same
-static setting, so compiled functions (cached per filter) are shared by every caller.
+static setting, so compiled functions (cached per filter) are shared by every caller. A
+tracker that looks at the images (``uses_frames``) steps on
+:class:`~jaxtrack.types.FrameInputs` and is run with the frames streamed
+(:mod:`jaxtrack.pipelines.stream`); the others step on :class:`~jaxtrack.types.Detections`.
 """
 
 from __future__ import annotations
@@ -43,7 +46,10 @@ class TrackerEntry(NamedTuple):
         properties: ``params -> properties tree``.
         takes_context: whether it uses a learned context (``--context``).
         memory: ``(config, capacity, chunk_frames) -> MemoryEstimate``, the memory of a run
-            with ``capacity`` detection slots per frame, from the sizes (no compile).
+            with ``capacity`` detection slots per frame, from the sizes (no compile; a
+            tracker that uses frames leaves out the chunk's images, which the stream adds).
+        uses_frames: whether its filter steps on :class:`~jaxtrack.types.FrameInputs`
+            (detections and the frame) rather than on detections alone.
     """
 
     config_type: type[TrackerConfig]
@@ -52,6 +58,7 @@ class TrackerEntry(NamedTuple):
     properties: Callable[[Any], Any]
     takes_context: bool
     memory: Callable[[Any, int, int], MemoryEstimate]
+    uses_frames: bool = False
 
 
 #: The trackers, by name.

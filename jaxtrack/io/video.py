@@ -21,6 +21,7 @@ import numpy as np
 
 from jaxtrack.errors import FileFormatError, InputError, InputWarning
 from jaxtrack.limits import FRAME_COUNT, FRAME_RATE, IMAGE_SIZE, MAX_FRAMES
+from jaxtrack.types import SequenceInfo
 
 #: File extensions (lower case) of the images an image folder may hold.
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
@@ -63,6 +64,7 @@ class VideoReader:
         if fps is not None:
             fps = FRAME_RATE.check("fps", fps)
         self._capture: cv2.VideoCapture | None = None
+        self._bgr: np.ndarray | None = None  # the video's decode buffer, reused frame to frame
         self._images: list[Path] = []
         self._next_index = 0
         if self.path.is_dir():
@@ -72,7 +74,7 @@ class VideoReader:
                     self.path, None, f"image folder holds no {'/'.join(IMAGE_EXTENSIONS)} files"
                 )
             self.num_frames = len(self._images)
-            self.height, self.width = self._read_image(0).shape[:2]
+            self.height, self.width = _decode_image(self._images[0]).shape[:2]
             self.fps = fps
             self._check_size()
         elif self.path.is_file():
@@ -129,19 +131,23 @@ class VideoReader:
             )
             return None
 
-    def read(self, frame: int) -> np.ndarray:
+    def read(self, frame: int, out: np.ndarray | None = None) -> np.ndarray:
         """Returns one frame.
 
         Args:
             frame: 1-based frame number.
+            out: an RGB ``uint8`` ``[height, width, 3]`` array to decode the frame into
+                (a video file is then read without allocating: a stream reading many frames
+                reuses its arrays), or None for a new array.
 
         Returns:
-            The frame, RGB ``uint8``, ``[height, width, 3]``.
+            The frame, RGB ``uint8``, ``[height, width, 3]`` (``out`` when given).
 
         Raises:
             FileFormatError: ``frame`` outside ``1..num_frames``, the reader is closed, the
                 frame does not decode, or (folder) its image has another size than frame 1.
-            InputError: ``frame`` is not an integer.
+            InputError: ``frame`` is not an integer, or ``out`` not a C-contiguous ``uint8``
+                array of the frame's shape.
         """
         if isinstance(frame, bool) or not isinstance(frame, numbers.Integral):
             raise InputError(f"frame must be an integer, got {frame!r}")
@@ -150,19 +156,20 @@ class VideoReader:
             raise FileFormatError(
                 self.path, None, f"frame {frame} outside 1..{self.num_frames} (frames it holds)"
             )
+        if out is not None and (
+            out.dtype != np.uint8
+            or out.shape != (self.height, self.width, 3)
+            or not out.flags.c_contiguous
+        ):
+            raise InputError(
+                f"out must be a C-contiguous uint8 array of shape {(self.height, self.width, 3)}"
+                f", got {out.dtype} {out.shape}"
+            )
         if self._images:
-            image = self._read_image(frame - 1)
-            if image.shape[:2] != (self.height, self.width):
-                raise FileFormatError(
-                    self._images[frame - 1],
-                    None,
-                    f"image is {image.shape[1]}x{image.shape[0]} but frame 1 is "
-                    f"{self.width}x{self.height}",
-                )
-            return image
-        return self._read_video(frame - 1)
+            return self._read_image(frame - 1, out)
+        return self._read_video(frame - 1, out)
 
-    def _read_video(self, index: int) -> np.ndarray:
+    def _read_video(self, index: int, out: np.ndarray | None) -> np.ndarray:
         if self._capture is None:
             raise FileFormatError(self.path, None, "video reader is closed")
         capture = self._capture
@@ -173,25 +180,27 @@ class VideoReader:
             if not capture.grab():
                 break
             self._next_index += 1
-        ok, image = capture.read() if self._next_index == index else (False, None)
-        if not ok or image is None:
+        ok, image = capture.read(self._bgr) if self._next_index == index else (False, None)
+        if not ok or image is None or image.shape[:2] != (self.height, self.width):
             self._next_index = -MAX_DECODE_AHEAD - 1
             raise FileFormatError(
                 self.path, None, f"frame {index + 1} of {self.num_frames} does not decode"
             )
+        self._bgr = image
         self._next_index = index + 1
-        return _to_rgb(image)
+        return _to_rgb(image, out)
 
-    def _read_image(self, index: int) -> np.ndarray:
+    def _read_image(self, index: int, out: np.ndarray | None) -> np.ndarray:
         path = self._images[index]
-        try:
-            data = np.fromfile(path, dtype=np.uint8)
-        except OSError as err:
-            raise FileFormatError(path, None, f"cannot read image: {err.strerror}") from None
-        image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-        if image is None:
-            raise FileFormatError(path, None, "not an image OpenCV can decode")
-        return _to_rgb(image)
+        image = _decode_image(path)
+        if image.shape[:2] != (self.height, self.width):
+            raise FileFormatError(
+                path,
+                None,
+                f"image is {image.shape[1]}x{image.shape[0]} but frame 1 is "
+                f"{self.width}x{self.height}",
+            )
+        return _to_rgb(image, out)
 
     def close(self) -> None:
         """Releases the video file; reading afterwards raises FileFormatError."""
@@ -226,9 +235,28 @@ def _split(path: Path) -> list[str]:
     return [part for part in re.split(r"(\d+)", path.name) if part]
 
 
-def _to_rgb(image: np.ndarray) -> np.ndarray:
-    """OpenCV's BGR ``uint8`` image as RGB."""
-    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+def _decode_image(path: Path) -> np.ndarray:
+    """An image file as OpenCV's BGR ``uint8`` array.
+
+    Raises:
+        FileFormatError: the file cannot be read or is no image OpenCV decodes.
+    """
+    try:
+        data = np.fromfile(path, dtype=np.uint8)
+    except OSError as err:
+        raise FileFormatError(path, None, f"cannot read image: {err.strerror}") from None
+    image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    if image is None:
+        raise FileFormatError(path, None, "not an image OpenCV can decode")
+    return image
+
+
+def _to_rgb(image: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """OpenCV's BGR ``uint8`` image as RGB (written into ``out`` when given)."""
+    if out is None:
+        return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+    cv2.cvtColor(image, cv2.COLOR_BGR2RGB, dst=out)
+    return out
 
 
 #: Video files a sequence folder may hold as ``<name><extension>``.
@@ -250,6 +278,47 @@ def find_frame_source(
         if candidate.is_file():
             return candidate
     return None
+
+
+def open_sequence_frames(
+    sequence_dir: str | Path, info: SequenceInfo, video: str | Path | None = None
+) -> VideoReader:
+    """Opens the frames of a MOTChallenge sequence (:func:`find_frame_source`) and checks
+    them against its ``seqinfo.ini``: as many frames as ``seqLength``, of ``imWidth`` x
+    ``imHeight`` pixels (frame ``k`` of the reader is then MOT frame ``k``).
+
+    Args:
+        sequence_dir: the sequence folder.
+        info: its sequence information.
+        video: a video file or image folder to use instead of the folder's own frames.
+
+    Returns:
+        The open reader (the caller closes it).
+
+    Raises:
+        InputError: no frames found (naming the paths looked for).
+        FileFormatError: frames that do not open, or whose count or size differ from
+            ``seqinfo.ini``'s.
+    """
+    source = find_frame_source(sequence_dir, info.name, video)
+    if source is None:
+        folder = Path(sequence_dir)
+        looked = ", ".join(str(folder / f"{info.name}{ext}") for ext in VIDEO_EXTENSIONS)
+        raise InputError(
+            f"no frames for {folder}: looked for {folder / 'img1'}/ and {looked}; "
+            "give a video file or image folder (--video)"
+        )
+    reader = VideoReader(source, fps=info.frame_rate)
+    found = (reader.num_frames, reader.width, reader.height)
+    if found != (info.seq_length, info.im_width, info.im_height):
+        reader.close()
+        raise FileFormatError(
+            source,
+            None,
+            f"holds {found[0]} frames of {found[1]}x{found[2]} but {info.name}'s seqinfo.ini "
+            f"says {info.seq_length} frames of {info.im_width}x{info.im_height}",
+        )
+    return reader
 
 
 #: Codec of written ``.mp4`` / ``.avi`` files (MPEG-4 part 2, in every OpenCV build).

@@ -29,12 +29,13 @@ from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
-from jaxtrack.errors import InputWarning
+from jaxtrack.errors import InputError, InputWarning
 from jaxtrack.filters.base import Filter, fit_detections, plan_chunks, run
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
 from jaxtrack.filters.phd_tracker import Context
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence
+from jaxtrack.io.frame_stream import stream_bytes
 from jaxtrack.resources import check_memory
 from jaxtrack.types import Detections, MotTable, Tracks
 
@@ -71,10 +72,16 @@ def track_sequences(
         run is legal but its empty result is most likely not what was meant.
 
     Raises:
-        InputError: a configuration of no registered tracker.
+        InputError: a configuration of no registered tracker, or of one that uses frames
+            (:func:`jaxtrack.pipelines.stream.track_streamed` runs those).
         ResourceError: a sequence's run would need more memory than the machine has
             (:func:`check_tracking_memory`), before anything runs.
     """
+    if tracker_entry(config.tracker).uses_frames:
+        raise InputError(
+            f"the {config.tracker} tracker uses frames: run it with "
+            "jaxtrack.pipelines.stream.track_streamed"
+        )
     check_tracking_memory(sequences, config, chunk_frames)
     # The filter is the same for every sequence; default params are built only when needed.
     built = [
@@ -99,18 +106,24 @@ def track_sequences(
             frame_output=track_outputs,
         )
         rows = output_rows(info, config, seq.first_frame)
-        if len(rows) == 0 and len(seq.det_table) > 0:
-            warnings.warn(
-                InputWarning(
-                    f"{seq.info.name}: {len(seq.det_table)} detections in frames "
-                    f"{seq.first_frame}..{seq.last_frame} gave no tracks (the {config.tracker} "
-                    "tracker confirmed none: check the boxes against the image size and "
-                    "frame rate, or the configuration)"
-                ),
-                stacklevel=2,
-            )
+        warn_if_no_tracks(seq, rows, config)
         results.append(rows)
     return results
+
+
+def warn_if_no_tracks(seq: MotSequence, rows: MotTable, config: TrackerConfig) -> None:
+    """Warns (:class:`~jaxtrack.errors.InputWarning`) when a sequence with detections gave no
+    result rows: the run is legal but its empty result is most likely not what was meant."""
+    if len(rows) == 0 and len(seq.det_table) > 0:
+        warnings.warn(
+            InputWarning(
+                f"{seq.info.name}: {len(seq.det_table)} detections in frames "
+                f"{seq.first_frame}..{seq.last_frame} gave no tracks (the {config.tracker} "
+                "tracker confirmed none: check the boxes against the image size and "
+                "frame rate, or the configuration)"
+            ),
+            stacklevel=3,
+        )
 
 
 def check_tracking_memory(
@@ -120,18 +133,25 @@ def check_tracking_memory(
 
     For each sequence, the tracker's estimate (the registry's ``memory``, no compile) at the
     largest chunk capacity :func:`~jaxtrack.filters.base.plan_chunks` gives it, over its
-    frames, is compared with :func:`~jaxtrack.resources.available_memory_bytes`.
+    frames, plus, for a tracker that uses frames, the images its stream holds
+    (:func:`~jaxtrack.io.frame_stream.stream_bytes` at the ``seqinfo.ini`` size), is compared
+    with :func:`~jaxtrack.resources.available_memory_bytes`.
 
     Raises:
         ResourceError: naming the sequence, the bytes needed and available, and the options
             that lower them.
     """
-    memory = tracker_entry(config.tracker).memory
+    entry = tracker_entry(config.tracker)
     for seq in sequences:
         counts = np.asarray(seq.detections.mask).sum(axis=1)
         capacity = max(chunk.capacity for chunk in plan_chunks(counts, chunk_frames))
+        images = (
+            stream_bytes(seq.info.im_height, seq.info.im_width, chunk_frames)
+            if entry.uses_frames
+            else 0
+        )
         check_memory(
-            memory(config, capacity, chunk_frames).run_bytes(seq.num_frames),
+            entry.memory(config, capacity, chunk_frames).run_bytes(seq.num_frames) + images,
             f"tracking {seq.info.name} ({seq.num_frames} frames, up to {capacity} detection "
             f"slots) with the {config.tracker} tracker",
             "--config num_particles or births_per_detection, or a shorter --frames span",

@@ -1,0 +1,95 @@
+"""Running a tracker that looks at the images: its frames streamed through the chunked runner.
+
+A tracker whose registry entry ``uses_frames`` steps on
+:class:`~jaxtrack.types.FrameInputs` (the padded detections and the frame, ``uint8 H x W x
+3``). :func:`track_streamed` runs it like :func:`~jaxtrack.pipelines.tracking.track_sequences`
+runs the others (the same key, per-chunk detection capacities, per-frame outputs and result
+rows), with :func:`~jaxtrack.filters.base.run`'s ``frames`` read from a
+:class:`~jaxtrack.io.frame_stream.FrameStream`: the next chunk is decoded in a background
+thread while the current one runs, and a run holds about
+:func:`~jaxtrack.io.frame_stream.stream_bytes` of images whatever the video's length. One
+compile per frame size, chunk length and detection capacity.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+
+from jaxtrack.configs import TrackerConfig
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import run
+from jaxtrack.filters.registry import build_tracker, tracker_entry
+from jaxtrack.io import MotSequence
+from jaxtrack.io.frame_stream import FrameStream
+from jaxtrack.io.video import VideoReader
+from jaxtrack.pipelines.tracking import (
+    check_tracking_memory,
+    output_rows,
+    track_outputs,
+    warn_if_no_tracks,
+)
+from jaxtrack.types import MotTable
+
+#: Frames per compiled call of a streamed run: 32 frames of 768x576 are 42 MB of images, and
+#: a run holds at most four chunks of them (``stream_bytes``). Chunks of 16, 32 and 128
+#: frames streamed vtest.avi equally fast (870-910 frames/s), 128 with 0.5 GB more memory
+#: (``benchmarks/stream_speed.py``).
+STREAM_CHUNK_FRAMES = 32
+
+
+def track_streamed(
+    seq: MotSequence,
+    video: VideoReader,
+    config: TrackerConfig,
+    seed: int = 0,
+    params: Any = None,
+    chunk_frames: int = STREAM_CHUNK_FRAMES,
+) -> MotTable:
+    """Tracks a sequence (or span) with a tracker that uses frames, its frames streamed.
+
+    Args:
+        seq: the loaded sequence; its ``seqinfo.ini`` size is the frames' size.
+        video: its open frames, frame ``k`` being MOT frame ``k`` (e.g.
+            :func:`~jaxtrack.io.video.open_sequence_frames`); read from ``seq.first_frame``
+            to ``seq.last_frame`` and left open.
+        config: the tracker's configuration (its registry entry must use frames).
+        seed: PRNG seed (key ``PRNGKey(seed)``, as
+            :func:`~jaxtrack.pipelines.tracking.track_sequences` uses).
+        params: the tracker's parameters (default: the registry's for the sequence).
+        chunk_frames: frames per compiled call, and frames decoded ahead.
+
+    Returns:
+        The result rows (the configuration's ``output``); a sequence with detections but no
+        rows warns (:func:`~jaxtrack.pipelines.tracking.warn_if_no_tracks`).
+
+    Raises:
+        InputError: a tracker that does not use frames, or frames of another size than
+            ``seq.info`` says.
+        ResourceError: the run would need more memory than the machine has, before it runs.
+        FileFormatError: a frame that does not decode.
+    """
+    if not tracker_entry(config.tracker).uses_frames:
+        raise InputError(f"the {config.tracker} tracker reads no frames; use track_sequences")
+    if (video.width, video.height) != (seq.info.im_width, seq.info.im_height):
+        raise InputError(
+            f"{video.path}: frames are {video.width}x{video.height} but {seq.info.name} is "
+            f"{seq.info.im_width}x{seq.info.im_height}"
+        )
+    check_tracking_memory([seq], config, chunk_frames)
+    filt, default_params = build_tracker(config, seq.info)
+    with FrameStream(video, seq.first_frame, seq.last_frame, chunk_frames) as frames:
+        _, info = run(
+            filt,
+            jax.random.PRNGKey(seed),
+            default_params if params is None else params,
+            seq.detections,
+            chunk_frames=chunk_frames,
+            fit_capacity=True,
+            frame_output=track_outputs,
+            frames=frames,
+        )
+    rows = output_rows(info, config, seq.first_frame)
+    warn_if_no_tracks(seq, rows, config)
+    return rows
