@@ -3,7 +3,7 @@
 Pure JAX (core layer): every per-box function runs under ``jit`` and ``lax.scan`` and
 ``vmap``s over boxes (particles, targets). Frames enter as uint8 ``H x W x 3`` RGB.
 
-* :mod:`~jaxtrack.appearance.patches`: fixed-size bilinear sampling of a box;
+* :mod:`~jaxtrack.appearance.patches`: fixed-size sampling of a box (bilinear, nearest);
 * :mod:`~jaxtrack.appearance.colour`: RGB, normalised rg, HSV, Collins' 49 combinations;
 * :mod:`~jaxtrack.appearance.histograms`: quantisation, joint bins, band counts, kernel;
 * :mod:`~jaxtrack.appearance.regions`: top/bottom halves, Fusion's split, shape feature;
@@ -22,12 +22,14 @@ from jaxtrack.appearance.colour import (
     rgb,
 )
 from jaxtrack.appearance.features import (
+    frame_bins,
     linear_combination_histograms,
     profile_histograms,
     top_bottom_histograms,
 )
 from jaxtrack.appearance.histograms import (
     band_counts,
+    band_histograms,
     epanechnikov,
     joint_bins,
     marginals,
@@ -45,7 +47,7 @@ from jaxtrack.appearance.mutual_information import (
     mutual_information,
     quantise_values,
 )
-from jaxtrack.appearance.patches import Patch, sample_patch, sample_points
+from jaxtrack.appearance.patches import Patch, sample_nearest, sample_patch, sample_points
 from jaxtrack.appearance.regions import Split, aspect_ratio, best_split, halves
 from jaxtrack.appearance.similarity import (
     bhattacharyya_coefficient,
@@ -68,6 +70,7 @@ __all__ = [
     "Split",
     "aspect_ratio",
     "band_counts",
+    "band_histograms",
     "best_split",
     "bhattacharyya_coefficient",
     "bhattacharyya_distance",
@@ -76,6 +79,7 @@ __all__ = [
     "feature_values",
     "feature_weights",
     "field_of_context",
+    "frame_bins",
     "halves",
     "histogram_likelihood",
     "hsv",
@@ -95,6 +99,7 @@ __all__ = [
     "quantise",
     "quantise_values",
     "rgb",
+    "sample_nearest",
     "sample_patch",
     "sample_points",
     "select_features",

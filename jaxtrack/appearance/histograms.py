@@ -82,6 +82,25 @@ def band_counts(
     return counts.reshape(num_bands, channels, num_bins)
 
 
+def band_histograms(
+    bins: Int[Array, "ph pw num_channels"],
+    weights: Float[Array, "ph pw"],
+    row_bands: Int[Array, " ph"],
+    num_bands: int,
+    num_bins: int,
+) -> Float[Array, "num_bands num_channels num_bins"]:
+    """Normalised histograms of each channel in each band: :func:`band_counts` / band weight.
+
+    The weights are divided by their band's total before counting (``ph * pw`` divisions
+    instead of a pass over every bin); a band with no weight has an all-zero histogram.
+    Arguments as :func:`band_counts`.
+    """
+    totals = jnp.zeros(num_bands, weights.dtype).at[row_bands].add(jnp.sum(weights, axis=1))
+    per_row = totals[row_bands]
+    scaled = weights / jnp.where(per_row > 0, per_row, 1.0)[:, None]
+    return band_counts(bins, scaled, row_bands, num_bands, num_bins)
+
+
 def normalise(counts: Float[Array, "*shape num_bins"]) -> Float[Array, "*shape num_bins"]:
     """``h(b) = counts(b) / sum counts``; all zeros where there is no count (nothing seen)."""
     total = jnp.sum(counts, axis=-1, keepdims=True)

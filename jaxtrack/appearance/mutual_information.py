@@ -14,9 +14,9 @@ its field of context (itself and every target closer than ``d_thr``, Sec. V-A), 
 * ``rho_k = I(F_k, Y) / sum_j I(F_j, Y)`` (eq. 14), one weight vector per target.
 
 Mutual information is in nats (the base cancels in ``rho``). A target alone in its field of
-context (or with no samples) has ``I = 0`` for every feature; its weights are then uniform,
-``1 / num_features``. The paper's threshold that drops low-scoring features is left to the
-tracker.
+context (or whose classes have no samples) has ``I = 0`` for every feature; its weights are
+then uniform, ``1 / num_features``. The paper's threshold that drops low-scoring features is
+left to the tracker.
 """
 
 from __future__ import annotations
@@ -26,6 +26,10 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.errors import InputError
+
+#: Total information (nats) below which a target's weights are uniform: float32 rounding
+#: leaves about 1e-8 per feature where the exact value is 0 (e.g. a target alone).
+MIN_INFORMATION = 1e-6
 
 
 def feature_values(
@@ -130,6 +134,9 @@ def feature_weights(
 ) -> Float[Array, "max_targets num_features"]:
     """``rho_k`` of every target (CMT eq. 14), uniform where every ``I`` is 0.
 
+    "Every ``I`` is 0" means: fewer than two targets in the field of context, or a total
+    below ``MIN_INFORMATION`` (rounding noise).
+
     Args:
         counts: decayed histograms ``G`` (:func:`decay_update`).
         context: fields of context (:func:`field_of_context`).
@@ -145,7 +152,8 @@ def feature_weights(
         )(per_feature)
         information = jnp.maximum(information, 0.0)  # rounding can leave -1e-9 for I = 0
         total = jnp.sum(information)
+        informative = (jnp.sum(classes) > 1) & (total > MIN_INFORMATION)
         uniform = jnp.full_like(information, 1.0 / information.shape[0])
-        return jnp.where(total > 0, information / jnp.where(total > 0, total, 1.0), uniform)
+        return jnp.where(informative, information / jnp.where(informative, total, 1.0), uniform)
 
     return jax.vmap(weights)(context)

@@ -1,25 +1,32 @@
-"""Fixed-size bilinear patch sampling of a box, so that every box costs the same under jit.
+"""Fixed-size patch sampling of a box, so that every box costs the same under jit.
 
 A box ``(x, y, w, h)`` (MOTChallenge: top-left corner, width, height, pixels) is divided into
 ``ph x pw`` equal cells; one sample is taken at the centre of each cell,
 
     s_x(j) = x + (j + 1/2) w / pw,    s_y(i) = y + (i + 1/2) h / ph,
 
-and its colour is bilinear in the four nearest pixel centres (frame pixel ``(r, c)`` covers
-``[c, c + 1) x [r, r + 1)``, centre ``(c + 1/2, r + 1/2)``). The cost is ``ph * pw`` samples
-whatever the box size, so boxes and particles ``vmap`` with one compiled shape.
+frame pixel ``(r, c)`` covering ``[c, c + 1) x [r, r + 1)``, centre ``(c + 1/2, r + 1/2)``.
+The cost is ``ph * pw`` samples whatever the box size, so boxes and particles ``vmap`` with
+one compiled shape. Two lookups:
+
+* :func:`sample_patch`: the colour bilinear in the four nearest pixel centres (for features
+  computed from colours per sample: HSV, Collins' combinations);
+* :func:`sample_nearest`: the value of the pixel that contains the sample point, from any
+  per-pixel image; on an image of colour bins quantised once per frame
+  (:func:`jaxtrack.appearance.features.frame_bins`) it is the fast path for many particles:
+  one gather per sample, no interpolation, and the samples' colours are ones the image holds
+  (``benchmarks/appearance_features.py``: faster than bilinear at equal distance to
+  full-resolution histograms).
 
 Boxes partly outside the image: a sample point outside ``[0, W) x [0, H)`` gets validity 0
-(its colour is that of the nearest border pixel and must be ignored); histograms weight every
+(its value is that of the nearest border pixel and must be ignored); histograms weight every
 sample by its validity (:func:`jaxtrack.appearance.histograms.band_counts`), so a box that
 straddles the border is described by its samples inside the image, and a box wholly outside
-(or with a non-finite coordinate) by none: its histograms are all zero. Inside the image,
-samples within half a pixel of the border interpolate with the border pixel replicated.
+(or with a non-finite coordinate) by none: its histograms are all zero.
 
 The sample density follows the box: a box smaller than the patch is oversampled, a larger one
-subsampled (each sample reads a 2 x 2 neighbourhood, no pre-filtering). The benchmark
-``benchmarks/appearance_features.py`` measures the effect of the patch size on histograms
-against full-resolution ones.
+subsampled (no pre-filtering). The benchmark measures the effect of the patch size on
+histograms against full-resolution ones.
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
-from jaxtyping import Array, Float, UInt8
+from jaxtyping import Array, Float, Shaped, UInt8
 
 from jaxtrack.errors import InputError
 
@@ -36,11 +43,12 @@ class Patch(NamedTuple):
     """A box sampled on a fixed grid.
 
     Attributes:
-        pixels: RGB colour of each sample, float32 in ``[0, 255]``.
+        values: the value of each sample: an RGB colour (float32 in ``[0, 255]``) from
+            :func:`sample_patch`, the image's value from :func:`sample_nearest`.
         valid: 1.0 where the sample point lies inside the image, else 0.0.
     """
 
-    pixels: Float[Array, "ph pw 3"]
+    values: Array
     valid: Float[Array, "ph pw"]
 
 
@@ -90,10 +98,10 @@ def sample_patch(
         InputError: the frame is not uint8 ``H x W x 3`` with ``H, W >= 2``, or the patch
             shape is not two positive integers.
     """
-    _check_input(frame.shape, frame.dtype, patch_shape)
+    check_frame(frame)
+    _check_patch(patch_shape)
     height, width = frame.shape[0], frame.shape[1]
     ys, xs = sample_points(box, patch_shape)
-    valid = ((ys >= 0) & (ys < height))[:, None] & ((xs >= 0) & (xs < width))[None, :]
     u = jnp.clip(xs - 0.5, 0.0, width - 1.0)
     v = jnp.clip(ys - 0.5, 0.0, height - 1.0)
     u0 = jnp.minimum(jnp.floor(u), width - 2.0)
@@ -108,13 +116,48 @@ def sample_patch(
 
     top = (1.0 - a) * at(0) + a * at(1)
     bottom = (1.0 - a) * at(width) + a * at(width + 1)
-    return Patch((1.0 - b) * top + b * bottom, valid.astype(jnp.float32))
+    return Patch((1.0 - b) * top + b * bottom, _inside(ys, xs, height, width))
 
 
-def _check_input(frame_shape: tuple[int, ...], frame_dtype, patch_shape: tuple[int, int]) -> None:
-    if len(frame_shape) != 3 or frame_shape[2] != 3 or min(frame_shape[:2]) < 2:
-        raise InputError(f"a frame must be H x W x 3 with H, W >= 2, got shape {frame_shape}")
-    if frame_dtype != jnp.uint8:
-        raise InputError(f"a frame must be uint8 RGB, got dtype {frame_dtype}")
+def sample_nearest(
+    image: Shaped[Array, "height width *channels"],
+    box: Float[Array, " 4"],
+    patch_shape: tuple[int, int],
+) -> Patch:
+    """The value of the pixel ``(floor(s_y), floor(s_x))`` at each cell centre of ``box``.
+
+    Row and column are clamped to the image (the validity marks the samples outside).
+
+    Args:
+        image: any per-pixel array, e.g. a frame or its colour bins, at least 1 x 1.
+        box: ``(x, y, w, h)``, pixels.
+        patch_shape: ``(ph, pw)``, static.
+
+    Returns:
+        The samples' values (``[ph, pw, *channels]``, the image's dtype) and validity.
+    """
+    _check_patch(patch_shape)
+    height, width = image.shape[0], image.shape[1]
+    ys, xs = sample_points(box, patch_shape)
+    rows = jnp.clip(jnp.floor(ys), 0, height - 1).astype(jnp.int32)
+    cols = jnp.clip(jnp.floor(xs), 0, width - 1).astype(jnp.int32)
+    flat = image.reshape(height * width, *image.shape[2:])
+    return Patch(flat[rows[:, None] * width + cols[None, :]], _inside(ys, xs, height, width))
+
+
+def _inside(ys, xs, height, width) -> Float[Array, "ph pw"]:
+    inside = ((ys >= 0) & (ys < height))[:, None] & ((xs >= 0) & (xs < width))[None, :]
+    return inside.astype(jnp.float32)
+
+
+def check_frame(frame) -> None:
+    """Raises InputError unless ``frame`` is a uint8 ``H x W x 3`` array, ``H, W >= 2``."""
+    if frame.ndim != 3 or frame.shape[2] != 3 or min(frame.shape[:2]) < 2:
+        raise InputError(f"a frame must be H x W x 3 with H, W >= 2, got shape {frame.shape}")
+    if frame.dtype != jnp.uint8:
+        raise InputError(f"a frame must be uint8 RGB, got dtype {frame.dtype}")
+
+
+def _check_patch(patch_shape) -> None:
     if len(patch_shape) != 2 or not all(isinstance(n, int) and n > 0 for n in patch_shape):
         raise InputError(f"patch_shape must be two positive integers, got {patch_shape!r}")

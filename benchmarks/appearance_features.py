@@ -1,0 +1,302 @@
+"""Speed and accuracy of the appearance features on PETS09-S2L1 frames (768x576).
+
+Speed: a jitted ``lax.scan`` over ``--frames`` frames (decoded once from vtest.avi, uint8 RGB)
+computes, per frame, the top and bottom joint RGB histograms (8 bins per channel = 512 joint
+bins) of 16 targets x 64 particles = 1024 boxes. The targets are the frame's ground-truth
+boxes (filled up to 16 with pedestrian-sized boxes at seeded random places), the particles
+their boxes jittered (5 px, 5 %). The step's output is one number per box (the histograms
+dotted with a fixed vector), so XLA computes every histogram but the scan does not write them
+out. Times are per frame, after compilation, ``block_until_ready``, median and minimum of
+``--repeats`` runs of the scan, the variants' runs interleaved (so a change in the machine's
+other load affects them alike). Reported:
+
+* ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.frame_bins` once per
+  frame then :func:`jaxtrack.appearance.top_bottom_histograms` (nearest-pixel samples of the
+  bins, scatter-add counting) with the ``DEFAULT_PATCH``;
+* ``alternatives``: other patch sizes; bilinear colour samples per box
+  (:func:`jaxtrack.appearance.sample_patch`, quantised per sample) instead of the bin image;
+  counting by summed one-hot vectors instead of the scatter-add; per-channel histograms
+  (3 x 8 bins, CMT's bucket features) instead of joint; the Epanechnikov kernel per half;
+  and the features followed by the Bhattacharyya likelihood of each particle against its
+  target's model (what a tracker step does next).
+
+Accuracy: on ``--accuracy-frames`` frames, for every ground-truth box wholly inside the image,
+the Bhattacharyya distance between each half's patch histogram and its full-resolution
+histogram (every pixel whose centre lies in the half, NumPy), per patch size and sampler
+(median and 90th percentile); for scale, the median distance between the full-resolution
+histograms of two different people in the same frame.
+
+Prints one JSON object on its last line. Goal: ``features_ms_per_frame <= 2`` on 2 CPU cores.
+Timings on a shared machine vary with the other load on it (``load_average`` is reported).
+Usage: ``python benchmarks/appearance_features.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxtrack.appearance import (
+    band_histograms,
+    bhattacharyya_distance,
+    epanechnikov,
+    frame_bins,
+    halves,
+    histogram_likelihood,
+    joint_bins,
+    normalise,
+    quantise,
+    sample_nearest,
+    sample_patch,
+    top_bottom_histograms,
+)
+from jaxtrack.io import read_mot_file
+from jaxtrack.io.video import VideoReader
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+VIDEO = DATA / "video" / "vtest.avi"
+GROUND_TRUTH = DATA / "mot15" / "PETS09-S2L1" / "gt" / "gt.txt"
+NUM_TARGETS, NUM_PARTICLES = 16, 64
+STEP = 32.0  # 8 bins per channel
+DEFAULT_PATCH = (16, 8)
+PATCHES = ((8, 4), (12, 6), (16, 8), (24, 12), (32, 16))
+
+
+def read_frames(count: int, first: int = 1) -> np.ndarray:
+    """Frames ``first .. first + count - 1`` of vtest.avi, ``[count, 576, 768, 3]`` uint8 RGB."""
+    with VideoReader(VIDEO) as reader:
+        return np.stack([reader.read(first + t) for t in range(count)])
+
+
+def particle_boxes(gt, count: int, rng: np.random.Generator) -> np.ndarray:
+    """``[count, 1024, 4]``: 64 jittered copies of 16 target boxes per frame."""
+    boxes = np.empty((count, NUM_TARGETS * NUM_PARTICLES, 4), np.float32)
+    for t in range(count):
+        targets = gt.boxes[gt.frames == t + 1][:NUM_TARGETS]
+        extra = NUM_TARGETS - len(targets)
+        size = rng.uniform([25, 60], [45, 110], (extra, 2))
+        corner = rng.uniform(0, 1, (extra, 2)) * ([768, 576] - size)
+        targets = np.concatenate([targets, np.concatenate([corner, size], 1)])
+        scale = np.repeat(targets[:, 2:], NUM_PARTICLES, 0)
+        jitter = rng.normal(0, 1, (NUM_TARGETS * NUM_PARTICLES, 4))
+        jitter[:, :2] *= 5.0
+        jitter[:, 2:] *= 0.05 * scale
+        boxes[t] = np.repeat(targets, NUM_PARTICLES, 0) + jitter
+    return boxes
+
+
+def nearest_top_bottom(frame, boxes, patch_shape):
+    """The default: the frame's bins once, then every box's halves from its samples' bins."""
+    bins = frame_bins(frame, STEP)
+    return jax.vmap(top_bottom_histograms, in_axes=(None, 0, None, None))(
+        bins, boxes, patch_shape, 512
+    )
+
+
+def bilinear_top_bottom(frame, boxes, patch_shape):
+    """Bilinear colour samples per box, quantised per sample (the brief's first design)."""
+
+    def one(box):
+        patch = sample_patch(frame, box, patch_shape)
+        bins = joint_bins(quantise(patch.values, STEP), 8)[..., None]
+        return band_histograms(bins, patch.valid, halves(patch_shape[0]), 2, 512)[:, 0]
+
+    return jax.vmap(one)(boxes)
+
+
+def one_hot_top_bottom(frame, boxes, patch_shape):
+    """As the default but counting by summed one-hot vectors over the 512 bins."""
+    bins = frame_bins(frame, STEP)
+
+    def one(box):
+        patch = sample_nearest(bins, box, patch_shape)
+        hot = jax.nn.one_hot(patch.values, 512) * patch.valid[..., None]
+        rows = patch_shape[0] // 2
+        return normalise(jnp.stack([hot[:rows].sum((0, 1)), hot[rows:].sum((0, 1))]))
+
+    return jax.vmap(one)(boxes)
+
+
+def channel_top_bottom(frame, boxes, patch_shape):
+    """Per-channel (3 x 8 bins) top and bottom histograms: CMT's bucket features directly."""
+
+    def one(box):
+        patch = sample_nearest(frame, box, patch_shape)
+        bins = quantise(patch.values.astype(jnp.float32), STEP)
+        counts = band_histograms(bins, patch.valid, halves(patch_shape[0]), 2, 8)
+        return counts.reshape(2, 24)
+
+    return jax.vmap(one)(boxes)
+
+
+def kernel_top_bottom(frame, boxes, patch_shape):
+    """The default with one Epanechnikov kernel per half."""
+    half = epanechnikov((patch_shape[0] // 2, patch_shape[1]))
+    kernel = jnp.concatenate([half, half])
+    bins = frame_bins(frame, STEP)
+    return jax.vmap(top_bottom_histograms, in_axes=(None, 0, None, None, None))(
+        bins, boxes, patch_shape, 512, kernel
+    )
+
+
+def scan_function(features, patch_shape, likelihood: bool = False):
+    """A jitted scan of ``features`` over frames and their boxes."""
+
+    def step(carry, inputs):
+        frame, frame_boxes = inputs
+        histograms = features(frame, frame_boxes, patch_shape)
+        if likelihood:
+            models = histograms.reshape(NUM_TARGETS, NUM_PARTICLES, *histograms.shape[1:])[:, 0]
+            target = jnp.repeat(models, NUM_PARTICLES, axis=0)
+            out = jnp.prod(histogram_likelihood(histograms, target, 0.2), axis=-1)
+        else:
+            probe = jnp.arange(histograms.shape[-1], dtype=jnp.float32)
+            out = jnp.sum(histograms * probe, axis=(-2, -1))
+        return carry, out
+
+    return jax.jit(lambda f, b: jax.lax.scan(step, 0.0, (f, b))[1])
+
+
+def time_scans(scans: dict, frames, boxes, repeats: int) -> dict:
+    """ms per frame (median, min) and first-call seconds of each scan, runs interleaved."""
+    first, times = {}, {name: [] for name in scans}
+    for name, scan in scans.items():
+        start = time.perf_counter()
+        scan(frames, boxes).block_until_ready()
+        first[name] = time.perf_counter() - start
+    for _ in range(repeats):
+        for name, scan in scans.items():
+            start = time.perf_counter()
+            scan(frames, boxes).block_until_ready()
+            times[name].append((time.perf_counter() - start) * 1e3 / frames.shape[0])
+    return {
+        name: {
+            "ms_per_frame_median": round(float(np.median(times[name])), 3),
+            "ms_per_frame_min": round(float(np.min(times[name])), 3),
+            "first_call_s": round(first[name], 2),
+        }
+        for name in scans
+    }
+
+
+def full_resolution(frame: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """Top and bottom joint RGB histograms from every pixel whose centre is in each half."""
+    x, y, w, h = box
+    cols = np.arange(frame.shape[1])
+    rows = np.arange(frame.shape[0])
+    in_cols = (cols + 0.5 >= x) & (cols + 0.5 < x + w)
+    halves_out = []
+    for lo, hi in ((y, y + h / 2), (y + h / 2, y + h)):
+        in_rows = (rows + 0.5 >= lo) & (rows + 0.5 < hi)
+        pixels = frame[np.ix_(in_rows, in_cols)].reshape(-1, 3).astype(np.int64) // 32
+        counts = np.bincount(pixels[:, 0] * 64 + pixels[:, 1] * 8 + pixels[:, 2], minlength=512)
+        halves_out.append(counts / counts.sum())
+    return np.stack(halves_out)
+
+
+def accuracy(gt, num_frames: int) -> dict:
+    """Distance of patch histograms to full-resolution ones, per patch size, on GT boxes."""
+    step_frames = np.linspace(1, 795, num_frames).astype(int)
+    frames, boxes = [], []
+    with VideoReader(VIDEO) as reader:
+        for number in step_frames:
+            rows = gt.boxes[gt.frames == number]
+            inside = (
+                (rows[:, 0] >= 0)
+                & (rows[:, 1] >= 0)
+                & (rows[:, 0] + rows[:, 2] <= 768)
+                & (rows[:, 1] + rows[:, 3] <= 576)
+            )
+            if inside.any():
+                frames.append(reader.read(int(number)))
+                boxes.append(rows[inside])
+    references = [
+        np.stack([full_resolution(f, b) for b in bs]) for f, bs in zip(frames, boxes, strict=True)
+    ]
+    between = [
+        float(np.mean(np.sqrt(np.maximum(1 - np.sum(np.sqrt(a * b), -1), 0))))
+        for refs in references
+        for i, a in enumerate(refs)
+        for b in refs[i + 1 :]
+    ]
+    result = {
+        "frames": len(frames),
+        "boxes": sum(len(b) for b in boxes),
+        "median_distance_between_people": round(float(np.median(between)), 3),
+        "median_box_height_px": round(float(np.median(np.concatenate(boxes)[:, 3])), 1),
+    }
+    samplers = {"nearest": nearest_top_bottom, "bilinear": bilinear_top_bottom}
+    for patch in PATCHES:
+        for sampler, function in samplers.items():
+            features = jax.jit(functools.partial(function, patch_shape=patch))
+            distances = np.concatenate(
+                [
+                    np.asarray(bhattacharyya_distance(features(f, jnp.asarray(b, jnp.float32)), r))
+                    for f, b, r in zip(frames, boxes, references, strict=True)
+                ]
+            ).ravel()
+            result[f"{sampler}_{patch[0]}x{patch[1]}"] = {
+                "median_distance_to_full": round(float(np.median(distances)), 3),
+                "p90_distance_to_full": round(float(np.percentile(distances, 90)), 3),
+            }
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--frames", type=int, default=20, help="frames per timed scan")
+    parser.add_argument("--repeats", type=int, default=7, help="timed scans (median, min)")
+    parser.add_argument("--accuracy-frames", type=int, default=40, help="frames for accuracy")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--quick", action="store_true", help="5 frames, 3 repeats, 5 accuracy")
+    args = parser.parse_args()
+    if args.quick:
+        args.frames, args.repeats, args.accuracy_frames = 5, 3, 5
+
+    gt = read_mot_file(GROUND_TRUTH, "gt")
+    frames = jnp.asarray(read_frames(args.frames))
+    boxes = jnp.asarray(particle_boxes(gt, args.frames, np.random.default_rng(args.seed)))
+    load_before = os.getloadavg()[0]
+
+    scans = {f"nearest_{p[0]}x{p[1]}": scan_function(nearest_top_bottom, p) for p in PATCHES}
+    scans.update(
+        {f"bilinear_{p[0]}x{p[1]}": scan_function(bilinear_top_bottom, p) for p in PATCHES}
+    )
+    scans["one_hot_16x8"] = scan_function(one_hot_top_bottom, DEFAULT_PATCH)
+    scans["per_channel_16x8"] = scan_function(channel_top_bottom, DEFAULT_PATCH)
+    scans["epanechnikov_16x8"] = scan_function(kernel_top_bottom, DEFAULT_PATCH)
+    scans["with_likelihood_16x8"] = scan_function(nearest_top_bottom, DEFAULT_PATCH, True)
+    alternatives = time_scans(scans, frames, boxes, args.repeats)
+    default = alternatives.pop(f"nearest_{DEFAULT_PATCH[0]}x{DEFAULT_PATCH[1]}")
+    result = {
+        "features_ms_per_frame": default["ms_per_frame_median"],
+        "features_ms_per_frame_min": default["ms_per_frame_min"],
+        "goal_ms_per_frame": 2.0,
+        "patch_shape": list(DEFAULT_PATCH),
+        "boxes_per_frame": NUM_TARGETS * NUM_PARTICLES,
+        "histograms": "top + bottom halves, joint RGB, 8 bins per channel (512), scatter-add",
+        "sampler": "nearest pixel of the frame quantised once (frame_bins)",
+        "frame_size": [768, 576],
+        "scan_frames": args.frames,
+        "repeats": args.repeats,
+        "alternatives": alternatives,
+        "accuracy": accuracy(gt, args.accuracy_frames),
+        "cpu_count": os.cpu_count(),
+        "load_average": [round(load_before, 2), round(os.getloadavg()[0], 2)],
+        "jax": jax.__version__,
+        "machine": platform.machine(),
+    }
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
