@@ -82,9 +82,9 @@ def top_bottom_histograms(
     Returns:
         ``[top, bottom]`` histograms.
     """
+    bands = halves(patch_shape[0])
     patch = sample_nearest(bins, box, patch_shape)
     weights = patch.valid if kernel is None else patch.valid * kernel
-    bands = halves(patch_shape[0])
     return band_histograms(patch.values[..., None], weights, bands, 2, num_bins)[:, 0]
 
 

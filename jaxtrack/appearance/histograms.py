@@ -63,8 +63,10 @@ def band_counts(
     scatter-add into ``num_bands * num_channels * num_bins`` cells.
 
     Args:
-        bins: bin index of every sample and channel, in ``[0, num_bins)``; for a joint
-            histogram, :func:`joint_bins` with a trailing axis of 1.
+        bins: bin index of every sample and channel, in ``[0, num_bins)`` (as
+            :func:`quantise` makes them; under jit an index out of range cannot raise, and
+            JAX's scatter drops it); for a joint histogram, :func:`joint_bins` with a
+            trailing axis of 1.
         weights: weight of every sample (validity, times a kernel if any).
         row_bands: band of each patch row, in ``[0, num_bands)`` (e.g. 0 for the top half and
             1 for the bottom half, :func:`jaxtrack.appearance.regions.halves`).
@@ -78,7 +80,7 @@ def band_counts(
     cell = (row_bands[:, None, None] * channels + jnp.arange(channels)) * num_bins + bins
     sample_weights = jnp.broadcast_to(weights[..., None], bins.shape)
     counts = jnp.zeros(num_bands * channels * num_bins, jnp.float32)
-    counts = counts.at[cell.ravel()].add(sample_weights.ravel(), mode="promise_in_bounds")
+    counts = counts.at[cell.ravel()].add(sample_weights.ravel())
     return counts.reshape(num_bands, channels, num_bins)
 
 
