@@ -8,7 +8,8 @@ their boxes jittered (5 px, 5 %). The step's output is one number per box (the h
 dotted with a fixed vector), so XLA computes every histogram but the scan does not write them
 out. Times are per frame, after compilation, ``block_until_ready``, median and minimum of
 ``--repeats`` runs of the scan, the variants' runs interleaved (so a change in the machine's
-other load affects them alike). Reported:
+other load affects them alike); also the process CPU time per frame (both cores' threads
+summed), which other load changes less than the wall clock. Reported:
 
 * ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.frame_bins` once per
   frame then :func:`jaxtrack.appearance.top_bottom_histograms` (nearest-pixel samples of the
@@ -170,20 +171,22 @@ def scan_function(features, patch_shape, likelihood: bool = False):
 
 def time_scans(scans: dict, frames, boxes, repeats: int) -> dict:
     """ms per frame (median, min) and first-call seconds of each scan, runs interleaved."""
-    first, times = {}, {name: [] for name in scans}
+    first, times, cpu = {}, {name: [] for name in scans}, {name: [] for name in scans}
     for name, scan in scans.items():
         start = time.perf_counter()
         scan(frames, boxes).block_until_ready()
         first[name] = time.perf_counter() - start
     for _ in range(repeats):
         for name, scan in scans.items():
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             scan(frames, boxes).block_until_ready()
             times[name].append((time.perf_counter() - start) * 1e3 / frames.shape[0])
+            cpu[name].append((time.process_time() - start_cpu) * 1e3 / frames.shape[0])
     return {
         name: {
             "ms_per_frame_median": round(float(np.median(times[name])), 3),
             "ms_per_frame_min": round(float(np.min(times[name])), 3),
+            "cpu_ms_per_frame_median": round(float(np.median(cpu[name])), 3),
             "first_call_s": round(first[name], 2),
         }
         for name in scans
@@ -288,6 +291,7 @@ def main() -> None:
     result = {
         "features_ms_per_frame": default["ms_per_frame_median"],
         "features_ms_per_frame_min": default["ms_per_frame_min"],
+        "features_cpu_ms_per_frame": default["cpu_ms_per_frame_median"],
         "goal_ms_per_frame": 2.0,
         "patch_shape": list(DEFAULT_PATCH),
         "boxes_per_frame": NUM_TARGETS * NUM_PARTICLES,
