@@ -11,11 +11,10 @@ out. Times are per frame, after compilation, ``block_until_ready``, median and m
 other load affects them alike); also the process CPU time per frame (both cores' threads
 summed), which other load changes less than the wall clock. Reported:
 
-* ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.frame_bins` once per
-  frame then :func:`jaxtrack.appearance.top_bottom_histograms` (nearest-pixel samples of the
-  bins, scatter-add counting) with the ``DEFAULT_PATCH``;
-* ``alternatives``: other patch sizes; bilinear colour samples per box
-  (:func:`jaxtrack.appearance.sample_patch`, quantised per sample) instead of the bin image;
+* ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.top_bottom_histograms`
+  (nearest-pixel samples, scatter-add counting) with the ``DEFAULT_PATCH``;
+* ``alternatives``: other patch sizes; bilinear samples
+  (:func:`jaxtrack.appearance.sample_patch`) instead of nearest-pixel ones;
   counting by summed one-hot vectors instead of the scatter-add; per-channel histograms
   (3 x 8 bins, CMT's bucket features) instead of joint, from patch samples or exact from an
   integral histogram of the frame; the Epanechnikov kernel per half;
@@ -53,7 +52,6 @@ from jaxtrack.appearance import (
     band_histograms,
     bhattacharyya_distance,
     epanechnikov,
-    frame_bins,
     halves,
     histogram_likelihood,
     joint_bins,
@@ -99,31 +97,29 @@ def particle_boxes(gt, count: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def nearest_top_bottom(frame, boxes, patch_shape):
-    """The default: the frame's bins once, then every box's halves from its samples' bins."""
-    bins = frame_bins(frame, STEP)
+    """The default: :func:`top_bottom_histograms` with nearest-pixel samples."""
     return jax.vmap(top_bottom_histograms, in_axes=(None, 0, None, None))(
-        bins, boxes, patch_shape, 512
+        frame, boxes, patch_shape, STEP
     )
 
 
 def bilinear_top_bottom(frame, boxes, patch_shape):
-    """Bilinear colour samples per box, quantised per sample (the brief's first design)."""
+    """:func:`top_bottom_histograms` with bilinear samples (the brief's first design)."""
+    features = functools.partial(top_bottom_histograms, sampler=sample_patch)
+    return jax.vmap(features, in_axes=(None, 0, None, None))(frame, boxes, patch_shape, STEP)
 
-    def one(box):
-        patch = sample_patch(frame, box, patch_shape)
-        bins = joint_bins(quantise(patch.values, STEP), 8)[..., None]
-        return band_histograms(bins, patch.valid, halves(patch_shape[0]), 2, 512)[:, 0]
 
-    return jax.vmap(one)(boxes)
+def _joint_bins(frame, box, patch_shape):
+    patch = sample_nearest(frame, box, patch_shape)
+    return joint_bins(quantise(patch.values.astype(jnp.float32), STEP), 8), patch.valid
 
 
 def one_hot_top_bottom(frame, boxes, patch_shape):
     """As the default but counting by summed one-hot vectors over the 512 bins."""
-    bins = frame_bins(frame, STEP)
 
     def one(box):
-        patch = sample_nearest(bins, box, patch_shape)
-        hot = jax.nn.one_hot(patch.values, 512) * patch.valid[..., None]
+        bins, valid = _joint_bins(frame, box, patch_shape)
+        hot = jax.nn.one_hot(bins, 512) * valid[..., None]
         rows = patch_shape[0] // 2
         return normalise(jnp.stack([hot[:rows].sum((0, 1)), hot[rows:].sum((0, 1))]))
 
@@ -136,7 +132,7 @@ def channel_top_bottom(frame, boxes, patch_shape):
     def one(box):
         patch = sample_nearest(frame, box, patch_shape)
         bins = quantise(patch.values.astype(jnp.float32), STEP)
-        counts = band_histograms(bins, patch.valid, halves(patch_shape[0]), 2, 8)
+        counts = band_histograms(bins, patch.valid, halves(patch_shape[0]), 8)
         return counts.reshape(2, 24)
 
     return jax.vmap(one)(boxes)
@@ -146,10 +142,8 @@ def kernel_top_bottom(frame, boxes, patch_shape):
     """The default with one Epanechnikov kernel per half."""
     half = epanechnikov((patch_shape[0] // 2, patch_shape[1]))
     kernel = jnp.concatenate([half, half])
-    bins = frame_bins(frame, STEP)
-    return jax.vmap(top_bottom_histograms, in_axes=(None, 0, None, None, None))(
-        bins, boxes, patch_shape, 512, kernel
-    )
+    features = functools.partial(top_bottom_histograms, kernel=kernel)
+    return jax.vmap(features, in_axes=(None, 0, None, None))(frame, boxes, patch_shape, STEP)
 
 
 def integral_channel_top_bottom(frame, boxes, patch_shape):
@@ -324,7 +318,7 @@ def main() -> None:
         "patch_shape": list(DEFAULT_PATCH),
         "boxes_per_frame": NUM_TARGETS * NUM_PARTICLES,
         "histograms": "top + bottom halves, joint RGB, 8 bins per channel (512), scatter-add",
-        "sampler": "nearest pixel of the frame quantised once (frame_bins)",
+        "sampler": "nearest pixel (sample_nearest)",
         "frame_size": [768, 576],
         "scan_frames": args.frames,
         "repeats": args.repeats,

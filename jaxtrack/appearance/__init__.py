@@ -22,7 +22,6 @@ from jaxtrack.appearance.colour import (
     rgb,
 )
 from jaxtrack.appearance.features import (
-    frame_bins,
     linear_combination_histograms,
     profile_histograms,
     top_bottom_histograms,
@@ -79,7 +78,6 @@ __all__ = [
     "feature_values",
     "feature_weights",
     "field_of_context",
-    "frame_bins",
     "halves",
     "histogram_likelihood",
     "hsv",

@@ -15,10 +15,12 @@ CPU than summing one-hot vectors over 512 bins.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import jax.numpy as jnp
-from jaxtyping import Array, Float, Int
+import numpy as np
+from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.appearance.colour import SCALE
 from jaxtrack.errors import InputError
@@ -52,55 +54,80 @@ def joint_bins(
 
 def band_counts(
     bins: Int[Array, "ph pw num_channels"],
-    weights: Float[Array, "ph pw"],
-    row_bands: Int[Array, " ph"],
-    num_bands: int,
+    valid: Bool[Array, "ph pw"],
+    splits: tuple[int, ...],
     num_bins: int,
+    kernel: Float[Array, "ph pw"] | None = None,
 ) -> Float[Array, "num_bands num_channels num_bins"]:
-    """Weighted bin counts of each channel in each band of rows of a patch.
+    """Bin counts of each channel in each band of patch rows, over the valid samples.
 
-    ``counts[k, c, b] = sum_{i, j: band(i) = k, bins[i, j, c] = b} weights[i, j]``: one
-    scatter-add into ``num_bands * num_channels * num_bins`` cells.
+    The bands are the row ranges between consecutive ``splits`` (``(ph // 2,)``: top and
+    bottom halves; ``()``: the whole patch; ``range(1, ph)``: one band per row).
+    ``counts[k, c, b] = sum_{i in band k, j: valid[i, j], bins[i, j, c] = b} w[i, j]`` with
+    ``w`` the kernel (1 without one): one scatter-add into ``num_bands * num_channels *
+    num_bins`` cells, invalid samples sent to an index past the end and dropped by it (faster
+    than adding zero weights: the benchmark's weights are then one number per band).
 
     Args:
         bins: bin index of every sample and channel, in ``[0, num_bins)`` (as
-            :func:`quantise` makes them; under jit an index out of range cannot raise, and
-            JAX's scatter drops it); for a joint histogram, :func:`joint_bins` with a
+            :func:`quantise` makes them); for a joint histogram, :func:`joint_bins` with a
             trailing axis of 1.
-        weights: weight of every sample (validity, times a kernel if any).
-        row_bands: band of each patch row, in ``[0, num_bands)`` (e.g. 0 for the top half and
-            1 for the bottom half, :func:`jaxtrack.appearance.regions.halves`).
-        num_bands: number of bands, static.
+        valid: the samples to count (inside the image).
+        splits: first row of each band after the first, increasing, in ``(0, ph)``, static.
         num_bins: bins per channel histogram, static.
+        kernel: weight of each sample, or None for 1.
 
     Returns:
-        The (unnormalised) counts.
+        The (unnormalised) counts, ``num_bands = len(splits) + 1``.
+
+    Raises:
+        InputError: the splits are not increasing rows inside the patch.
     """
-    channels = bins.shape[-1]
-    cell = (row_bands[:, None, None] * channels + jnp.arange(channels)) * num_bins + bins
-    sample_weights = jnp.broadcast_to(weights[..., None], bins.shape)
-    counts = jnp.zeros(num_bands * channels * num_bins, jnp.float32)
-    counts = counts.at[cell.ravel()].add(sample_weights.ravel())
-    return counts.reshape(num_bands, channels, num_bins)
+    weights = jnp.ones((), jnp.float32) if kernel is None else kernel[..., None]
+    return _scatter(bins, valid, splits, num_bins, weights)
 
 
 def band_histograms(
     bins: Int[Array, "ph pw num_channels"],
-    weights: Float[Array, "ph pw"],
-    row_bands: Int[Array, " ph"],
-    num_bands: int,
+    valid: Bool[Array, "ph pw"],
+    splits: tuple[int, ...],
     num_bins: int,
+    kernel: Float[Array, "ph pw"] | None = None,
 ) -> Float[Array, "num_bands num_channels num_bins"]:
     """Normalised histograms of each channel in each band: :func:`band_counts` / band weight.
 
-    The weights are divided by their band's total before counting (``ph * pw`` divisions
-    instead of a pass over every bin); a band with no weight has an all-zero histogram.
-    Arguments as :func:`band_counts`.
+    Each sample's weight is divided by its band's total before counting (instead of a pass
+    over every bin after); a band with no valid sample has an all-zero histogram. Arguments
+    as :func:`band_counts`.
     """
-    totals = jnp.zeros(num_bands, weights.dtype).at[row_bands].add(jnp.sum(weights, axis=1))
-    per_row = totals[row_bands]
-    scaled = weights / jnp.where(per_row > 0, per_row, 1.0)[:, None]
-    return band_counts(bins, scaled, row_bands, num_bands, num_bins)
+    bands = _row_bands(splits, bins.shape[0])
+    weights = valid if kernel is None else jnp.where(valid, kernel, 0.0)
+    row_totals = jnp.sum(weights, axis=1, dtype=jnp.float32)
+    edges = (0, *splits, bins.shape[0])
+    totals = jnp.stack([jnp.sum(row_totals[a:b]) for a, b in itertools.pairwise(edges)])
+    inverse = jnp.where(totals > 0, 1.0 / jnp.where(totals > 0, totals, 1.0), 0.0)
+    row_scale = inverse[bands][:, None, None]
+    scaled = row_scale if kernel is None else row_scale * kernel[..., None]
+    return _scatter(bins, valid, splits, num_bins, scaled)
+
+
+def _scatter(bins, valid, splits, num_bins, weights):
+    """Adds ``weights`` (broadcast to ``bins``) at each valid sample's band, channel and bin."""
+    bands = _row_bands(splits, bins.shape[0])
+    channels = bins.shape[-1]
+    size = (len(splits) + 1) * channels * num_bins
+    cell = (bands[:, None, None] * channels + np.arange(channels)) * num_bins + bins
+    cell = jnp.where(valid[..., None], cell, size)
+    updates = jnp.broadcast_to(weights, bins.shape).astype(jnp.float32)
+    counts = jnp.zeros(size, jnp.float32).at[cell.ravel()].add(updates.ravel(), mode="drop")
+    return counts.reshape(len(splits) + 1, channels, num_bins)
+
+
+def _row_bands(splits: tuple[int, ...], num_rows: int) -> np.ndarray:
+    """Band of each row (a constant): the number of splits at or before it."""
+    if any(a >= b for a, b in itertools.pairwise((0, *splits, num_rows))):
+        raise InputError(f"band splits must be increasing rows in (0, {num_rows}), got {splits}")
+    return np.searchsorted(np.asarray(splits, int), np.arange(num_rows), side="right")
 
 
 def normalise(counts: Float[Array, "*shape num_bins"]) -> Float[Array, "*shape num_bins"]:

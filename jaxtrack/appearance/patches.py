@@ -18,11 +18,11 @@ one compiled shape. Two lookups:
   (``benchmarks/appearance_features.py``: faster than bilinear at equal distance to
   full-resolution histograms).
 
-Boxes partly outside the image: a sample point outside ``[0, W) x [0, H)`` gets validity 0
-(its value is that of the nearest border pixel and must be ignored); histograms weight every
-sample by its validity (:func:`jaxtrack.appearance.histograms.band_counts`), so a box that
-straddles the border is described by its samples inside the image, and a box wholly outside
-(or with a non-finite coordinate) by none: its histograms are all zero.
+Boxes partly outside the image: a sample point outside ``[0, W) x [0, H)`` is invalid (its
+value is that of the nearest border pixel and must be ignored); histograms count the valid
+samples only (:func:`jaxtrack.appearance.histograms.band_counts`), so a box that straddles
+the border is described by its samples inside the image, and a box wholly outside (or with a
+non-finite coordinate) by none: its histograms are all zero.
 
 The sample density follows the box: a box smaller than the patch is oversampled, a larger one
 subsampled (no pre-filtering). The benchmark measures the effect of the patch size on
@@ -34,7 +34,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
-from jaxtyping import Array, Float, Shaped, UInt8
+from jaxtyping import Array, Bool, Float, Shaped, UInt8
 
 from jaxtrack.errors import InputError
 
@@ -45,11 +45,11 @@ class Patch(NamedTuple):
     Attributes:
         values: the value of each sample: an RGB colour (float32 in ``[0, 255]``) from
             :func:`sample_patch`, the image's value from :func:`sample_nearest`.
-        valid: 1.0 where the sample point lies inside the image, else 0.0.
+        valid: True where the sample point lies inside the image.
     """
 
     values: Array
-    valid: Float[Array, "ph pw"]
+    valid: Bool[Array, "ph pw"]
 
 
 def sample_points(
@@ -145,9 +145,8 @@ def sample_nearest(
     return Patch(flat[rows[:, None] * width + cols[None, :]], _inside(ys, xs, height, width))
 
 
-def _inside(ys, xs, height, width) -> Float[Array, "ph pw"]:
-    inside = ((ys >= 0) & (ys < height))[:, None] & ((xs >= 0) & (xs < width))[None, :]
-    return inside.astype(jnp.float32)
+def _inside(ys, xs, height, width) -> Bool[Array, "ph pw"]:
+    return ((ys >= 0) & (ys < height))[:, None] & ((xs >= 0) & (xs < width))[None, :]
 
 
 def check_frame(frame) -> None:

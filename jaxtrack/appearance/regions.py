@@ -16,15 +16,15 @@ from jaxtrack.appearance.similarity import bhattacharyya_distance
 from jaxtrack.errors import InputError
 
 
-def halves(num_rows: int) -> Int[Array, " num_rows"]:
-    """Band of each patch row: 0 for the top half, 1 for the bottom half (CMT Sec. VI).
+def halves(num_rows: int) -> tuple[int]:
+    """Band splits of the top and bottom halves of a patch (CMT Sec. VI): ``(ph // 2,)``.
 
     Raises:
         InputError: ``num_rows`` is odd (the halves would differ in size).
     """
     if num_rows % 2:
         raise InputError(f"top/bottom halves need an even number of patch rows, got {num_rows}")
-    return (jnp.arange(num_rows) >= num_rows // 2).astype(jnp.int32)
+    return (num_rows // 2,)
 
 
 class Split(NamedTuple):

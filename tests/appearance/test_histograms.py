@@ -42,40 +42,52 @@ def test_joint_bins_is_ravel_multi_index():
     np.testing.assert_array_equal(joint_bins(jnp.asarray(channel_bins), 8), expected)
 
 
-def _band_counts_loop(bins, weights, bands, num_bands, num_bins):
-    counts = np.zeros((num_bands, bins.shape[-1], num_bins))
-    for i in range(bins.shape[0]):
-        for j in range(bins.shape[1]):
-            for c in range(bins.shape[2]):
-                counts[bands[i], c, bins[i, j, c]] += weights[i, j]
+def _band_counts_loop(bins, valid, kernel, splits, num_bins):
+    edges = [0, *splits, bins.shape[0]]
+    counts = np.zeros((len(edges) - 1, bins.shape[-1], num_bins))
+    for band in range(len(edges) - 1):
+        for i in range(edges[band], edges[band + 1]):
+            for j in range(bins.shape[1]):
+                for c in range(bins.shape[2]):
+                    if valid[i, j]:
+                        counts[band, c, bins[i, j, c]] += kernel[i, j]
     return counts
 
 
-def test_band_counts_and_histograms_loop():
+@pytest.mark.parametrize("with_kernel", [False, True])
+def test_band_counts_and_histograms_loop(with_kernel):
     bins = RNG.integers(0, 6, (7, 4, 3))
-    weights = RNG.uniform(0, 1, (7, 4))
-    weights[5:] = 0.0  # band 2 (rows 5-6) has no weight: all-zero histograms
-    bands = np.array([0, 0, 1, 1, 1, 2, 2])
-    expected = _band_counts_loop(bins, weights, bands, 3, 6)
-    args = (jnp.asarray(bins), jnp.asarray(weights, jnp.float32), jnp.asarray(bands), 3, 6)
-    np.testing.assert_allclose(band_counts(*args), expected, rtol=1e-6, atol=1e-6)
+    valid = RNG.uniform(0, 1, (7, 4)) < 0.8
+    valid[5:] = False  # band 2 (rows 5-6) has no valid sample: all-zero histograms
+    kernel = RNG.uniform(0.1, 1, (7, 4)) if with_kernel else np.ones((7, 4))
+    splits = (2, 5)
+    expected = _band_counts_loop(bins, valid, kernel, splits, 6)
+    args = (jnp.asarray(bins), jnp.asarray(valid), splits, 6)
+    weights = jnp.asarray(kernel, jnp.float32) if with_kernel else None
+    np.testing.assert_allclose(band_counts(*args, weights), expected, rtol=1e-6, atol=1e-6)
     totals = expected.sum(-1, keepdims=True)
     expected_histograms = np.divide(expected, totals, out=np.zeros_like(expected), where=totals > 0)
-    np.testing.assert_allclose(band_histograms(*args), expected_histograms, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(
+        band_histograms(*args, weights), expected_histograms, rtol=1e-5, atol=1e-7
+    )
     np.testing.assert_allclose(normalise(jnp.asarray(expected)), expected_histograms, rtol=1e-5)
 
 
 def test_band_counts_vmap_equals_loop():
     bins = RNG.integers(0, 5, (6, 4, 3, 1))
-    weights = RNG.uniform(0, 1, (6, 4, 3)).astype(np.float32)
-    bands = jnp.array([0, 0, 1, 1])
-    batched = jax.jit(
-        jax.vmap(band_counts, in_axes=(0, 0, None, None, None)), static_argnums=(3, 4)
-    )
-    got = batched(jnp.asarray(bins), jnp.asarray(weights), bands, 2, 5)
+    valid = RNG.uniform(0, 1, (6, 4, 3)) < 0.7
+    batched = jax.jit(jax.vmap(lambda b, v: band_counts(b, v, (2,), 5)))
+    got = batched(jnp.asarray(bins), jnp.asarray(valid))
     for k in range(6):
-        expected = _band_counts_loop(bins[k], weights[k], np.asarray(bands), 2, 5)
+        expected = _band_counts_loop(bins[k], valid[k], np.ones((4, 3)), (2,), 5)
         np.testing.assert_allclose(got[k], expected, rtol=1e-6)
+
+
+def test_band_splits_are_checked():
+    bins, valid = jnp.zeros((4, 2, 1), jnp.int32), jnp.ones((4, 2), bool)
+    for splits in ((0,), (2, 2), (3, 1), (4,)):
+        with pytest.raises(InputError, match="band splits"):
+            band_counts(bins, valid, splits, 3)
 
 
 def test_marginals_sum_the_joint_histogram():

@@ -65,7 +65,7 @@ def test_bilinear_matches_tent_loop(box):
     patch = sample_patch(jnp.asarray(FRAME), jnp.asarray(box), PATCH)
     ys, xs = _points(box, PATCH)
     expected = np.array([[_tent_bilinear(FRAME, x, y) for x in xs] for y in ys])
-    inside = np.array([[0 <= y < 23 and 0 <= x < 31 for x in xs] for y in ys], np.float32)
+    inside = np.array([[0 <= y < 23 and 0 <= x < 31 for x in xs] for y in ys])
     # float32 sample coordinates (about 30 px) are off by up to ~4e-6 px; times colour steps
     # of up to 255 per pixel, that is ~1e-3.
     np.testing.assert_allclose(patch.values, expected, atol=1e-3)
