@@ -100,13 +100,15 @@ def band_histograms(
     over every bin after); a band with no valid sample has an all-zero histogram. Arguments
     as :func:`band_counts`.
     """
-    bands = _row_bands(splits, bins.shape[0])
+    _row_bands(splits, bins.shape[0])  # checks the splits
     weights = valid if kernel is None else jnp.where(valid, kernel, 0.0)
     row_totals = jnp.sum(weights, axis=1, dtype=jnp.float32)
-    edges = (0, *splits, bins.shape[0])
-    totals = jnp.stack([jnp.sum(row_totals[a:b]) for a, b in itertools.pairwise(edges)])
+    edges = tuple(itertools.pairwise((0, *splits, bins.shape[0])))
+    totals = jnp.stack([jnp.sum(row_totals[a:b]) for a, b in edges])
     inverse = jnp.where(totals > 0, 1.0 / jnp.where(totals > 0, totals, 1.0), 0.0)
-    row_scale = inverse[bands][:, None, None]
+    row_scale = jnp.concatenate(
+        [jnp.broadcast_to(inverse[k], (b - a, 1, 1)) for k, (a, b) in enumerate(edges)]
+    )
     scaled = row_scale if kernel is None else row_scale * kernel[..., None]
     return _scatter(bins, valid, splits, num_bins, scaled)
 

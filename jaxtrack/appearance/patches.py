@@ -9,14 +9,16 @@ frame pixel ``(r, c)`` covering ``[c, c + 1) x [r, r + 1)``, centre ``(c + 1/2, 
 The cost is ``ph * pw`` samples whatever the box size, so boxes and particles ``vmap`` with
 one compiled shape. Two lookups:
 
-* :func:`sample_patch`: the colour bilinear in the four nearest pixel centres (for features
-  computed from colours per sample: HSV, Collins' combinations);
-* :func:`sample_nearest`: the value of the pixel that contains the sample point, from any
-  per-pixel image; on an image of colour bins quantised once per frame
-  (:func:`jaxtrack.appearance.features.frame_bins`) it is the fast path for many particles:
-  one gather per sample, no interpolation, and the samples' colours are ones the image holds
-  (``benchmarks/appearance_features.py``: faster than bilinear at equal distance to
-  full-resolution histograms).
+* :func:`sample_nearest`: the value of the pixel that contains the sample point (any
+  per-pixel image): one gather per sample, and every sampled colour is one the box holds;
+* :func:`sample_patch`: the colour bilinear in the four nearest pixel centres.
+
+The features (:mod:`jaxtrack.appearance.features`) take the sampler as an argument, nearest
+by default: ``benchmarks/appearance_features.py`` measured it faster than bilinear and at
+least as close to full-resolution histograms (a bilinear sample between two differently
+coloured pixels blends them into a colour the box does not hold, which matters once the
+patch is dense enough for the sampling noise to drop). Sample points within float32
+rounding of a pixel boundary may read either pixel.
 
 Boxes partly outside the image: a sample point outside ``[0, W) x [0, H)`` is invalid (its
 value is that of the nearest border pixel and must be ignored); histograms count the valid
