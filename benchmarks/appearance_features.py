@@ -7,9 +7,12 @@ boxes (filled up to 16 with pedestrian-sized boxes at seeded random places), the
 their boxes jittered (5 px, 5 %). The step's output is one number per box (the histograms
 dotted with a fixed vector), so XLA computes every histogram but the scan does not write them
 out. Times are per frame, after compilation, ``block_until_ready``, median and minimum of
-``--repeats`` runs of the scan, the variants' runs interleaved (so a change in the machine's
-other load affects them alike); also the process CPU time per frame (both cores' threads
-summed), which other load changes less than the wall clock. Reported:
+``--repeats`` runs of the scan, runs interleaved within a group (so a change in the
+machine's other load affects them alike): the default and its bilinear twin first (a short
+group), then the other variants, then the two slow ones (3 repeats). Also reported: the
+process CPU time per frame (both cores' threads summed) and ``others_cpu_share``, the CPU time
+other processes took during each group's timed runs as a share of all the cores' time (the
+machine is shared; 0 means nothing else ran). Reported:
 
 * ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.top_bottom_histograms`
   (nearest-pixel samples, scatter-add counting) with the ``DEFAULT_PATCH``;
@@ -190,20 +193,35 @@ def scan_function(features, patch_shape, likelihood: bool = False):
     return jax.jit(lambda f, b: jax.lax.scan(step, 0.0, (f, b))[1])
 
 
-def time_scans(scans: dict, frames, boxes, repeats: int) -> dict:
-    """ms per frame (median, min) and first-call seconds of each scan, runs interleaved."""
+def busy_seconds() -> float:
+    """CPU seconds all processes have spent busy since boot (Linux ``/proc/stat``)."""
+    with open("/proc/stat") as stat:
+        fields = [int(v) for v in stat.readline().split()[1:]]
+    return (sum(fields) - fields[3] - fields[4]) / os.sysconf("SC_CLK_TCK")
+
+
+def time_scans(scans: dict, frames, boxes, repeats: int) -> tuple[dict, float]:
+    """Times each scan (its runs interleaved with the others').
+
+    Returns:
+        Per scan: ms per frame (median, min), process CPU ms per frame, first-call seconds;
+        and the CPU time of other processes during the timed runs as a share of all the
+        cores' time (0: nothing else ran).
+    """
     first, times, cpu = {}, {name: [] for name in scans}, {name: [] for name in scans}
     for name, scan in scans.items():
         start = time.perf_counter()
         scan(frames, boxes).block_until_ready()
         first[name] = time.perf_counter() - start
+    busy, own, wall = busy_seconds(), time.process_time(), time.perf_counter()
     for _ in range(repeats):
         for name, scan in scans.items():
             start, start_cpu = time.perf_counter(), time.process_time()
             scan(frames, boxes).block_until_ready()
             times[name].append((time.perf_counter() - start) * 1e3 / frames.shape[0])
             cpu[name].append((time.process_time() - start_cpu) * 1e3 / frames.shape[0])
-    return {
+    others = (busy_seconds() - busy) - (time.process_time() - own)
+    result = {
         name: {
             "ms_per_frame_median": round(float(np.median(times[name])), 3),
             "ms_per_frame_min": round(float(np.min(times[name])), 3),
@@ -212,6 +230,8 @@ def time_scans(scans: dict, frames, boxes, repeats: int) -> dict:
         }
         for name in scans
     }
+    share = max(others, 0.0) / ((time.perf_counter() - wall) * os.cpu_count())
+    return result, round(share, 3)
 
 
 def full_resolution(frame: np.ndarray, box: np.ndarray) -> np.ndarray:
@@ -286,7 +306,7 @@ def accuracy(gt, num_frames: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--frames", type=int, default=20, help="frames per timed scan")
-    parser.add_argument("--repeats", type=int, default=7, help="timed scans (median, min)")
+    parser.add_argument("--repeats", type=int, default=11, help="timed scans (median, min)")
     parser.add_argument("--accuracy-frames", type=int, default=40, help="frames for accuracy")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--quick", action="store_true", help="5 frames, 3 repeats, 5 accuracy")
@@ -299,21 +319,38 @@ def main() -> None:
     boxes = jnp.asarray(particle_boxes(gt, args.frames, np.random.default_rng(args.seed)))
     load_before = os.getloadavg()[0]
 
-    scans = {f"nearest_{p[0]}x{p[1]}": scan_function(nearest_top_bottom, p) for p in PATCHES}
-    scans.update(
-        {f"bilinear_{p[0]}x{p[1]}": scan_function(bilinear_top_bottom, p) for p in PATCHES}
+    # The default against bilinear alone first (short, so other load is less likely to
+    # fall on it), then the other sizes and variants, then the slow ones with 3 repeats.
+    default_name = f"nearest_{DEFAULT_PATCH[0]}x{DEFAULT_PATCH[1]}"
+    main, main_share = time_scans(
+        {
+            default_name: scan_function(nearest_top_bottom, DEFAULT_PATCH),
+            "bilinear_16x8": scan_function(bilinear_top_bottom, DEFAULT_PATCH),
+        },
+        frames,
+        boxes,
+        args.repeats,
     )
-    scans["one_hot_16x8"] = scan_function(one_hot_top_bottom, DEFAULT_PATCH)
+    scans = {}
+    for patch in PATCHES:
+        if patch != DEFAULT_PATCH:
+            scans[f"nearest_{patch[0]}x{patch[1]}"] = scan_function(nearest_top_bottom, patch)
+            scans[f"bilinear_{patch[0]}x{patch[1]}"] = scan_function(bilinear_top_bottom, patch)
     scans["per_channel_16x8"] = scan_function(channel_top_bottom, DEFAULT_PATCH)
     scans["epanechnikov_16x8"] = scan_function(kernel_top_bottom, DEFAULT_PATCH)
-    scans["integral_per_channel"] = scan_function(integral_channel_top_bottom, DEFAULT_PATCH)
     scans["with_likelihood_16x8"] = scan_function(nearest_top_bottom, DEFAULT_PATCH, True)
-    alternatives = time_scans(scans, frames, boxes, args.repeats)
-    default = alternatives.pop(f"nearest_{DEFAULT_PATCH[0]}x{DEFAULT_PATCH[1]}")
+    variants, variants_share = time_scans(scans, frames, boxes, args.repeats)
+    slow = {
+        "one_hot_16x8": scan_function(one_hot_top_bottom, DEFAULT_PATCH),
+        "integral_per_channel": scan_function(integral_channel_top_bottom, DEFAULT_PATCH),
+    }
+    slow, slow_share = time_scans(slow, frames, boxes, 3)
+    default = main.pop(default_name)
     result = {
         "features_ms_per_frame": default["ms_per_frame_median"],
         "features_ms_per_frame_min": default["ms_per_frame_min"],
         "features_cpu_ms_per_frame": default["cpu_ms_per_frame_median"],
+        "others_cpu_share": {"main": main_share, "variants": variants_share, "slow": slow_share},
         "goal_ms_per_frame": 2.0,
         "patch_shape": list(DEFAULT_PATCH),
         "boxes_per_frame": NUM_TARGETS * NUM_PARTICLES,
@@ -322,7 +359,7 @@ def main() -> None:
         "frame_size": [768, 576],
         "scan_frames": args.frames,
         "repeats": args.repeats,
-        "alternatives": alternatives,
+        "alternatives": main | variants | slow,
         "accuracy": accuracy(gt, args.accuracy_frames),
         "cpu_count": os.cpu_count(),
         "load_average": [round(load_before, 2), round(os.getloadavg()[0], 2)],
