@@ -66,8 +66,8 @@ def band_counts(
     bottom halves; ``()``: the whole patch; ``range(1, ph)``: one band per row).
     ``counts[k, c, b] = sum_{i in band k, j: valid[i, j], bins[i, j, c] = b} w[i, j]`` with
     ``w`` the kernel (1 without one): one scatter-add into ``num_bands * num_channels *
-    num_bins`` cells, invalid samples sent to an index past the end and dropped by it (faster
-    than adding zero weights: the benchmark's weights are then one number per band).
+    num_bins`` cells. Invalid samples go to an index past the end, which the scatter drops
+    (measured faster than adding them with weight 0).
 
     Args:
         bins: bin index of every sample and channel, in ``[0, num_bins)`` (as
@@ -144,8 +144,11 @@ def marginals(
 ) -> Float[Array, "*shape num_channels bins_per_channel"]:
     """Per-channel histograms of a joint histogram over ``num_channels`` equal channels.
 
-    ``m_c(b) = sum over joint bins whose channel-``c`` bin is ``b```` (the layout of
+    ``m_c(b)`` sums the joint bins whose channel ``c`` is in bin ``b`` (the layout of
     :func:`joint_bins`), e.g. the CMT bucket features from a joint RGB histogram.
+
+    Raises:
+        InputError: the number of joint bins is not a ``num_channels``-th power.
     """
     per_channel = round(joint.shape[-1] ** (1.0 / num_channels))
     if per_channel**num_channels != joint.shape[-1]:
