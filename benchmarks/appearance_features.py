@@ -15,7 +15,8 @@ other processes took during each group's timed runs as a share of all the cores'
 machine is shared; 0 means nothing else ran). Reported:
 
 * ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.top_bottom_histograms`
-  (nearest-pixel samples, scatter-add counting) with the ``DEFAULT_PATCH``;
+  (nearest-pixel samples, scatter-add counting) with the patch
+  :data:`jaxtrack.appearance.DEFAULT_PATCH_SHAPE`;
 * ``alternatives``: other patch sizes; bilinear samples
   (:func:`jaxtrack.appearance.sample_patch`) instead of nearest-pixel ones;
   counting by summed one-hot vectors instead of the scatter-add; per-channel histograms
@@ -52,6 +53,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.appearance import (
+    DEFAULT_PATCH_SHAPE,
     band_histograms,
     bhattacharyya_distance,
     epanechnikov,
@@ -72,7 +74,6 @@ VIDEO = DATA / "video" / "vtest.avi"
 GROUND_TRUTH = DATA / "mot15" / "PETS09-S2L1" / "gt" / "gt.txt"
 NUM_TARGETS, NUM_PARTICLES = 16, 64
 STEP = 32.0  # 8 bins per channel
-DEFAULT_PATCH = (16, 8)
 PATCHES = ((8, 4), (12, 6), (16, 8), (24, 12), (32, 16))
 
 
@@ -323,11 +324,11 @@ def main() -> None:
 
     # The default against bilinear alone first (short, so other load is less likely to
     # fall on it), then the other sizes and variants, then the slow ones with 3 repeats.
-    default_name = f"nearest_{DEFAULT_PATCH[0]}x{DEFAULT_PATCH[1]}"
+    default_name = f"nearest_{DEFAULT_PATCH_SHAPE[0]}x{DEFAULT_PATCH_SHAPE[1]}"
     main, main_share = time_scans(
         {
-            default_name: scan_function(nearest_top_bottom, DEFAULT_PATCH),
-            "bilinear_16x8": scan_function(bilinear_top_bottom, DEFAULT_PATCH),
+            default_name: scan_function(nearest_top_bottom, DEFAULT_PATCH_SHAPE),
+            "bilinear_16x8": scan_function(bilinear_top_bottom, DEFAULT_PATCH_SHAPE),
         },
         frames,
         boxes,
@@ -335,16 +336,16 @@ def main() -> None:
     )
     scans = {}
     for patch in PATCHES:
-        if patch != DEFAULT_PATCH:
+        if patch != DEFAULT_PATCH_SHAPE:
             scans[f"nearest_{patch[0]}x{patch[1]}"] = scan_function(nearest_top_bottom, patch)
             scans[f"bilinear_{patch[0]}x{patch[1]}"] = scan_function(bilinear_top_bottom, patch)
-    scans["per_channel_16x8"] = scan_function(channel_top_bottom, DEFAULT_PATCH)
-    scans["epanechnikov_16x8"] = scan_function(kernel_top_bottom, DEFAULT_PATCH)
-    scans["with_likelihood_16x8"] = scan_function(nearest_top_bottom, DEFAULT_PATCH, True)
+    scans["per_channel_16x8"] = scan_function(channel_top_bottom, DEFAULT_PATCH_SHAPE)
+    scans["epanechnikov_16x8"] = scan_function(kernel_top_bottom, DEFAULT_PATCH_SHAPE)
+    scans["with_likelihood_16x8"] = scan_function(nearest_top_bottom, DEFAULT_PATCH_SHAPE, True)
     variants, variants_share = time_scans(scans, frames, boxes, args.repeats)
     slow = {
-        "one_hot_16x8": scan_function(one_hot_top_bottom, DEFAULT_PATCH),
-        "integral_per_channel": scan_function(integral_channel_top_bottom, DEFAULT_PATCH),
+        "one_hot_16x8": scan_function(one_hot_top_bottom, DEFAULT_PATCH_SHAPE),
+        "integral_per_channel": scan_function(integral_channel_top_bottom, DEFAULT_PATCH_SHAPE),
     }
     slow, slow_share = time_scans(slow, frames, boxes, 3)
     default = main.pop(default_name)
@@ -354,7 +355,7 @@ def main() -> None:
         "features_cpu_ms_per_frame": default["cpu_ms_per_frame_median"],
         "others_cpu_share": {"main": main_share, "variants": variants_share, "slow": slow_share},
         "goal_ms_per_frame": 2.0,
-        "patch_shape": list(DEFAULT_PATCH),
+        "patch_shape": list(DEFAULT_PATCH_SHAPE),
         "boxes_per_frame": NUM_TARGETS * NUM_PARTICLES,
         "histograms": "top + bottom halves, joint RGB, 8 bins per channel (512), scatter-add",
         "sampler": "nearest pixel (sample_nearest)",

@@ -46,7 +46,13 @@ from jaxtrack.appearance.mutual_information import (
     mutual_information,
     quantise_values,
 )
-from jaxtrack.appearance.patches import Patch, sample_nearest, sample_patch, sample_points
+from jaxtrack.appearance.patches import (
+    DEFAULT_PATCH_SHAPE,
+    Patch,
+    sample_nearest,
+    sample_patch,
+    sample_points,
+)
 from jaxtrack.appearance.regions import Split, aspect_ratio, best_split, halves
 from jaxtrack.appearance.similarity import (
     bhattacharyya_coefficient,
@@ -62,6 +68,7 @@ from jaxtrack.appearance.variance_ratio import (
 )
 
 __all__ = [
+    "DEFAULT_PATCH_SHAPE",
     "LINEAR_COMBINATION_WEIGHTS",
     "AppearanceModel",
     "FeaturePool",
