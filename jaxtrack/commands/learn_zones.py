@@ -297,7 +297,8 @@ def _listing(report: dict, zones: SceneZones) -> str:
         )
     for k, zone in enumerate(report["zones"]):
         counts = (
-            f"{zone['entries']} entries, {zone['exits']} exits"
+            f"{zone['entries']} {_plural(zone['entries'], 'entry', 'entries')}, "
+            f"{zone['exits']} {_plural(zone['exits'], 'exit', 'exits')}"
             if "entries" in zone
             else f"share {zone['share']:.3g} of the birth density"
         )
@@ -314,3 +315,7 @@ def _listing(report: dict, zones: SceneZones) -> str:
     if report["figure"]:
         lines.append(f"  figure: {report['figure']}")
     return "\n".join(lines)
+
+
+def _plural(count: int, one: str, many: str) -> str:
+    return one if count == 1 else many
