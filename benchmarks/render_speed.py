@@ -22,8 +22,9 @@ import argparse
 import json
 import os
 import tempfile
-import time
 from pathlib import Path
+
+from timing import best_time
 
 from jaxtrack.datasets import (
     VideoSceneConfig,
@@ -35,16 +36,6 @@ from jaxtrack.datasets import (
 from jaxtrack.io.video import FrameWriter
 
 GOAL_FPS = 100.0
-
-
-def best_time(function, repeats: int) -> float:
-    """The smallest wall-clock time of ``repeats`` calls, seconds."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def main() -> None:

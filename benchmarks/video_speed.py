@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import cv2
+from timing import best_time
 
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_info, video_sequence
@@ -33,16 +34,6 @@ from jaxtrack.pipelines.tracking import track_sequences
 DEFAULT_VIDEO = (
     Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "video" / "vtest.avi"
 )
-
-
-def best_time(function, repeats: int) -> float:
-    """The smallest wall-clock time of ``repeats`` calls, seconds."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def decode_all(path: Path) -> int:
