@@ -5,11 +5,13 @@ The posterior is a mixture of ``max_components`` local trackers (SPEC section 2)
 ``particles_per_component`` particles (eq. 2), held in a fixed table with an ``alive`` mask
 and a persistent identity per slot. One :func:`mixture_step` composes public stages:
 
-1. propose ``x_t^i ~ q(. | x_{t-1}^i, z_t)`` (an injected :data:`~jaxtrack.filters.mixture_models.Proposal`; the default
-   :func:`~jaxtrack.filters.mixture_models.bootstrap_proposal` draws from the constant-velocity transition);
+1. propose ``x_t^i ~ q(. | x_{t-1}^i, z_t)`` (an injected
+   :data:`~jaxtrack.filters.mixture_models.Proposal`; the default
+   :func:`~jaxtrack.filters.mixture_models.bootstrap_proposal` draws from the
+   constant-velocity transition);
 2. reweight, ``w_t^i = w_{t-1}^i p(z_t | x_t^i) p(x_t^i | x_{t-1}^i) / q(x_t^i | x_{t-1}^i,
-   z_t)`` in log space (eq. 3, :func:`reweight`; an injected :data:`~jaxtrack.filters.mixture_models.LogLikelihood`, the
-   default
+   z_t)`` in log space (eq. 3, :func:`reweight`; an injected
+   :data:`~jaxtrack.filters.mixture_models.LogLikelihood`, the default
    :func:`~jaxtrack.filters.mixture_models.nearest_detection_log_likelihood`);
 3. mixture weights, ``pi_m <- pi_m w_m / sum_j pi_j w_j`` with ``w_m = sum_i w_t^i``
    (eq. 4, :func:`mixture_weights`);

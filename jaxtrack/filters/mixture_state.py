@@ -103,8 +103,10 @@ def init_mixture(
     particles = jnp.zeros((max_components, num_particles, STATE_DIM)).at[..., SIZE].set(1.0)
     return MixtureState(
         particles=particles,
-        log_weights=jnp.full((max_components, num_particles), -math.log(num_particles)),
-        log_mixture_weights=jnp.full((max_components,), LOG_ZERO),
+        log_weights=jnp.full(
+            (max_components, num_particles), -math.log(num_particles), jnp.float32
+        ),
+        log_mixture_weights=jnp.full((max_components,), LOG_ZERO, jnp.float32),
         alive=jnp.zeros((max_components,), bool),
         ids=jnp.full((max_components,), -1, jnp.int32),
         next_id=jnp.zeros((), jnp.int32),
