@@ -293,6 +293,7 @@ def test_overflow_is_reported_when_slots_run_out():
     assert list(np.asarray(info.tracks.ids[:, 0])) == [-1, 0]
 
 
+@pytest.mark.slow
 def test_jit_equals_eager():
     """One step from two living components (eager: op by op, about 5 s of tiny compiles)."""
     state = _two_components()
