@@ -26,7 +26,11 @@ from jaxtrack.filters.mixture import (
     resample_components,
     reweight,
 )
-from jaxtrack.filters.mixture_components import add_component, delete_components
+from jaxtrack.filters.mixture_components import (
+    add_component,
+    add_unexplained,
+    delete_components,
+)
 from jaxtrack.filters.mixture_models import (
     bootstrap_proposal,
     log_transition,
@@ -287,10 +291,24 @@ def test_scene_ids_persist_per_slot_and_leavers_are_deleted():
 
 
 def test_overflow_is_reported_when_slots_run_out():
-    filt = mixture_filter(1, 8)
-    _, info = run(filt, jax.random.key(0), PARAMS, jax.tree.map(lambda x: x[:2], SCENE))
-    assert list(np.asarray(info.overflow)) == [True, True]  # the second walker, twice
-    assert list(np.asarray(info.tracks.ids[:, 0])) == [-1, 0]
+    """The walkers of frame 0 are explained; a third box finds no slot until one is freed."""
+    state = _two_components()
+    frame = _frame(_detections([[*_frame_boxes(0), (500.0, 300.0, 25.0, 55.0)]], 3), 0)
+    add = jax.jit(add_unexplained)
+    full, overflow = add(jax.random.key(0), state, frame, PARAMS)
+    assert bool(overflow)
+    jax.tree.map(np.testing.assert_array_equal, full, state)
+    freed = state._replace(alive=state.alive.at[1].set(False), ids=state.ids.at[1].set(-1))
+    without_second = _frame(_detections([[_frame_boxes(0)[0], (500.0, 300.0, 25.0, 55.0)]], 3), 0)
+    added, overflow = add(jax.random.key(0), freed, without_second, PARAMS)
+    assert not bool(overflow) and list(added.ids) == [0, 2]
+    np.testing.assert_allclose(added.particles[1, :, 0].mean(), 512.5, atol=3.0)
+
+
+def _frame_boxes(t: int) -> list[tuple[float, ...]]:
+    """The real boxes of :data:`SCENE`'s frame ``t``."""
+    frame = _frame(SCENE, t)
+    return [tuple(map(float, box)) for box in np.asarray(frame.boxes)[np.asarray(frame.mask)]]
 
 
 @pytest.mark.slow
