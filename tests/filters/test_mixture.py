@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy.special import logsumexp
 from scipy.stats import norm
 
 from jaxtrack.filters.base import run
@@ -182,28 +183,46 @@ def _cloud(key, num_particles):
     return state.particles.at[0, :, 1].set(velocity[:, 0]).at[0, :, 3].set(velocity[:, 1])
 
 
+def _eq3_by_hand(new, old, z, shift):
+    """NumPy ``log w_{t-1} + log p(z|x) + log p(x|x') - log q(x|x', z)`` of one component
+    (``w_{t-1}`` uniform; the shifted proposal; constant noise :data:`LINEAR`)."""
+    x, x_old = np.asarray(new[0], np.float64), np.asarray(old[0], np.float64)
+    q, r = np.asarray(LINEAR.motion_noise_std), np.asarray(LINEAR.measurement_noise_std)
+    n = np.concatenate([x[:, [1, 3]] - x_old[:, [1, 3]], x[:, 4:] - x_old[:, 4:]], 1) / q
+    return (
+        -math.log(x.shape[0])
+        + norm.logpdf(_centre(z), x[:, [0, 2, 4, 5]], r).sum(1)
+        + norm.logpdf(n).sum(1)
+        - norm.logpdf(n, np.asarray(shift)).sum(1)
+    )
+
+
 def test_proposal_log_density_enters_the_weights_exactly():
-    """Eq. 3 with a shifted proposal: weights equal ``p(z|x) p(x|x') / q`` from NumPy."""
+    """Eq. 3 with a shifted proposal: weights equal ``p(z|x) p(x|x') / q`` from NumPy, in the
+    stage and through the builder's injected proposal (the step's ``log w_m``)."""
     shift = jnp.array([0.8, -0.5, 0.3, 0.0])
     particles = _cloud(jax.random.key(0), 64)
-    frame = _frame(_detections([[(205.0, 148.0, 40.0, 80.0)]], capacity=2), 0)
+    box = (205.0, 148.0, 40.0, 80.0)
+    frame = _frame(_detections([[box]], capacity=2), 0)
     new, log_q = _shifted_proposal(jax.random.key(1), particles, LINEAR, frame, shift)
     log_like = nearest_detection_log_likelihood(new, LINEAR, frame, constant_std)
     log_old = jnp.full((1, 64), -math.log(64))
     weights = reweight(
         log_old, log_like, log_transition(new, particles, LINEAR, constant_std), log_q
     )
-    x, x_old = np.asarray(new[0], np.float64), np.asarray(particles[0], np.float64)
-    q, r = np.asarray(LINEAR.motion_noise_std), np.asarray(LINEAR.measurement_noise_std)
-    n = np.concatenate([x[:, [1, 3]] - x_old[:, [1, 3]], x[:, 4:] - x_old[:, 4:]], 1) / q
-    z = _centre((205.0, 148.0, 40.0, 80.0))
-    expected = (
-        -math.log(64)
-        + norm.logpdf(z, x[:, [0, 2, 4, 5]], r).sum(1)
-        + norm.logpdf(n).sum(1)
-        - norm.logpdf(n, np.asarray(shift)).sum(1)
-    )
+    expected = _eq3_by_hand(new, particles, box, shift)
     np.testing.assert_allclose(weights[0], expected, rtol=1e-4, atol=1e-3)
+    propose = functools.partial(_shifted_proposal, shift=shift)
+    filt = mixture_filter(1, 64, propose=propose, noise_model=constant_std)
+    state = filt.init(jax.random.key(0), LINEAR)._replace(
+        particles=particles, alive=jnp.array([True]), log_mixture_weights=jnp.zeros(1)
+    )
+    step_key = jax.random.key(5)
+    _, info = jax.jit(filt.step)(step_key, state, LINEAR, frame)
+    # The step's first key goes to the proposal.
+    new, _ = propose(jax.random.split(step_key, 3)[0], particles, LINEAR, frame)
+    expected = logsumexp(_eq3_by_hand(new, particles, box, shift))
+    np.testing.assert_allclose(info.log_support[0], expected, rtol=1e-4)
 
 
 def test_shifted_proposal_estimates_the_bootstrap_mean():
