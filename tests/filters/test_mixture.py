@@ -253,7 +253,7 @@ def test_local_estimate_is_the_heaviest_clusters_weighted_mean():
     far = rng.normal([300.0, 0, 80, 0, 30, 60], 1.0, (8, 6))
     weights = np.concatenate([rng.uniform(0.5, 1.0, 12) * 0.3, rng.uniform(0.5, 1.0, 8)])
     particles = np.concatenate([near, far])
-    estimate = local_estimate(jnp.asarray(particles), jnp.log(jnp.asarray(weights)))
+    estimate = jax.jit(local_estimate)(jnp.asarray(particles), jnp.log(jnp.asarray(weights)))
     heavy = weights[12:] / weights[12:].sum()
     np.testing.assert_allclose(estimate, heavy @ far, rtol=1e-5)
     single = local_estimate(jnp.asarray(near), jnp.zeros(12))
@@ -263,7 +263,7 @@ def test_local_estimate_is_the_heaviest_clusters_weighted_mean():
 def test_resampling_stays_within_each_component():
     particles = jnp.arange(3 * 5, dtype=jnp.float32).reshape(3, 5, 1) * jnp.ones(6)
     log_w = jnp.log(jnp.array([[1, 0, 0, 0, 0], [0, 0, 1, 1, 0], [1, 1, 1, 1, 1.0]]))
-    new, new_log_w = resample_components(jax.random.key(0), particles, log_w)
+    new, new_log_w = jax.jit(resample_components)(jax.random.key(0), particles, log_w)
     values = np.asarray(new[..., 0])
     assert (
         np.all(values[0] == 0)
@@ -277,16 +277,20 @@ def test_deletion_and_new_components():
     """``pi`` and support thresholds delete; a new box fills the first dead slot, new id."""
     state = init_mixture(jax.random.key(0), PARAMS, 3, 4)
     for box in ([10.0, 10, 20, 40], [100.0, 10, 20, 40], [200.0, 10, 20, 40]):
-        state, full = add_component(jax.random.key(1), state, jnp.asarray(box), PARAMS)
+        state, full = ADD(jax.random.key(1), state, jnp.asarray(box), PARAMS, state_dependent_std)
         assert not bool(full)
     np.testing.assert_allclose(np.exp(state.log_mixture_weights), [1 / 3] * 3, rtol=1e-5)
-    state, full = add_component(jax.random.key(2), state, jnp.array([9.0, 9, 9, 9]), PARAMS)
+    state, full = ADD(
+        jax.random.key(2), state, jnp.array([9.0, 9, 9, 9]), PARAMS, state_dependent_std
+    )
     assert bool(full) and list(state.ids) == [0, 1, 2] and int(state.next_id) == 3
     state = state._replace(log_mixture_weights=jnp.log(jnp.array([0.6, 0.3999, 1e-4])))
-    state, deleted = delete_components(state, jnp.array([-1.0, -30.0, -1.0]), PARAMS)
+    state, deleted = jax.jit(delete_components)(state, jnp.array([-1.0, -30.0, -1.0]), PARAMS)
     assert list(deleted) == [False, True, True] and list(state.ids) == [0, -1, -1]
     np.testing.assert_allclose(np.exp(state.log_mixture_weights), [1.0, 0, 0], atol=1e-6)
-    state, _ = add_component(jax.random.key(3), state, jnp.array([50.0, 60, 20, 40]), PARAMS)
+    state, _ = ADD(
+        jax.random.key(3), state, jnp.array([50.0, 60, 20, 40]), PARAMS, state_dependent_std
+    )
     assert list(state.ids) == [0, 3, -1] and list(state.alive) == [True, True, False]
     np.testing.assert_allclose(np.exp(state.log_mixture_weights), [0.5, 0.5, 0], atol=1e-6)
     np.testing.assert_allclose(
