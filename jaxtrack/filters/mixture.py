@@ -73,6 +73,12 @@ def reweight(
     """Importance weights (CMT eq. 3): ``log w_t = log w_{t-1} + log p(z|x) + log p(x|x') -
     log q(x|x', z)``, unnormalised.
 
+    Args:
+        log_weights: particle log-weights of the previous frame.
+        log_likelihoods: ``log p(z_t | x_t)`` of the proposed particles.
+        log_transitions: ``log p(x_t | x_{t-1})``.
+        log_proposals: ``log q(x_t | x_{t-1}, z_t)``.
+
     Returns:
         The new particle log-weights.
     """
@@ -169,6 +175,12 @@ def resample_components(
     """Per-component resampling (:func:`~jaxtrack.filters.resampling.resample`, vmapped):
     each component's particles are resampled from its own normalised weights.
 
+    Args:
+        key: PRNG key (split into one key per component).
+        particles: the particles of every component.
+        log_weights: their log-weights.
+        scheme: resampling scheme (:mod:`~jaxtrack.filters.resampling`).
+
     Returns:
         The resampled particles and their normalised log-weights ``-log num_particles``.
     """
@@ -200,15 +212,18 @@ def mixture_step(
         state: the carry after the previous frame.
         params: the filter's parameters.
         inputs_t: one frame of padded detections.
-        propose: :data:`Proposal` (:func:`bootstrap_proposal`).
-        log_likelihood: :data:`LogLikelihood` (:func:`nearest_detection_log_likelihood`).
-        log_transition: ``(new, old, params) -> log p(new | old)`` (:func:`log_transition`).
+        propose: :data:`~jaxtrack.filters.mixture_models.Proposal`
+            (:func:`~jaxtrack.filters.mixture_models.bootstrap_proposal`).
+        log_likelihood: :data:`~jaxtrack.filters.mixture_models.LogLikelihood`
+            (:func:`~jaxtrack.filters.mixture_models.nearest_detection_log_likelihood`).
+        log_transition: ``(new, old, params) -> log p(new | old)``
+            (:func:`~jaxtrack.filters.mixture_models.log_transition`).
         resample: ``(key, particles, log_weights) -> (particles, log_weights)``
             (:func:`resample_components`).
         estimate: ``(particles, log_weights) -> state`` of one component
             (:func:`local_estimate`).
         add: ``(key, state, detections, params) -> (state, overflow)``
-            (:func:`add_unexplained`).
+            (:func:`~jaxtrack.filters.mixture_components.add_unexplained`).
 
     Returns:
         The new state and the frame's :class:`MixtureInfo`.
@@ -262,9 +277,10 @@ def mixture_filter(
     Args:
         max_components: local tracker slots (> 0).
         particles_per_component: particles per local tracker (> 0; 40 in CMT).
-        propose: :data:`Proposal`; None for :func:`bootstrap_proposal`.
-        likelihood: :data:`LogLikelihood`; None for
-            :func:`nearest_detection_log_likelihood`.
+        propose: :data:`~jaxtrack.filters.mixture_models.Proposal`; None for
+            :func:`~jaxtrack.filters.mixture_models.bootstrap_proposal`.
+        likelihood: :data:`~jaxtrack.filters.mixture_models.LogLikelihood`; None for
+            :func:`~jaxtrack.filters.mixture_models.nearest_detection_log_likelihood`.
         resampling: resampling scheme of every component.
         noise_model: noise model of the dynamics, the default likelihood and the births.
         kmeans_iterations: Lloyd iterations of :func:`local_estimate`.

@@ -25,6 +25,11 @@ def delete_components(
 
     The survivors' mixture weights are renormalised; deleted slots get ``LOG_ZERO`` and id -1.
 
+    Args:
+        state: the mixture after the mixture-weight update (eq. 4).
+        log_support: ``log w_m`` of every slot.
+        params: the filter's parameters (the two thresholds).
+
     Returns:
         The state and the mask of the slots deleted.
     """
@@ -103,6 +108,13 @@ def add_unexplained(
     :func:`~jaxtrack.models.likelihood.log_likelihood`, whatever the injected likelihood).
     The detections are visited in slot order, so a component started by one can explain the
     next ones. No gradient flows through these decisions.
+
+    Args:
+        key: PRNG key (one key per detection slot).
+        state: the mixture.
+        detections: the frame's padded detections.
+        params: the filter's parameters.
+        noise_model: noise model of the likelihood and the new particles' spread.
 
     Returns:
         The state and True when some unexplained detection found no free slot.

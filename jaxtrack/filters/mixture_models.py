@@ -22,7 +22,9 @@ from jaxtrack.types import Detections
 
 #: A proposal: ``(key, particles, params, inputs_t) -> (new_particles, log_q)``, particles
 #: ``[max_components, num_particles, 6]``, ``log_q`` the proposal's log-density ``[max_components,
-#: num_particles]`` w.r.t. the same measure as :func:`log_transition`.
+#: num_particles]`` w.r.t. the same measure as :func:`log_transition` (a density of the four
+#: noise coordinates: the proposed positions must follow from the velocities as in the
+#: constant-velocity model, ``y_t = y_{t-1} + (v_{t-1} + v_t) / 2``).
 Proposal = Callable[[Array, Array, MixtureParams, Detections], tuple[Array, Array]]
 #: An observation model: ``(particles, params, inputs_t) -> log p(z_t | x)``, ``[max_components,
 #: num_particles]``.
@@ -30,16 +32,22 @@ LogLikelihood = Callable[[Array, MixtureParams, Detections], Array]
 
 
 def transition_noise(
-    new: Float[Array, "... 6"],
-    old: Float[Array, "... 6"],
+    new: Float[Array, "*batch 6"],
+    old: Float[Array, "*batch 6"],
     params: MixtureParams,
     noise_model: NoiseModel = state_dependent_std,
-) -> tuple[Float[Array, "... 4"], Float[Array, "... 4"]]:
+) -> tuple[Float[Array, "*batch 4"], Float[Array, "*batch 4"]]:
     """The standard normal draws ``n`` that move ``old`` to ``new``, and their scales.
 
     The constant-velocity transition (:mod:`~jaxtrack.models.dynamics`, ``T = 1``) moves the
     velocities by ``std_d n_d`` and the sizes by ``std_w n_w``, ``std_h n_h`` (the positions
     follow from the velocities), so ``n = (dv1, dv2, dw, dh) / std(old)``.
+
+    Args:
+        new: the states at ``t``.
+        old: the states at ``t - 1``.
+        params: the filter's parameters (``motion_noise_std``).
+        noise_model: noise model of the dynamics.
 
     Returns:
         ``n`` and ``std(old)``, both ``[..., 4]``.
@@ -52,8 +60,8 @@ def transition_noise(
 
 
 def log_transition(
-    new: Float[Array, "... 6"],
-    old: Float[Array, "... 6"],
+    new: Float[Array, "*batch 6"],
+    old: Float[Array, "*batch 6"],
     params: MixtureParams,
     noise_model: NoiseModel = state_dependent_std,
 ) -> Float[Array, " *batch"]:
@@ -64,6 +72,12 @@ def log_transition(
     ``sum_d log N(n_d; 0, 1) - log std_d`` with ``n`` from :func:`transition_noise`. Sizes
     clipped at :data:`~jaxtrack.models.dynamics.MIN_SIZE` by the sampler are not corrected
     for; with the bootstrap proposal the two densities cancel exactly anyway.
+
+    Args:
+        new: the states at ``t``.
+        old: the states at ``t - 1``.
+        params: the filter's parameters (``motion_noise_std``).
+        noise_model: noise model of the dynamics.
 
     Returns:
         The log-densities, one per particle.
@@ -112,6 +126,13 @@ def nearest_detection_log_likelihood(
     (boxes ``(y1, y2, w, h)``; :func:`~jaxtrack.models.likelihood.log_likelihood`), ``b`` =
     ``params.background_log_likelihood`` (a particle far from every detection, or a frame
     without any).
+
+    Args:
+        particles: the proposed particles.
+        params: the filter's parameters (``measurement_noise_std``,
+            ``background_log_likelihood``).
+        inputs_t: the frame's padded detections.
+        noise_model: noise model of the likelihood.
 
     Returns:
         The log-likelihoods.
