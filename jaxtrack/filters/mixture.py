@@ -21,7 +21,8 @@ and a persistent identity per slot. One :func:`mixture_step` composes public sta
    (:func:`~jaxtrack.filters.mixture_components.delete_components`);
 6. per-component resampling (:func:`resample_components`);
 7. a new component for each detection that no living component explains
-   (:mod:`~jaxtrack.filters.mixture_components`).
+   (:mod:`~jaxtrack.filters.mixture_components`); its first local decision comes on the
+   next frame.
 
 The state is the 6-D box state of :mod:`~jaxtrack.models.dynamics`,
 ``(y1, vy1, y2, vy2, w, h)``: the centre ``(Px, Py)``, its velocity and the box size
