@@ -206,3 +206,18 @@ def load_config(path: str | None, tracker: str = "phd") -> TrackerConfig:
     """
     config_type = tracker_entry(tracker).config_type
     return config_type() if path is None else load_config_file(path, config_type)
+
+
+def step_progress(bar) -> Callable[[str], None]:
+    """A pipeline's ``progress`` callback on a tqdm bar counting steps: each message names
+    the step now starting (the bar's description) and completes the one before it."""
+    started = False
+
+    def progress(message: str) -> None:
+        nonlocal started
+        if started:
+            bar.update(1)
+        started = True
+        bar.set_description_str(message)
+
+    return progress

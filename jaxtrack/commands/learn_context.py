@@ -19,6 +19,7 @@ from jaxtrack.commands.arguments import (
     add_seed,
     ranged,
     refuse_ignored,
+    step_progress,
 )
 from jaxtrack.commands.paths import (
     check_outputs,
@@ -213,13 +214,7 @@ def run(args: argparse.Namespace) -> int:
     steps = (5 if "tracks" in (args.birth_from, clutter_from) else 4) + 2 * args.heldout
     total = steps + (1 if args.plot else 0)
     with tqdm(total=total, desc="learn-context", unit="step", disable=args.quiet) as bar:
-        started: list[str] = []
-
-        def progress(message: str) -> None:
-            if started:
-                bar.update(1)
-            started.append(message)
-            bar.set_description_str(message)
+        progress = step_progress(bar)
 
         sequence, frames = _video_sequence(args) if args.detections else (args.sequence, None)
         learned = learn_context(

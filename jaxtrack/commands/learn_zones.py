@@ -20,6 +20,7 @@ from jaxtrack.commands.arguments import (
     add_seed,
     ranged,
     refuse_ignored,
+    step_progress,
 )
 from jaxtrack.commands.paths import (
     check_outputs,
@@ -153,13 +154,7 @@ def run(args: argparse.Namespace) -> int:
     # steps: reading the context, or loading, (tracking,) learning; (drawing)
     steps = (1 if from_context else 2 + (args.source == "tracks")) + bool(args.figure)
     with tqdm(total=steps, desc="learn-zones", unit="step", disable=args.quiet) as bar:
-        started: list[str] = []
-
-        def progress(message: str) -> None:
-            if started:
-                bar.update(1)
-            started.append(message)
-            bar.set_description_str(message)
+        progress = step_progress(bar)
 
         if from_context:
             progress("reading the context")

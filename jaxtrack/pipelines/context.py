@@ -71,6 +71,24 @@ def uniform_tracker_rows(sequence: MotSequence, seed: int = 0, config: PHDConfig
     return rows
 
 
+def training_span(
+    sequence: MotSequence | str | Path,
+    frames: tuple[int, int] | str | None,
+    notify: Callable[[str], None],
+) -> MotSequence:
+    """A loaded sequence as given, or a sequence folder loaded over ``frames``.
+
+    Raises:
+        InputError: ``frames`` given with an already loaded sequence (its own span is used).
+    """
+    if isinstance(sequence, MotSequence):
+        if frames is not None:
+            raise InputError("give frames only with a sequence folder, not a loaded sequence")
+        return sequence
+    notify("loading sequence")
+    return load_sequence(sequence, frames=frames)
+
+
 def learn_context(
     sequence: MotSequence | str | Path,
     frames: tuple[int, int] | str | None = None,
@@ -117,12 +135,7 @@ def learn_context(
     notify = progress or (lambda _: None)
     if birth_from not in ("tracks", "gt"):
         raise InputError(f"birth source must be 'tracks' or 'gt', got {birth_from!r}")
-    if isinstance(sequence, MotSequence):
-        if frames is not None:
-            raise InputError("give frames only with a sequence folder, not a loaded sequence")
-    else:
-        notify("loading sequence")
-        sequence = load_sequence(sequence, frames=frames)
+    sequence = training_span(sequence, frames, notify)
     span = (sequence.first_frame, sequence.last_frame)
     labels_path = None if str(clutter_from) in ("gt", "tracks") else Path(clutter_from)
     uses_gt = birth_from == "gt" or str(clutter_from) == "gt"

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from jaxtrack.context.zones import MARGIN_FRAMES, LearnedZones, learn_zones
 from jaxtrack.errors import InputError
-from jaxtrack.io.motchallenge import MotSequence, load_sequence
-from jaxtrack.pipelines.context import uniform_tracker_rows
+from jaxtrack.io.motchallenge import MotSequence
+from jaxtrack.pipelines.context import training_span, uniform_tracker_rows
 from jaxtrack.types import MotTable
 
 #: The trajectory sources.
@@ -74,12 +74,7 @@ def learn_sequence_zones(
         InputError: a bad span or source, or no trajectory starting or ending in the span.
     """
     notify = progress or (lambda _: None)
-    if isinstance(sequence, MotSequence):
-        if frames is not None:
-            raise InputError("give frames only with a sequence folder, not a loaded sequence")
-    else:
-        notify("loading sequence")
-        sequence = load_sequence(sequence, frames=frames)
+    sequence = training_span(sequence, frames, notify)
     span = (sequence.first_frame, sequence.last_frame)
     if source == "tracks":
         notify(f"tracking frames {span[0]}:{span[1]} with uniform intensities")
