@@ -8,6 +8,7 @@ traceback and exits with status 2. A legal but suspicious value gives an
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
 from os import PathLike
 
 
@@ -38,3 +39,22 @@ class InputWarning(UserWarning):
     Raised with :func:`warnings.warn`; the run goes on. The CLI prints it as one line,
     ``jaxtrack <command>: warning: <message>``, on stderr.
     """
+
+
+def check_keys(
+    data: Mapping, required: Collection[str], optional: Collection[str] = (), where: str = ""
+) -> None:
+    """Checks the keys of a parsed JSON object: each of ``required`` present, no key outside
+    ``required`` and ``optional``.
+
+    Raises:
+        InputError: naming the first missing key (in ``required`` order), else the first
+            unknown one (sorted), prefixed with ``where: `` when given.
+    """
+    prefix = f"{where}: " if where else ""
+    missing = [key for key in required if key not in data]
+    if missing:
+        raise InputError(f"{prefix}missing key {missing[0]!r}")
+    unknown = sorted(set(data) - set(required) - set(optional))
+    if unknown:
+        raise InputError(f"{prefix}unknown key {unknown[0]!r}")

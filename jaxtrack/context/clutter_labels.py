@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.errors import FileFormatError, InputError, check_keys
 
 #: Version written into (and required from) a labels file.
 FORMAT_VERSION = 1
@@ -275,12 +275,10 @@ def _check(data, path, error: type[Exception] | None) -> None:
 
     if not isinstance(data, dict):
         fail("top level must be a JSON object")
-    missing = [key for key in _KEYS if key not in data]
-    if missing:
-        fail(f"missing key {missing[0]!r}")
-    unknown = sorted(set(data) - set(_KEYS))
-    if unknown:
-        fail(f"unknown key {unknown[0]!r}")
+    try:
+        check_keys(data, _KEYS)
+    except InputError as err:
+        fail(str(err))
     if data["format_version"] != FORMAT_VERSION or isinstance(data["format_version"], bool):
         fail(f"format_version must be {FORMAT_VERSION}, got {json.dumps(data['format_version'])}")
     if not isinstance(data["sequence"], str) or not data["sequence"]:

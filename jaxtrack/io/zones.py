@@ -35,7 +35,7 @@ import numpy as np
 
 from jaxtrack.context.activity import grid_shape
 from jaxtrack.context.zones import SceneZones
-from jaxtrack.errors import FileFormatError, InputError
+from jaxtrack.errors import FileFormatError, InputError, check_keys
 from jaxtrack.limits import IMAGE_SIZE, MAX_IMAGE_SIZE
 
 #: Version written into (and required from) a zones file.
@@ -150,12 +150,7 @@ def _check(data) -> tuple[np.ndarray, str | None, float | None, tuple[int, int]]
     """``(boxes, mask name, cell, (width, height))`` of parsed JSON; InputError naming the key."""
     if not isinstance(data, dict):
         raise InputError("top level must be a JSON object")
-    missing = [key for key in REQUIRED_KEYS if key not in data]
-    if missing:
-        raise InputError(f"missing key {missing[0]!r}")
-    unknown = sorted(set(data) - set(REQUIRED_KEYS) - set(OPTIONAL_KEYS))
-    if unknown:
-        raise InputError(f"unknown key {unknown[0]!r}")
+    check_keys(data, REQUIRED_KEYS, OPTIONAL_KEYS)
     version = data["format_version"]
     if isinstance(version, bool) or version != FORMAT_VERSION:
         raise InputError(f"format_version must be {FORMAT_VERSION}, got {json.dumps(version)}")
@@ -188,12 +183,7 @@ def _zone(zone, where: str, width: int, height: int) -> list[float]:
     """The box of one zone entry, checked."""
     if not isinstance(zone, dict):
         raise InputError(f"{where} must be an object with the keys x, y, w, h")
-    missing = [key for key in ZONE_KEYS if key not in zone]
-    if missing:
-        raise InputError(f"{where}: missing key {missing[0]!r}")
-    unknown = sorted(set(zone) - set(ZONE_KEYS) - set(ZONE_DETAILS))
-    if unknown:
-        raise InputError(f"{where}: unknown key {unknown[0]!r}")
+    check_keys(zone, ZONE_KEYS, ZONE_DETAILS, where)
     box = []
     for key in ZONE_KEYS:
         value = zone[key]
