@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
+from jaxtrack.commands import cmt_ablation
 from jaxtrack.commands.arguments import (
     SEED_TYPE,
     add_out,
@@ -458,6 +459,16 @@ examples:
         run=_gradient_tuning,
         files=("summary.csv", "steps.csv", "goals.csv", "summary.md", "gradient_tuning.png"),
         scene="synthetic",
+    ),
+    "cmt-ablation": Experiment(
+        help=cmt_ablation.HELP,
+        description=cmt_ablation.DESCRIPTION,
+        quick_help=cmt_ablation.QUICK_HELP,
+        sequence=False,
+        add_extras=cmt_ablation.add_arguments,
+        run=cmt_ablation.run,
+        files=cmt_ablation.ABLATION_FILES,
+        scene="scenes",
     ),
 }
 

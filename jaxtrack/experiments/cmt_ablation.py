@@ -1,0 +1,363 @@
+"""CMT's ablation (Cui et al., Sec. VII, Table II): MTb, MTb+CPD and CMT against PHD and Kalman.
+
+**Sequences** (:func:`experiment_sequences`). The three MOT15 sequences with video:
+PETS09-S2L1 (its frames are ``video/vtest.avi`` of the shared data), TUD-Campus and
+TUD-Stadtmitte (``<name>.mp4`` in their folders), with their MOT15 detections, whole; and
+the scripted video scenes (:mod:`jaxtrack.datasets.video_scene`: crossings of similarly
+dressed people, groups, an occluder) of the seeds :data:`HELD_OUT_SEEDS`, which no default
+of the toolkit was tuned on, written to ``OUT/scenes/video-SEED``, with their simulated
+detections.
+
+**Trackers** (:func:`experiment_trackers`), all on the same detections (CMT's foreground
+blobs): the three CMT variants (``--variant mtb|cpd|cmt``: bootstrap proposal + EWOM,
+contextual proposal + EWOM, contextual proposal + COM), the PHD tracker and the Kalman
+data-association baseline, each with its default configuration and the experiment's seed.
+Trackers that look at the images run with the frames streamed
+(:func:`~jaxtrack.pipelines.stream.track_streamed`), the others through
+:func:`~jaxtrack.pipelines.tracking.track_sequences`.
+
+**Scores** (:func:`score_row`): CMT's error rates OE, DE, SE (:mod:`jaxtrack.metrics.cmt`)
+and MOTA, IDF1, HOTA, IDSW, MT, Frag at IoU 0.5 with MOT15's rules, per sequence, and pooled
+(:func:`~jaxtrack.metrics.evaluate.combine_sequences`, TrackEval's combination) over the
+three MOT15 sequences and over the synthetic scenes. The off-the-shelf peers of the issue
+are quoted (:data:`PEERS`), not re-run. :func:`goal_checks` tests the issue's goals.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from tqdm import tqdm
+
+from jaxtrack.configs import TrackerConfig
+from jaxtrack.datasets.video_config import VideoSceneConfig
+from jaxtrack.datasets.video_files import write_video_scene
+from jaxtrack.datasets.video_scene import generate_video_scene
+from jaxtrack.errors import InputError
+from jaxtrack.experiments.common import QUICK_TRACKER_CONFIG, evaluate_rows
+from jaxtrack.filters.cmt_tracker import CMTConfig
+from jaxtrack.filters.kalman_tracker import KalmanConfig
+from jaxtrack.filters.phd_tracker import PHDConfig
+from jaxtrack.filters.registry import tracker_entry
+from jaxtrack.io import MotSequence, load_sequence, write_mot_file
+from jaxtrack.io.video import open_sequence_frames
+from jaxtrack.metrics.evaluate import Evaluation, combine_sequences
+from jaxtrack.pipelines.stream import track_streamed
+from jaxtrack.pipelines.tracking import track_sequences
+from jaxtrack.types import MotTable
+
+#: The MOT15 sequences with video, in table order.
+VIDEO_SEQUENCES = ("PETS09-S2L1", "TUD-Campus", "TUD-Stadtmitte")
+#: PETS09-S2L1's frames, relative to the shared data folder (the sequence folder has none).
+PETS_VIDEO = Path("video") / "vtest.avi"
+#: Seeds of the synthetic video scenes: held out, never used to tune any default.
+HELD_OUT_SEEDS = (101, 102, 103)
+#: The CMT variants, table name -> ``CMTConfig.variant``.
+CMT_VARIANTS = {"MTb": "mtb", "MTb+CPD": "cpd", "CMT": "cmt"}
+#: Name of the pooled rows over the MOT15 sequences and over the synthetic scenes.
+MOT15_COMBINED = "MOT15 video combined"
+SYNTHETIC_COMBINED = "synthetic combined"
+#: Scores in percent, then counts, as the table shows them.
+PERCENT_KEYS = ("OE", "DE", "SE", "MOTA", "IDF1", "HOTA")
+COUNT_KEYS = ("IDSW", "MT", "Frag")
+#: The columns of the result table.
+TABLE_COLUMNS = ("sequence", "tracker", *PERCENT_KEYS, *COUNT_KEYS)
+#: Quick runs: the first frames of TUD-Campus and of one short synthetic scene.
+QUICK_FRAMES = 24
+#: The synthetic scene of quick runs (the shortest the script allows; TUD-Campus's size, so
+#: that both sequences share one compile per tracker).
+QUICK_SCENE = VideoSceneConfig(num_frames=240)
+#: Off-the-shelf peers on the same MOT15 detections, quoted from issue 17 (TrackEval 1.3.0,
+#: MOT15 mode, pooled over the three MOT15 sequences; not re-run here).
+PEERS = (
+    ("SORT (`trackers` 2.6.1)", 59.7, 47.5, 38.0, 19, 119, 380, "40.2 / 99"),
+    ("ByteTrack (`trackers` 2.6.1)", 60.8, 51.8, 39.5, 19, 98, 377, "45.4 / 79"),
+    ("OC-SORT (`trackers` 2.6.1)", 58.6, 52.2, 39.6, 14, 85, 347, "45.9 / 68"),
+    ("norfair 2.3.0 (no ReID)", 62.3, 58.6, 42.8, 25, 47, 175, "55.8 / 35"),
+    ("norfair 2.3.0 + HSV-histogram ReID", 62.4, 41.6, 34.9, 23, 46, 178, "34.5 / 36"),
+    ("deep-sort-realtime 1.3.2 + HSV histogram", 62.0, 45.9, 36.9, 23, 114, 234, "39.8 / 100"),
+    ("OpenCV CSRT (+ IoU association)", 57.2, 50.1, 39.3, 24, 101, 359, "44.4 / 81 (5 fps)"),
+    ("jaxtrack PHD (this repo, default)", 68.4, 52.3, 41.5, 24, 61, 175, "46.5 / 50"),
+)
+#: The columns of :data:`PEERS`.
+PEER_COLUMNS = ("tracker", "MOTA", "IDF1", "HOTA", "MT", "IDSW", "Frag", "PETS09 IDF1 / IDSW")
+#: The best peer's combined IDF1 and IDSW (norfair without ReID), the goal's bar.
+BEST_PEER_IDF1 = 58.6
+BEST_PEER_IDSW = 46
+
+
+class ExperimentSequence(NamedTuple):
+    """A sequence of the experiment.
+
+    Attributes:
+        name: its name in the table.
+        folder: the MOTChallenge folder (``seqinfo.ini``, ``det/``, ``gt/``).
+        video: its frames when the folder has none of its own (PETS09-S2L1), else None.
+        frames: the 1-based inclusive span tracked and scored.
+        synthetic: a scripted video scene (else a MOT15 sequence).
+    """
+
+    name: str
+    folder: Path
+    video: Path | None
+    frames: tuple[int, int] | None
+    synthetic: bool
+
+
+def experiment_trackers(quick: bool = False) -> dict[str, TrackerConfig]:
+    """The compared trackers, table name -> configuration (defaults; ``quick``: few
+    particles, for smoke runs whose numbers mean nothing)."""
+    cmt = CMTConfig()
+    phd = PHDConfig()
+    if quick:
+        cmt = cmt.replace(max_components=8, particles_per_component=16)
+        phd = QUICK_TRACKER_CONFIG
+    trackers: dict[str, TrackerConfig] = {
+        name: cmt.replace(variant=variant) for name, variant in CMT_VARIANTS.items()
+    }
+    trackers["PHD"] = phd
+    trackers["Kalman"] = KalmanConfig()
+    return trackers
+
+
+def experiment_sequences(
+    data: Path,
+    scenes: Path,
+    seeds: Sequence[int],
+    quick: bool = False,
+    progress: Callable[[str], None] | None = None,
+) -> list[ExperimentSequence]:
+    """The MOT15 video sequences of ``data`` and the synthetic scenes of ``seeds``.
+
+    The synthetic scenes are generated and written (video included) to
+    ``scenes/video-SEED``. ``quick``: TUD-Campus and the first seed's short scene
+    (:data:`QUICK_SCENE`), their first :data:`QUICK_FRAMES` frames.
+
+    Raises:
+        InputError: a MOT15 sequence or PETS09-S2L1's video missing from ``data``.
+    """
+    names = ("TUD-Campus",) if quick else VIDEO_SEQUENCES
+    frames = (1, QUICK_FRAMES) if quick else None
+    sequences = []
+    for name in names:
+        folder = data / "mot15" / name
+        if not (folder / "seqinfo.ini").is_file():
+            raise InputError(f"{folder}: MOT15 sequence not found (is --data the shared data?)")
+        video = data / PETS_VIDEO if name == "PETS09-S2L1" else None
+        if video is not None and not video.is_file():
+            raise InputError(f"{video}: PETS09-S2L1's video not found")
+        sequences.append(ExperimentSequence(name, folder, video, frames, False))
+    for seed in seeds[:1] if quick else seeds:
+        scene = generate_video_scene(seed, QUICK_SCENE if quick else None)
+        if progress is not None:
+            progress(f"rendering the synthetic scene {scene.info.name}")
+        folder = write_video_scene(scene, scenes / scene.info.name)
+        sequences.append(ExperimentSequence(scene.info.name, folder, None, frames, True))
+    return sequences
+
+
+def track_sequence(
+    sequence: ExperimentSequence, loaded: MotSequence, config: TrackerConfig, seed: int
+) -> MotTable:
+    """A tracker's result rows on a sequence: streamed frames for a tracker that uses them
+    (as ``jaxtrack track --video``), detections alone for the others."""
+    if not tracker_entry(config.tracker).uses_frames:
+        return track_sequences([loaded], config, seed)[0]
+    with open_sequence_frames(sequence.folder, loaded.info, sequence.video) as reader:
+        return track_streamed(loaded, reader, config, seed)
+
+
+def score_row(
+    sequence: str, tracker: str, synthetic: bool, evaluation: Evaluation
+) -> dict[str, Any]:
+    """One table row: :data:`PERCENT_KEYS` in percent (rounded to 0.01), :data:`COUNT_KEYS`,
+    and whether the sequence (or group) is synthetic."""
+    summary = evaluation.summary()
+    row: dict[str, Any] = {"sequence": sequence, "tracker": tracker, "synthetic": synthetic}
+    row.update({key: round(100 * summary[key], 2) for key in PERCENT_KEYS})
+    row.update({key: int(summary[key]) for key in COUNT_KEYS})
+    return row
+
+
+class AblationResult(NamedTuple):
+    """What :func:`ablation_table` measured.
+
+    Attributes:
+        rows: per sequence then pooled, one row per tracker (:data:`TABLE_COLUMNS`).
+        results: ``{sequence: {tracker: result rows}}``.
+        seconds: ``{tracker: seconds}`` of tracking over all sequences (compiles included).
+    """
+
+    rows: list[dict[str, Any]]
+    results: dict[str, dict[str, MotTable]]
+    seconds: dict[str, float]
+
+
+def ablation_table(
+    sequences: Sequence[ExperimentSequence],
+    trackers: dict[str, TrackerConfig],
+    seed: int = 0,
+    progress: bool = False,
+) -> AblationResult:
+    """Tracks and scores every sequence with every tracker, and pools the scores.
+
+    Args:
+        sequences: the sequences (:func:`experiment_sequences`).
+        trackers: table name -> configuration (:func:`experiment_trackers`).
+        seed: the trackers' seed.
+        progress: a progress bar over the (sequence, tracker) runs.
+
+    Returns:
+        The :class:`AblationResult`; pooled rows (:data:`MOT15_COMBINED`,
+        :data:`SYNTHETIC_COMBINED`) follow the per-sequence rows of each group of two or
+        more sequences.
+    """
+    runs = [(sequence, name) for sequence in sequences for name in trackers]
+    bar = tqdm(runs, desc="tracking", unit="run", disable=not progress)
+    loaded: dict[str, MotSequence] = {}
+    evaluations: dict[tuple[str, str], Evaluation] = {}
+    results: dict[str, dict[str, MotTable]] = {}
+    seconds = dict.fromkeys(trackers, 0.0)
+    for sequence, name in bar:
+        bar.set_postfix_str(f"{sequence.name} {name}")
+        if sequence.name not in loaded:
+            loaded[sequence.name] = load_sequence(sequence.folder, sequence.frames)
+        start = time.perf_counter()
+        rows = track_sequence(sequence, loaded[sequence.name], trackers[name], seed)
+        seconds[name] += time.perf_counter() - start
+        results.setdefault(sequence.name, {})[name] = rows
+        evaluations[sequence.name, name] = evaluate_rows(loaded[sequence.name], rows)
+    table = []
+    for synthetic, combined in ((False, MOT15_COMBINED), (True, SYNTHETIC_COMBINED)):
+        group = [sequence.name for sequence in sequences if sequence.synthetic == synthetic]
+        for sequence_name in group:
+            for name in trackers:
+                table.append(
+                    score_row(sequence_name, name, synthetic, evaluations[sequence_name, name])
+                )
+        if len(group) > 1:
+            for name in trackers:
+                pooled = combine_sequences(evaluations[s, name] for s in group)
+                table.append(score_row(combined, name, synthetic, pooled))
+    return AblationResult(table, results, seconds)
+
+
+def goal_checks(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Issue 17's goals on the table rows (those whose rows are present).
+
+    * per sequence (MOT15 and synthetic): OE falls MTb -> MTb+CPD -> CMT, and CMT's OE is at
+      most 1/3 of MTb's;
+    * on the pooled synthetic scenes (or the one scene): SE falls from MTb+CPD to CMT (COM);
+    * pooled over the three MOT15 sequences: CMT's IDF1 above :data:`BEST_PEER_IDF1` and
+      its IDSW below :data:`BEST_PEER_IDSW`;
+    * on the pooled synthetic scenes: CMT's IDF1 above PHD's and its IDSW below.
+
+    Returns:
+        ``{"goal", "value", "met"}`` per check (``value`` a sentence with the numbers).
+    """
+    by = {(row["sequence"], row["tracker"]): row for row in rows}
+    sequences = list(dict.fromkeys(row["sequence"] for row in rows))
+    checks = []
+    for sequence in sequences:
+        if sequence in (MOT15_COMBINED, SYNTHETIC_COMBINED):
+            continue
+        if not all((sequence, name) in by for name in CMT_VARIANTS):
+            continue
+        oe = [by[sequence, name]["OE"] for name in CMT_VARIANTS]
+        checks.append(
+            {
+                "goal": f"{sequence}: OE falls MTb -> MTb+CPD -> CMT",
+                "value": "OE " + " -> ".join(f"{value:.2f}%" for value in oe),
+                "met": oe[0] > oe[1] > oe[2],
+            }
+        )
+        checks.append(
+            {
+                "goal": f"{sequence}: CMT's OE at most 1/3 of MTb's",
+                "value": f"{oe[2]:.2f}% vs {oe[0]:.2f}% / 3 = {oe[0] / 3:.2f}%",
+                "met": oe[2] <= oe[0] / 3,
+            }
+        )
+    synthetic = _group_row_name(rows, SYNTHETIC_COMBINED)
+    if synthetic is not None and (synthetic, "CMT") in by:
+        cpd, cmt = by[synthetic, "MTb+CPD"], by[synthetic, "CMT"]
+        checks.append(
+            {
+                "goal": f"{synthetic}: SE falls with COM (MTb+CPD -> CMT)",
+                "value": f"SE {cpd['SE']:.2f}% -> {cmt['SE']:.2f}%",
+                "met": cmt["SE"] < cpd["SE"],
+            }
+        )
+        if (synthetic, "PHD") in by:
+            phd = by[synthetic, "PHD"]
+            checks.append(
+                {
+                    "goal": f"{synthetic}: CMT's IDF1 above PHD's and IDSW below",
+                    "value": f"IDF1 {cmt['IDF1']:.1f} vs {phd['IDF1']:.1f}, "
+                    f"IDSW {cmt['IDSW']} vs {phd['IDSW']}",
+                    "met": cmt["IDF1"] > phd["IDF1"] and cmt["IDSW"] < phd["IDSW"],
+                }
+            )
+    if (MOT15_COMBINED, "CMT") in by:
+        cmt = by[MOT15_COMBINED, "CMT"]
+        checks.append(
+            {
+                "goal": f"{MOT15_COMBINED}: CMT's IDF1 above the best peer's and IDSW below",
+                "value": f"IDF1 {cmt['IDF1']:.1f} vs {BEST_PEER_IDF1}, "
+                f"IDSW {cmt['IDSW']} vs {BEST_PEER_IDSW}",
+                "met": cmt["IDF1"] > BEST_PEER_IDF1 and cmt["IDSW"] < BEST_PEER_IDSW,
+            }
+        )
+    return checks
+
+
+def _group_row_name(rows: Sequence[dict[str, Any]], combined: str) -> str | None:
+    """The synthetic group's pooled row name, or its only sequence's name, or None."""
+    names = list(dict.fromkeys(row["sequence"] for row in rows if row["synthetic"]))
+    if combined in names:
+        return combined
+    return names[0] if len(names) == 1 else None
+
+
+def write_results(out: Path, results: dict[str, dict[str, MotTable]]) -> list[Path]:
+    """Writes each tracker's rows as ``out/sequences/SEQUENCE/TRACKER.txt`` (MOTChallenge)."""
+    files = []
+    for sequence, by_tracker in results.items():
+        for name, rows in by_tracker.items():
+            path = out / "sequences" / sequence / f"{name.replace('+', '-')}.txt"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_mot_file(path, rows)
+            files.append(path)
+    return files
+
+
+#: The files the experiment writes into its output folder (besides ``sequences/`` and
+#: ``scenes/``).
+ABLATION_FILES = ("table.md", "results.json", "fig8_prediction.png", "fig9_discrimination.png")
+
+
+class CMTAblation(NamedTuple):
+    """The experiment's outcome.
+
+    Attributes:
+        rows: the table rows (:func:`ablation_table`).
+        goals: the goal checks (:func:`goal_checks`).
+        files: the files written.
+    """
+
+    rows: list[dict[str, Any]]
+    goals: list[dict[str, Any]]
+    files: list[Path]
+
+
+def peer_rows() -> list[dict[str, Any]]:
+    """:data:`PEERS` as table rows (:data:`PEER_COLUMNS`)."""
+    return [dict(zip(PEER_COLUMNS, peer, strict=True)) for peer in PEERS]
+
+
+def goal_lines(goals: Sequence[dict[str, Any]]) -> list[str]:
+    """One line per goal check: ``PASS|FAIL goal: value``."""
+    return [f"{'PASS' if g['met'] else 'FAIL'} {g['goal']}: {g['value']}" for g in goals]
