@@ -152,14 +152,18 @@ def add_tracker(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_context_arguments(parser: argparse.ArgumentParser, variants_doc: str) -> None:
-    """Adds ``--context CTX.npz`` and ``--variant`` (``jaxtrack track``, ``track-video``)."""
+def add_context_arguments(
+    parser: argparse.ArgumentParser, variants_doc: str, tracker_variants: tuple[str, ...] = ()
+) -> None:
+    """Adds ``--context CTX.npz`` and ``--variant`` (``jaxtrack track``, ``track-video``);
+    ``tracker_variants`` are further ``--variant`` choices that pick a tracker's variant
+    (CMT's ablation) rather than a context's parts."""
     parser.add_argument(
         "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
     )
     parser.add_argument(
         "--variant",
-        choices=[name for name in VARIANTS if name != "UM"],
+        choices=[name for name in VARIANTS if name != "UM"] + list(tracker_variants),
         help=f"which parts of --context to use (default GM; {variants_doc})",
     )
 

@@ -34,6 +34,18 @@ model; ``jaxtrack.filters.kalman``) with ``--preset default`` (Mahalanobis gate)
 frame). Its configuration (``KalmanConfig``) takes ``preset``, ``output`` and ``max_gap``;
 ``--context`` and ``--figure`` are for the PHD tracker.
 
+``--tracker cmt`` runs contextual mixture tracking (CMT, ``jaxtrack.filters.cmt``): one
+local particle tracker per target (``max_components`` slots x ``particles_per_component``),
+a contextual proposal driven by the blobs (the detections) and the scene's entry/exit zones,
+and a contextual observation model weighting colour and shape features by how well they
+tell nearby targets apart. ``--variant mtb|cpd|cmt`` picks the ablation's variant (plain
+mixture tracker; + contextual proposal; + contextual observation model, the default).
+``--zones zones.json`` (``jaxtrack learn-zones``) gives its entry/exit zones; without it they
+are learned on the fly from the PHD tracker's trajectories on the tracked span (the run says
+which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
+``variant``, ``max_components``, ``particles_per_component``, ``confirm_frames``,
+``max_misses``, ``appearance_weight``, ``output``, ``max_gap``.
+
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance
 trackers) gets each frame beside its detections, streamed from the sequence's frames:
 ``--video FILE`` (a video file or image folder), else ``SEQ_DIR/img1/``, else
@@ -51,6 +63,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -86,6 +99,7 @@ from jaxtrack.commands.paths import (
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
+from jaxtrack.filters.cmt import VARIANTS as CMT_VARIANTS
 from jaxtrack.filters.kalman import KALMAN_PRESETS
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import (
@@ -104,6 +118,7 @@ from jaxtrack.pipelines.tracking import (
     track_sequences,
     tracker_description,
 )
+from jaxtrack.pipelines.zones import tracker_zones
 from jaxtrack.plot.tracks import phd_frame_figure
 
 
@@ -125,7 +140,13 @@ def register(subparsers) -> None:
     )
     add_config(parser)
     add_seed(parser)
-    add_context_arguments(parser, "see above")
+    add_context_arguments(parser, "see above; mtb, cpd, cmt for --tracker cmt", CMT_VARIANTS)
+    parser.add_argument(
+        "--zones",
+        metavar="ZONES.json",
+        help="entry/exit zones for --tracker cmt (jaxtrack learn-zones; default: learned on "
+        "the fly from the tracked span)",
+    )
     add_tracker(parser)
     parser.add_argument(
         "--preset",
@@ -162,6 +183,7 @@ def track_sequence(
     variant: str = "GM",
     detections: str | None = None,
     video: str | None = None,
+    zones: str | None = None,
 ) -> tuple[int, int]:
     """Tracks one sequence folder and writes MOTChallenge results.
 
@@ -176,14 +198,21 @@ def track_sequence(
         detections: a detections file used instead of ``det/det.txt``, or None.
         video: for a tracker that uses frames, its frames instead of those found in the
             folder (:func:`~jaxtrack.io.video.open_sequence_frames`).
+        zones: for a tracker that takes zones, the zones file (default: learned on the fly,
+            :func:`~jaxtrack.pipelines.zones.tracker_zones`; what was used is printed and
+            written to ``.config.json``).
 
     Returns:
         The number of result rows (boxes) and of frames tracked.
     """
     seq = load_tracked_sequence(sequence_dir, frames, detections)
-    context = load_tracker_context(context_path)
-    _, params = build_tracker(config, seq.info, context, variant)
     used = {}
+    if tracker_entry(config.tracker).takes_zones:
+        context, used["zones"] = tracker_zones(seq, zones, seed)
+        print(f"{seq.info.name}: {used['zones']}", file=sys.stderr)
+    else:
+        context = load_tracker_context(context_path)
+    _, params = build_tracker(config, seq.info, context, variant)
     if tracker_entry(config.tracker).uses_frames:
         with open_sequence_frames(sequence_dir, seq.info, video) as reader:
             rows = track_streamed(seq, reader, config, seed, params)
@@ -218,7 +247,7 @@ def run(args) -> int:
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
     if args.benchmark is not None:
-        options = ("frames", "detections", "context", "variant", "figure", "figure_frame", "video")
+        options = ("frames", "detections", "context", "figure", "figure_frame", "video", "zones")
         refuse_ignored(args, options, "applies to one sequence, not to --benchmark")
     if args.figure is None:
         refuse_ignored(args, ["figure_frame"], "needs --figure (it is only read for it)")
@@ -227,7 +256,9 @@ def run(args) -> int:
                 args, ["video"], f"needs --figure (the {args.tracker} tracker reads no frames)"
             )
     config = _config(args)
-    variant = context_variant(args) or DEFAULT_VARIANT
+    variant = DEFAULT_VARIANT
+    if not tracker_entry(config.tracker).takes_zones:
+        variant = context_variant(args) or DEFAULT_VARIANT
     if args.sequence is None:
         return _benchmark(args, config)
     check_outputs(
@@ -242,6 +273,7 @@ def run(args) -> int:
             *file_input(args.detections, f"the detections --detections {args.detections}"),
             *file_input(args.context, f"the context --context {args.context}"),
             *video_input(args.video, f"the frames --video {args.video}"),
+            *file_input(args.zones, f"the zones --zones {args.zones}"),
         ],
     )
     start = time.perf_counter()
@@ -255,6 +287,7 @@ def run(args) -> int:
         variant,
         args.detections,
         args.video,
+        args.zones,
     )
     seconds = time.perf_counter() - start
     summary = {"out": str(args.out), "rows": rows, "frames": frames, "seconds": seconds}
@@ -273,6 +306,17 @@ def run(args) -> int:
 def _config(args) -> TrackerConfig:
     """The tracker configuration of the options; refuses options the tracker does not take."""
     config = load_config(args.config, args.tracker)
+    entry = tracker_entry(args.tracker)
+    if not entry.takes_zones:
+        refuse_ignored(args, ["zones"], f"applies to --tracker cmt, not to {args.tracker}")
+    if args.variant in CMT_VARIANTS:
+        if args.tracker != "cmt":
+            raise InputError(f"--variant {args.variant} applies to --tracker cmt")
+        config = config.replace(variant=args.variant)
+    elif args.tracker == "cmt" and args.variant is not None:
+        raise InputError(
+            f"--variant {args.variant} is a PHD context variant; CMT's are mtb, cpd, cmt"
+        )
     if args.preset is not None:
         if args.tracker != "kalman":
             raise InputError("--preset applies to --tracker kalman")
@@ -338,24 +382,30 @@ def _benchmark(args, config: TrackerConfig) -> int:
 
 def _track_streamed_all(sequences, config: TrackerConfig, seed: int, progress: bool):
     """Each sequence with a tracker that uses frames (found in its folder, all checked before
-    the first is tracked); the results and, per sequence, the frames used."""
+    the first is tracked; zones learned on the fly for a tracker that takes them); the
+    results and, per sequence, the frames (and zones) used."""
     readers = []
     try:
         for seq in sequences:
             readers.append(open_sequence_frames(seq.path, seq.info))
-        results = [
-            track_streamed(seq, reader, config, seed)
-            for seq, reader in tqdm(
-                list(zip(sequences, readers, strict=True)),
-                desc="tracking",
-                unit="seq",
-                disable=not progress,
-            )
-        ]
+        results, used = [], []
+        for seq, reader in tqdm(
+            list(zip(sequences, readers, strict=True)),
+            desc="tracking",
+            unit="seq",
+            disable=not progress,
+        ):
+            seq_used = {"video": str(reader.path)}
+            params = None
+            if tracker_entry(config.tracker).takes_zones:
+                zones, seq_used["zones"] = tracker_zones(seq, None, seed)
+                _, params = build_tracker(config, seq.info, zones)
+            results.append(track_streamed(seq, reader, config, seed, params))
+            used.append(seq_used)
     finally:
         for reader in readers:
             reader.close()
-    return results, [{"video": str(reader.path)} for reader in readers]
+    return results, used
 
 
 def _write(out_path, rows, config, seed, seq, context_path, variant, inputs) -> None:

@@ -18,6 +18,13 @@ from typing import Any, NamedTuple
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
+from jaxtrack.filters.cmt import CMTParams
+from jaxtrack.filters.cmt_tracker import (
+    CMTConfig,
+    build_cmt,
+    cmt_memory_estimate,
+    cmt_properties,
+)
 from jaxtrack.filters.kalman import KalmanParams
 from jaxtrack.filters.kalman_tracker import (
     KalmanConfig,
@@ -50,6 +57,8 @@ class TrackerEntry(NamedTuple):
             tracker that uses frames leaves out the chunk's images, which the stream adds).
         uses_frames: whether its filter steps on :class:`~jaxtrack.types.FrameInputs`
             (detections and the frame) rather than on detections alone.
+        takes_zones: whether it uses the scene's entry/exit zones (``--zones``; given to
+            ``build`` as its context, a :class:`~jaxtrack.context.zones.SceneZones`).
     """
 
     config_type: type[TrackerConfig]
@@ -59,6 +68,7 @@ class TrackerEntry(NamedTuple):
     takes_context: bool
     memory: Callable[[Any, int, int], MemoryEstimate]
     uses_frames: bool = False
+    takes_zones: bool = False
 
 
 #: The trackers, by name.
@@ -66,6 +76,16 @@ TRACKERS: dict[str, TrackerEntry] = {
     "phd": TrackerEntry(PHDConfig, PHDParams, build_phd, phd_properties, True, phd_memory_estimate),
     "kalman": TrackerEntry(
         KalmanConfig, KalmanParams, build_kalman, kalman_properties, False, kalman_memory_estimate
+    ),
+    "cmt": TrackerEntry(
+        CMTConfig,
+        CMTParams,
+        build_cmt,
+        cmt_properties,
+        takes_context=False,
+        memory=cmt_memory_estimate,
+        uses_frames=True,
+        takes_zones=True,
     ),
 }
 

@@ -11,9 +11,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from jaxtrack.context.zones import MARGIN_FRAMES, LearnedZones, learn_zones
+from jaxtrack.context.zones import MARGIN_FRAMES, LearnedZones, SceneZones, learn_zones
 from jaxtrack.errors import InputError
 from jaxtrack.io.motchallenge import MotSequence
+from jaxtrack.io.zones import load_zones
 from jaxtrack.pipelines.context import training_span, uniform_tracker_rows
 from jaxtrack.types import MotTable
 
@@ -89,4 +90,33 @@ def learn_sequence_zones(
         info.im_width,
         info.im_height,
         margin_frames=margin_frames,
+    )
+
+
+def tracker_zones(
+    sequence: MotSequence, zones_path: str | Path | None = None, seed: int = 0
+) -> tuple[SceneZones | None, str]:
+    """The entry/exit zones a tracker uses on a loaded sequence (``--zones``), and what they
+    are, in words (for the user and the run's ``.config.json``).
+
+    With ``zones_path`` the zones file (``jaxtrack learn-zones``); else the zones learned on
+    the fly from the tracked span itself, from the trajectories of the PHD tracker with
+    uniform intensities on its detections (no ground truth is read); when that span gives no
+    zone (no trajectory starts or ends inside it), no zones (the tracker then samples no
+    exits).
+
+    Raises:
+        FileFormatError: a bad zones file.
+    """
+    if zones_path is not None:
+        return load_zones(zones_path), f"zones from {zones_path}"
+    span = f"{sequence.first_frame}:{sequence.last_frame}"
+    try:
+        learned = learn_sequence_zones(sequence, source="tracks", seed=seed)
+    except InputError as err:
+        return None, f"no zones (learning them from the tracks of frames {span} failed: {err})"
+    count = len(learned.scene.boxes)
+    return learned.scene, (
+        f"{count} zone(s) learned on the fly from the PHD tracks of frames {span} "
+        "(give --zones to use others)"
     )

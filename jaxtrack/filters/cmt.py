@@ -1,0 +1,403 @@
+"""CMT, contextual mixture tracking (Cui et al.; SPEC section 2): the compiled step.
+
+A :mod:`mixture particle filter <jaxtrack.filters.mixture>` whose proposal and observation
+model look at the scene's context. One :func:`cmt_step` on
+:class:`~jaxtrack.types.FrameInputs` (the frame's detections are CMT's foreground blobs):
+
+1. **propose** (eq. 5): the plain mixture tracker (``"mtb"``) draws from the
+   constant-velocity transition
+   (:func:`~jaxtrack.filters.mixture_models.bootstrap_proposal`); ``"cpd"`` and ``"cmt"``
+   draw a motion condition per particle, then its state (the contextual proposal,
+   :func:`~jaxtrack.filters.cmt_proposal.contextual_proposal`, eqs. 5-10; an exit
+   invalidates the particle);
+2. **observe**: ``log p(z | x) = log p_box(z~ | x) + a log sum_k rho_k N(f_k(x); m_k,
+   sigma^2)``: the box likelihood of the nearest blob
+   (:func:`~jaxtrack.filters.mixture_models.nearest_detection_log_likelihood`) times the
+   feature mixture of eq. 11 (:mod:`~jaxtrack.filters.cmt_observation`) raised to
+   ``a = appearance_weight``; the weights ``rho_k`` are uniform (EWOM, ``"mtb"`` and
+   ``"cpd"``) or the mutual information of each feature with the identities in the
+   component's field of context (COM, eqs. 13-17, ``"cmt"``);
+3. reweight (eq. 3), mixture weights (eq. 4), local decisions (heaviest cluster), as in
+   :func:`~jaxtrack.filters.mixture.mixture_step`;
+4. **verify**: a component whose likelihood support stays below ``min_log_support`` (no blob
+   explains it) for more than ``max_misses`` frames, or whose ``pi_m`` falls below
+   ``min_mixture_weight``, is deleted (CMT Algorithm 1);
+5. resample per component; **enter**: a blob that no component explains starts one (the
+   dispelling rule: a blob explained by another component's hypothesis starts none);
+6. **update** the appearance models and decayed histograms at the local decisions, except
+   for components whose particles mostly drew *merge* (appearance frozen, Sec. IV-B).
+
+A component is output (``tracks``) once it has lived ``confirm_frames`` frames, on the frames
+a blob supports it; ``candidates`` are every supported component.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from jaxtrack.appearance import DEFAULT_PATCH_SHAPE
+from jaxtrack.boxes import cxcywh_to_xywh
+from jaxtrack.filters.base import Filter
+from jaxtrack.filters.births import LOG_ZERO
+from jaxtrack.filters.cmt_observation import (
+    AppearanceState,
+    COMParams,
+    appearance_log_likelihood,
+    box_features,
+    init_appearance,
+    observation_weights,
+    update_appearance,
+)
+from jaxtrack.filters.cmt_proposal import (
+    MERGE,
+    NORMAL,
+    CPDParams,
+    contextual_proposal,
+)
+from jaxtrack.filters.mixture import (
+    PARTICLES_PER_COMPONENT,
+    local_estimate,
+    mixture_weights,
+    normalise_weights,
+    resample_components,
+    reweight,
+)
+from jaxtrack.filters.mixture_components import add_unexplained
+from jaxtrack.filters.mixture_models import (
+    bootstrap_proposal,
+    log_transition,
+    nearest_detection_log_likelihood,
+)
+from jaxtrack.filters.mixture_state import MixtureParams, MixtureState, init_mixture
+from jaxtrack.models.dynamics import MEASURED, SIZE
+from jaxtrack.types import PAD_BOX, FrameInputs, Tracks
+
+#: The variants of the ablation (CMT Sec. VII): plain mixture tracker, + contextual
+#: proposal, + contextual observation model.
+VARIANTS = ("mtb", "cpd", "cmt")
+#: Quantisation step ``lambda`` of the colour features: 8 buckets per channel, so the pool
+#: is 2 halves x 3 channels x 8 buckets + the shape = 49 features.
+FEATURE_STEP = 32.0
+#: Value bins ``V`` of the decayed feature histograms (eq. 16); levels of eq. 17.
+NUM_VALUES = 16
+NUM_LEVELS = 3
+#: Zone slots of :class:`CMTParams` (padded).
+MAX_ZONES = 16
+
+
+class CMTParams(NamedTuple):
+    """Everything tunable in CMT (a PyTree: vmap to sweep, grad to tune).
+
+    Attributes:
+        mixture: the mixture filter's parameters (noise, thresholds).
+        proposal: the contextual proposal's (:class:`~jaxtrack.filters.cmt_proposal.CPDParams`).
+        observation: the observation model's
+            (:class:`~jaxtrack.filters.cmt_observation.COMParams`).
+        appearance_weight: exponent ``a`` of the feature mixture in the likelihood (>= 0).
+        zone_boxes: ``[MAX_ZONES, 4]`` entry/exit zones ``(x, y, w, h)`` (padded).
+        zone_mask: ``[MAX_ZONES]`` True for the real zones.
+    """
+
+    mixture: MixtureParams
+    proposal: CPDParams
+    observation: COMParams
+    appearance_weight: Float[Array, ""]
+    zone_boxes: Float[Array, "max_zones 4"]
+    zone_mask: Bool[Array, " max_zones"]
+
+
+class CMTState(NamedTuple):
+    """The scan carry.
+
+    Attributes:
+        mixture: the components' particles, weights, identities.
+        appearance: their appearance models and decayed feature histograms.
+        estimates: the last local decision of every slot (zeros for dead ones).
+        ages: frames since each slot's component started.
+        misses: consecutive frames each component went unsupported.
+    """
+
+    mixture: MixtureState
+    appearance: AppearanceState
+    estimates: Float[Array, "max_components 6"]
+    ages: Int[Array, " max_components"]
+    misses: Int[Array, " max_components"]
+
+
+class CMTInfo(NamedTuple):
+    """Per-frame outputs.
+
+    Attributes:
+        tracks: the confirmed, supported components' local decisions (scores ``pi_m``).
+        candidates: every supported component's local decision.
+        particles: ``[max_components, num_particles, 6]`` the proposed particles.
+        log_weights: their normalised log-weights.
+        conditions: ``[max_components, num_particles]`` each particle's motion condition
+            (:data:`~jaxtrack.filters.cmt_proposal.NORMAL` for ``"mtb"``).
+        alive: the slots alive during the frame (before deletions and births).
+        feature_weights: ``[max_components, num_features]`` the weights ``rho_k``.
+        log_support: ``log w_m`` of every slot.
+        overflow: True when a blob found no free slot for a new component.
+    """
+
+    tracks: Tracks
+    candidates: Tracks
+    particles: Float[Array, "max_components num_particles 6"]
+    log_weights: Float[Array, "max_components num_particles"]
+    conditions: Int[Array, "max_components num_particles"]
+    alive: Bool[Array, " max_components"]
+    feature_weights: Float[Array, "max_components num_features"]
+    log_support: Float[Array, " max_components"]
+    overflow: Bool[Array, ""]
+
+
+def particle_boxes(particles: Float[Array, "*batch 6"]) -> Float[Array, "*batch 4"]:
+    """The ``(x, y, w, h)`` boxes of states."""
+    return cxcywh_to_xywh(particles[..., MEASURED], jnp)
+
+
+def frame_features(
+    frame: Array, boxes: Float[Array, "*batch 4"], step: float, patch_shape: tuple[int, int]
+) -> Float[Array, "*batch num_features"]:
+    """CMT's feature pool (:func:`~jaxtrack.filters.cmt_observation.box_features`) of every
+    box, one flat vmap."""
+    flat = boxes.reshape(-1, 4)
+    features = jax.vmap(box_features, (None, 0, None, None))(frame, flat, step, patch_shape)
+    return features.reshape(*boxes.shape[:-1], features.shape[-1])
+
+
+def context_radius(
+    estimates: Float[Array, "max_components 6"], params: CMTParams
+) -> Float[Array, " max_components"]:
+    """The field-of-context radius of each component: ``d_thr`` box heights (Sec. V-A)."""
+    return params.proposal.context_distance * estimates[:, SIZE[1]]
+
+
+def cmt_step(
+    key: Array,
+    state: CMTState,
+    params: CMTParams,
+    inputs_t: FrameInputs,
+    *,
+    variant: str,
+    confirm_frames: int,
+    max_misses: int,
+    step: float = FEATURE_STEP,
+    patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
+    num_values: int = NUM_VALUES,
+    num_levels: int = NUM_LEVELS,
+) -> tuple[CMTState, CMTInfo]:
+    """One frame of CMT (the module's steps 1-6).
+
+    Args:
+        key: PRNG key of the frame.
+        state: the carry after the previous frame.
+        params: the tracker's parameters.
+        inputs_t: the frame's blobs (detections) and image.
+        variant: ``"mtb"``, ``"cpd"`` or ``"cmt"`` (static).
+        confirm_frames: frames a component lives before it is output (static).
+        max_misses: unsupported frames a component survives (static).
+        step: colour quantisation step ``lambda`` (static).
+        patch_shape: samples per box (static).
+        num_values: value bins of the decayed histograms (static).
+        num_levels: quantisation levels of eq. 17 (static).
+
+    Returns:
+        The new state and the frame's :class:`CMTInfo`.
+    """
+    key_propose, key_resample, key_add = jax.random.split(key, 3)
+    mixture, blobs, frame = state.mixture, inputs_t.detections, inputs_t.frame
+    alive = mixture.alive
+    if variant == "mtb":
+        particles, log_q = bootstrap_proposal(key_propose, mixture.particles, params.mixture, blobs)
+        conditions = jnp.full(log_q.shape, NORMAL, jnp.int32)
+        exited = jnp.zeros(log_q.shape, bool)
+    else:
+        draw = contextual_proposal(
+            key_propose,
+            mixture.particles,
+            state.estimates,
+            alive,
+            params.proposal,
+            params.mixture.motion_noise_std,
+            blobs,
+            params.zone_boxes,
+            params.zone_mask,
+        )
+        particles, log_q, conditions, exited = (
+            draw.particles,
+            draw.log_q,
+            draw.conditions,
+            draw.exited,
+        )
+    features = frame_features(frame, particle_boxes(particles), step, patch_shape)
+    radius = context_radius(state.estimates, params)
+    rho = observation_weights(
+        state.appearance.counts,
+        state.estimates[:, (0, 2)],
+        alive,
+        radius,
+        params.observation,
+        num_levels,
+        variant == "cmt",
+    )
+    log_appearance = appearance_log_likelihood(features, state.appearance, rho, params.observation)
+    log_box = nearest_detection_log_likelihood(particles, params.mixture, blobs)
+    log_likelihood = log_box + params.appearance_weight * log_appearance
+    log_likelihood = jnp.where(exited, LOG_ZERO, log_likelihood)
+    log_weights = reweight(
+        mixture.log_weights,
+        log_likelihood,
+        log_transition(particles, mixture.particles, params.mixture),
+        log_q,
+    )
+    log_pi, log_support, _ = mixture_weights(mixture.log_mixture_weights, log_weights, alive)
+    log_weights = normalise_weights(log_weights)
+    estimates = jax.vmap(local_estimate)(particles, log_weights)
+
+    # Verification: unsupported for too long, or a negligible mixture weight.
+    supported = log_support >= params.mixture.min_log_support
+    misses = jnp.where(alive & ~supported, state.misses + 1, 0)
+    weak = (misses > max_misses) | (log_pi < jnp.log(params.mixture.min_mixture_weight))
+    survivors = alive & ~jax.lax.stop_gradient(weak)
+    kept_pi = jnp.where(survivors, log_pi, LOG_ZERO)
+    log_total = jnp.where(jnp.any(survivors), jax.nn.logsumexp(kept_pi), 0.0)
+    log_pi = jnp.where(survivors, kept_pi - log_total, LOG_ZERO)
+    estimates = jnp.where(survivors[:, None], estimates, 0.0)
+
+    ages = jnp.where(survivors, state.ages + 1, 0)
+    shown = survivors & supported
+    candidates = _tracks(estimates, mixture.ids, shown, log_pi)
+    tracks = _tracks(estimates, mixture.ids, shown & (ages >= confirm_frames), log_pi)
+
+    new_particles, new_log_weights = resample_components(key_resample, particles, log_weights)
+    resampled = MixtureState(
+        particles=new_particles,
+        log_weights=new_log_weights,
+        log_mixture_weights=log_pi,
+        alive=survivors,
+        ids=jnp.where(survivors, mixture.ids, -1),
+        next_id=mixture.next_id,
+    )
+    new_mixture, overflow = add_unexplained(key_add, resampled, blobs, params.mixture)
+    born = new_mixture.alive & ~survivors
+
+    # Appearance: features at the local decisions (a newborn's at its particles' mean).
+    decisions = jnp.where(born[:, None], jnp.mean(new_mixture.particles, axis=1), estimates)
+    decision_features = frame_features(frame, particle_boxes(decisions), step, patch_shape)
+    merge_share = jnp.sum(jnp.exp(log_weights) * (conditions == MERGE), axis=-1)
+    appearance = update_appearance(
+        state.appearance,
+        decision_features,
+        survivors & supported,
+        merge_share > 0.5,
+        born,
+        params.observation,
+        num_values,
+    )
+    new_state = CMTState(
+        mixture=new_mixture,
+        appearance=appearance,
+        estimates=jnp.where(born[:, None], decisions, estimates),
+        ages=jnp.where(born, 0, ages),
+        misses=jnp.where(new_mixture.alive & ~born, misses, 0),
+    )
+    info = CMTInfo(
+        tracks=tracks,
+        candidates=candidates,
+        particles=particles,
+        log_weights=log_weights,
+        conditions=conditions,
+        alive=alive,
+        feature_weights=rho,
+        log_support=log_support,
+        overflow=overflow,
+    )
+    return new_state, info
+
+
+def init_cmt(
+    key: Array,
+    params: CMTParams,
+    max_components: int,
+    num_particles: int,
+    num_features: int,
+    num_values: int = NUM_VALUES,
+) -> CMTState:
+    """The state before the first frame: every slot dead (sizes static)."""
+    mixture = init_mixture(key, params.mixture, max_components, num_particles)
+    return CMTState(
+        mixture=mixture,
+        appearance=init_appearance(max_components, num_features, num_values),
+        estimates=jnp.zeros((max_components, 6), jnp.float32),
+        ages=jnp.zeros((max_components,), jnp.int32),
+        misses=jnp.zeros((max_components,), jnp.int32),
+    )
+
+
+def num_features(step: float = FEATURE_STEP) -> int:
+    """Size of CMT's feature pool: ``2 x 3 x ceil(256 / step)`` colour buckets + the shape."""
+    return 2 * 3 * int(-(-256 // step)) + 1
+
+
+def cmt_filter(
+    variant: str,
+    max_components: int,
+    particles_per_component: int = PARTICLES_PER_COMPONENT,
+    confirm_frames: int = 3,
+    max_misses: int = 5,
+) -> Filter:
+    """Builds CMT; all arguments are static.
+
+    Args:
+        variant: ``"mtb"``, ``"cpd"`` or ``"cmt"`` (:data:`VARIANTS`).
+        max_components: local tracker slots (> 0).
+        particles_per_component: particles per local tracker (> 0; 40 in CMT).
+        confirm_frames: frames a component lives before it is output.
+        max_misses: unsupported frames a component survives.
+
+    Returns:
+        The :class:`~jaxtrack.filters.base.Filter` (steps on
+        :class:`~jaxtrack.types.FrameInputs`).
+
+    Raises:
+        ValueError: an unknown variant or a non-positive size.
+    """
+    if variant not in VARIANTS:
+        raise ValueError(f"variant must be one of {', '.join(VARIANTS)}, got {variant!r}")
+    if max_components <= 0 or particles_per_component <= 0:
+        raise ValueError(
+            "max_components and particles_per_component must be positive, got "
+            f"{max_components} and {particles_per_component}"
+        )
+    step = functools.partial(
+        cmt_step, variant=variant, confirm_frames=confirm_frames, max_misses=max_misses
+    )
+    init = functools.partial(
+        init_cmt,
+        max_components=max_components,
+        num_particles=particles_per_component,
+        num_features=num_features(),
+    )
+    return Filter(init=init, step=step)
+
+
+def _tracks(
+    estimates: Float[Array, "max_components 6"],
+    ids: Int[Array, " max_components"],
+    shown: Bool[Array, " max_components"],
+    log_pi: Float[Array, " max_components"],
+) -> Tracks:
+    """The shown components' local decisions as labelled boxes."""
+    boxes = particle_boxes(estimates)
+    return Tracks(
+        boxes=jnp.where(shown[:, None], boxes, jnp.asarray(PAD_BOX, boxes.dtype)),
+        ids=jnp.where(shown, ids, -1),
+        scores=jnp.where(shown, jnp.exp(log_pi), 0.0),
+        mask=shown,
+    )

@@ -1,0 +1,187 @@
+"""CMT's configuration and parameters: what ``jaxtrack track --tracker cmt`` runs.
+
+* :class:`CMTConfig`: the variant of the ablation (``"mtb"``, ``"cpd"``, ``"cmt"``), the
+  table's sizes and the output rules (a frozen, validated dataclass, :mod:`jaxtrack.configs`);
+* :func:`cmt_params`: the :class:`~jaxtrack.filters.cmt.CMTParams` of a sequence, with the
+  scene's entry/exit zones (:class:`~jaxtrack.context.zones.SceneZones`, ``--zones``);
+* :func:`build_cmt`: the registry entry ``(config, info, zones, variant) -> (Filter,
+  params)``; the filter is cached on the static settings (one compile per setting).
+
+The defaults are the same for every sequence: sizes are relative to the boxes (the SDV noise
+of :mod:`~jaxtrack.models.noise`; distances of the contextual proposal in box heights), so
+they carry across image sizes. They were set from the papers' values and the synthetic video
+scenes of seeds 0-2; the sequences of ``experiments/cmt_ablation.py`` were not used to pick
+them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any, ClassVar
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.context.zones import SceneZones
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import Filter
+from jaxtrack.filters.cmt import (
+    MAX_ZONES,
+    NUM_VALUES,
+    VARIANTS,
+    CMTParams,
+    cmt_filter,
+    num_features,
+)
+from jaxtrack.filters.cmt_observation import default_com_params
+from jaxtrack.filters.cmt_proposal import default_cpd_params
+from jaxtrack.filters.mixture_state import MixtureParams
+from jaxtrack.filters.phd_defaults import DEFAULT_MEASUREMENT_NOISE_STD, DEFAULT_MOTION_NOISE_STD
+from jaxtrack.parameters import LOG, ParameterProperties, frozen_properties
+from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
+from jaxtrack.types import SequenceInfo
+
+#: Log-likelihood of a particle no blob explains (the floor of the box likelihood): about
+#: 3.5 standard deviations off in each of the 4 box coordinates for a 50 x 100 box.
+BACKGROUND_LOG_LIKELIHOOD = -38.0
+#: A component whose log support ``log w_m`` falls below this is unsupported on the frame.
+MIN_LOG_SUPPORT = -36.0
+#: A blob no particle scores above this (log box likelihood) starts a component.
+BIRTH_LOG_LIKELIHOOD = -24.0
+#: A component whose mixture weight falls below this is deleted.
+MIN_MIXTURE_WEIGHT = 1e-8
+
+
+@dataclasses.dataclass(frozen=True)
+class CMTConfig(TrackerConfig):
+    """CMT's configuration (``jaxtrack track --tracker cmt``)."""
+
+    tracker: ClassVar[str] = "cmt"
+
+    variant: str = setting(
+        "cmt",
+        Rule(
+            "'mtb' (plain mixture tracker), 'cpd' (+ contextual proposal) or 'cmt' (+ "
+            "contextual observation model)",
+            str,
+            choices=VARIANTS,
+        ),
+    )
+    max_components: int = setting(16, Rule("local tracker slots", int, 1, 1024))
+    particles_per_component: int = setting(40, Rule("particles per local tracker", int, 1, 4096))
+    confirm_frames: int = setting(
+        3, Rule("frames a component lives before it is output", int, 0, 1000)
+    )
+    max_misses: int = setting(
+        5, Rule("frames a component survives without a blob supporting it", int, 0, 1000)
+    )
+    appearance_weight: float = setting(
+        1.0, Rule("exponent of the appearance likelihood (0: box only)", float, 0.0, 100.0)
+    )
+    output: str = setting("offline", OUTPUT)
+    max_gap: int = setting(8, MAX_GAP)
+
+
+def zone_arrays(zones: SceneZones | None) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """The zones padded to :data:`~jaxtrack.filters.cmt.MAX_ZONES` slots, and their mask.
+
+    Raises:
+        InputError: more zones than slots.
+    """
+    boxes = np.zeros((MAX_ZONES, 4), np.float32)
+    mask = np.zeros(MAX_ZONES, bool)
+    if zones is not None:
+        given = np.asarray(zones.boxes, np.float32).reshape(-1, 4)
+        if len(given) > MAX_ZONES:
+            raise InputError(f"{len(given)} zones; CMT takes at most {MAX_ZONES}")
+        boxes[: len(given)] = given
+        mask[: len(given)] = True
+    return jnp.asarray(boxes), jnp.asarray(mask)
+
+
+def cmt_params(config: CMTConfig, zones: SceneZones | None = None) -> CMTParams:
+    """The default :class:`~jaxtrack.filters.cmt.CMTParams` with the scene's zones."""
+    boxes, mask = zone_arrays(zones)
+    return CMTParams(
+        mixture=MixtureParams(
+            motion_noise_std=jnp.array(DEFAULT_MOTION_NOISE_STD, jnp.float32),
+            measurement_noise_std=jnp.array(DEFAULT_MEASUREMENT_NOISE_STD, jnp.float32),
+            background_log_likelihood=jnp.float32(BACKGROUND_LOG_LIKELIHOOD),
+            min_mixture_weight=jnp.float32(MIN_MIXTURE_WEIGHT),
+            min_log_support=jnp.float32(MIN_LOG_SUPPORT),
+            birth_log_likelihood=jnp.float32(BIRTH_LOG_LIKELIHOOD),
+        ),
+        proposal=default_cpd_params(),
+        observation=default_com_params(),
+        appearance_weight=jnp.float32(config.appearance_weight),
+        zone_boxes=boxes,
+        zone_mask=mask,
+    )
+
+
+def build_cmt(
+    config: CMTConfig, info: SequenceInfo, context: Any = None, variant: str = "GM"
+) -> tuple[Filter, CMTParams]:
+    """CMT of a configuration: ``(filter, params)``; ``context`` is the scene's
+    :class:`~jaxtrack.context.zones.SceneZones` (or None: no zones, no exits sampled).
+
+    Raises:
+        InputError: a context that is not zones, or a context variant other than GM.
+    """
+    del info
+    if context is not None and not isinstance(context, SceneZones):
+        raise InputError("CMT takes entry/exit zones (--zones), not a learned PHD context")
+    if variant != "GM":
+        raise InputError(f"context variant {variant!r} is for the PHD tracker")
+    filt = _cmt_filter(
+        config.variant,
+        config.max_components,
+        config.particles_per_component,
+        config.confirm_frames,
+        config.max_misses,
+    )
+    return filt, cmt_params(config, context)
+
+
+@functools.lru_cache(maxsize=8)
+def _cmt_filter(variant, max_components, particles, confirm_frames, max_misses) -> Filter:
+    return cmt_filter(variant, max_components, particles, confirm_frames, max_misses)
+
+
+def cmt_memory_estimate(config: CMTConfig, capacity: int, chunk_frames: int) -> MemoryEstimate:
+    """CMT's memory for a detection capacity, from the sizes (no compile; frames left out).
+
+    The state holds each particle (6 floats + weight) twice, the appearance models and
+    histograms (``F (V + 1)`` floats per slot); a step's temporaries are dominated by every
+    particle's patch samples and features (about ``(4 x 128 + 4 F)`` bytes per particle,
+    :data:`~jaxtrack.appearance.DEFAULT_PATCH_SHAPE`) and the ``[particles, detections]``
+    likelihoods; the per-frame outputs are two track tables.
+    """
+    slots = config.max_components
+    particles = slots * config.particles_per_component
+    features = num_features()
+    state = 2 * (28 * particles + 4 * slots * features * (NUM_VALUES + 1) + 64 * slots)
+    temporaries = particles * (4 * 128 * 3 + 8 * features + 8 * capacity)
+    frame_output = 2 * 25 * slots
+    chunk = state + temporaries + chunk_frames * (DETECTION_SLOT_BYTES * capacity + frame_output)
+    return MemoryEstimate(chunk_bytes=int(chunk + (1 << 16)), frame_output_bytes=frame_output)
+
+
+def cmt_properties(params: CMTParams) -> CMTParams:
+    """The parameter-properties tree of :class:`~jaxtrack.filters.cmt.CMTParams`: named (log
+    transform, frozen by default) the SDV noise scales ``motion_noise_std`` and
+    ``measurement_noise_std`` and the ``appearance_weight``."""
+    props = frozen_properties(params)
+
+    def named(name: str) -> ParameterProperties:
+        return ParameterProperties(trainable=False, transform=LOG, name=name)
+
+    return props._replace(
+        mixture=props.mixture._replace(
+            motion_noise_std=named("motion_noise_std"),
+            measurement_noise_std=named("measurement_noise_std"),
+        ),
+        appearance_weight=named("appearance_weight"),
+    )
