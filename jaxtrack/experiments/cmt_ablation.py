@@ -33,6 +33,7 @@ from typing import Any, NamedTuple
 from tqdm import tqdm
 
 from jaxtrack.configs import TrackerConfig
+from jaxtrack.context.zones import SceneZones
 from jaxtrack.datasets.video_config import VideoSceneConfig
 from jaxtrack.datasets.video_files import write_video_scene
 from jaxtrack.datasets.video_scene import generate_video_scene
@@ -41,12 +42,13 @@ from jaxtrack.experiments.common import QUICK_TRACKER_CONFIG, evaluate_rows
 from jaxtrack.filters.cmt_tracker import CMTConfig
 from jaxtrack.filters.kalman_tracker import KalmanConfig
 from jaxtrack.filters.phd_tracker import PHDConfig
-from jaxtrack.filters.registry import tracker_entry
+from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence, load_sequence, write_mot_file
 from jaxtrack.io.video import open_sequence_frames
 from jaxtrack.metrics.evaluate import Evaluation, combine_sequences
 from jaxtrack.pipelines.stream import track_streamed
 from jaxtrack.pipelines.tracking import track_sequences
+from jaxtrack.pipelines.zones import tracker_zones
 from jaxtrack.types import MotTable
 
 #: The MOT15 sequences with video, in table order.
@@ -160,14 +162,21 @@ def experiment_sequences(
 
 
 def track_sequence(
-    sequence: ExperimentSequence, loaded: MotSequence, config: TrackerConfig, seed: int
+    sequence: ExperimentSequence,
+    loaded: MotSequence,
+    config: TrackerConfig,
+    seed: int,
+    zones: SceneZones | None = None,
 ) -> MotTable:
-    """A tracker's result rows on a sequence: streamed frames for a tracker that uses them
-    (as ``jaxtrack track --video``), detections alone for the others."""
-    if not tracker_entry(config.tracker).uses_frames:
-        return track_sequences([loaded], config, seed)[0]
+    """A tracker's result rows on a sequence, as ``jaxtrack track`` makes them: streamed
+    frames for a tracker that uses them, detections alone for the others; ``zones`` for a
+    tracker that takes them (:func:`~jaxtrack.pipelines.zones.tracker_zones`)."""
+    entry = tracker_entry(config.tracker)
+    _, params = build_tracker(config, loaded.info, zones if entry.takes_zones else None)
+    if not entry.uses_frames:
+        return track_sequences([loaded], config, seed, [params])[0]
     with open_sequence_frames(sequence.folder, loaded.info, sequence.video) as reader:
-        return track_streamed(loaded, reader, config, seed)
+        return track_streamed(loaded, reader, config, seed, params)
 
 
 def score_row(
@@ -189,11 +198,13 @@ class AblationResult(NamedTuple):
         rows: per sequence then pooled, one row per tracker (:data:`TABLE_COLUMNS`).
         results: ``{sequence: {tracker: result rows}}``.
         seconds: ``{tracker: seconds}`` of tracking over all sequences (compiles included).
+        zones: ``{sequence: the zones CMT used, in words}``.
     """
 
     rows: list[dict[str, Any]]
     results: dict[str, dict[str, MotTable]]
     seconds: dict[str, float]
+    zones: dict[str, str]
 
 
 def ablation_table(
@@ -218,6 +229,8 @@ def ablation_table(
     runs = [(sequence, name) for sequence in sequences for name in trackers]
     bar = tqdm(runs, desc="tracking", unit="run", disable=not progress)
     loaded: dict[str, MotSequence] = {}
+    zones: dict[str, SceneZones | None] = {}
+    notes: dict[str, str] = {}
     evaluations: dict[tuple[str, str], Evaluation] = {}
     results: dict[str, dict[str, MotTable]] = {}
     seconds = dict.fromkeys(trackers, 0.0)
@@ -225,8 +238,13 @@ def ablation_table(
         bar.set_postfix_str(f"{sequence.name} {name}")
         if sequence.name not in loaded:
             loaded[sequence.name] = load_sequence(sequence.folder, sequence.frames)
+            zones[sequence.name], notes[sequence.name] = tracker_zones(
+                loaded[sequence.name], None, seed
+            )
         start = time.perf_counter()
-        rows = track_sequence(sequence, loaded[sequence.name], trackers[name], seed)
+        rows = track_sequence(
+            sequence, loaded[sequence.name], trackers[name], seed, zones[sequence.name]
+        )
         seconds[name] += time.perf_counter() - start
         results.setdefault(sequence.name, {})[name] = rows
         evaluations[sequence.name, name] = evaluate_rows(loaded[sequence.name], rows)
@@ -242,7 +260,7 @@ def ablation_table(
             for name in trackers:
                 pooled = combine_sequences(evaluations[s, name] for s in group)
                 table.append(score_row(combined, name, synthetic, pooled))
-    return AblationResult(table, results, seconds)
+    return AblationResult(table, results, seconds, notes)
 
 
 def goal_checks(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
