@@ -24,15 +24,13 @@ from jaxtrack.experiments.common import markdown_table
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 HELP = "CMT ablation (Cui et al. Table II, Fig. 8, 9): MTb, MTb+CPD, CMT vs PHD, Kalman"
-QUICK_HELP = (
-    f"smoke run: TUD-Campus and the first --seeds scene, their first frames, few particles"
-)
+QUICK_HELP = "smoke run: TUD-Campus and the first --seeds scene, their first frames, few particles"
 DESCRIPTION = f"""\
 CMT ablation (Cui et al., Sec. VII): MTb vs MTb+CPD vs CMT, with PHD and Kalman beside them.
 
 Sequences: PETS09-S2L1 (frames: --data/{PETS_VIDEO}), TUD-Campus and TUD-Stadtmitte (their
 .mp4) with their MOT15 detections, and the scripted video scenes (crossings of similarly
-dressed people, groups, an occluder) of --seeds (default {' '.join(map(str, HELD_OUT_SEEDS))}:
+dressed people, groups, an occluder) of --seeds (default {" ".join(map(str, HELD_OUT_SEEDS))}:
 held out, never used to tune any default), written to OUT/scenes/video-SEED with their
 simulated detections. Every tracker sees the same detections (CMT's foreground blobs) and
 runs with its default configuration and --seed: the CMT variants MTb (bootstrap proposal +

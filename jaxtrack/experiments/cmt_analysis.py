@@ -25,6 +25,8 @@ prefers B: a potential swap.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import jax
@@ -33,6 +35,7 @@ import numpy as np
 
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.zones import SceneZones
+from jaxtrack.datasets.video_files import TRUTH_FILE
 from jaxtrack.filters.base import run
 from jaxtrack.filters.cmt import FEATURE_STEP, NUM_LEVELS, num_features
 from jaxtrack.filters.cmt_observation import (
@@ -45,11 +48,12 @@ from jaxtrack.filters.cmt_observation import (
 )
 from jaxtrack.filters.cmt_proposal import default_cpd_params
 from jaxtrack.filters.registry import build_tracker
-from jaxtrack.io import MotSequence
+from jaxtrack.io import MotSequence, load_sequence
 from jaxtrack.io.frame_stream import FrameStream
-from jaxtrack.io.video import VideoReader
+from jaxtrack.io.video import VideoReader, open_sequence_frames
 from jaxtrack.models.dynamics import POSITION
 from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES
+from jaxtrack.pipelines.zones import tracker_zones
 from jaxtrack.types import MotTable
 
 #: A component tracks a target when its particles' mean lies within this many of the
@@ -82,9 +86,7 @@ def proposed_particles(
     frame of a sequence span, run as :func:`~jaxtrack.pipelines.stream.track_streamed`
     runs it (same key, chunks and detection capacities)."""
     filt, params = build_tracker(config, loaded.info, zones)
-    with FrameStream(
-        reader, loaded.first_frame, loaded.last_frame, STREAM_CHUNK_FRAMES
-    ) as frames:
+    with FrameStream(reader, loaded.first_frame, loaded.last_frame, STREAM_CHUNK_FRAMES) as frames:
         _, output = run(
             filt,
             jax.random.PRNGKey(seed),
@@ -217,3 +219,91 @@ def _gap_step(state, image, boxes, first, num_levels, params, context_distance):
     born = jnp.full(2, first)
     state = update_appearance(state, features, alive, ~alive, born, params)
     return state, jnp.stack(gaps)
+
+
+#: Fig. 8's span of PETS09-S2L1 (the paper used a subsequence of PETS2004).
+FIG8_FRAMES = (1, 100)
+#: Fig. 9 starts this many frames before the crossing's first frame.
+FIG9_LEAD = 40
+#: Frames of Fig. 9 in quick runs.
+QUICK_FIG9_FRAMES = 12
+
+
+def prediction_analysis(
+    folder: Path,
+    video: Path | None,
+    frames: tuple[int, int],
+    prior: TrackerConfig,
+    contextual: TrackerConfig,
+    seed: int,
+) -> dict[str, Any]:
+    """Fig. 8 (module docstring) on a sequence span, as JSON-ready numbers.
+
+    Args:
+        folder: the MOTChallenge folder (with ground truth).
+        video: its frames when the folder has none, else None.
+        frames: the 1-based inclusive span.
+        prior: CMT's configuration with the Gaussian prior (``variant="mtb"``).
+        contextual: the same with the contextual proposal (``variant="cpd"``).
+        seed: the runs' seed; zones are learned on the fly as ``jaxtrack track`` does
+            (:func:`~jaxtrack.pipelines.zones.tracker_zones`).
+    """
+    loaded = load_sequence(folder, frames)
+    zones, note = tracker_zones(loaded, None, seed)
+    distances, counts = {}, {}
+    labels = {"Gaussian prior (MTb)": prior, "contextual proposal (CPD)": contextual}
+    for label, config in labels.items():
+        with open_sequence_frames(folder, loaded.info, video) as reader:
+            proposed = proposed_particles(loaded, reader, config, seed, zones)
+        gt = loaded.ground_truth
+        distances[label], counts[label] = proposal_distances(
+            proposed.positions, proposed.alive, np.asarray(gt.boxes), np.asarray(gt.mask)
+        )
+    both = np.all([np.isfinite(d) for d in distances.values()], axis=0)
+    prior, cpd = distances.values()
+    return {
+        "sequence": loaded.info.name,
+        "frames": list(range(loaded.first_frame, loaded.last_frame + 1)),
+        "zones": note,
+        "distances": {k: _json_floats(v) for k, v in distances.items()},
+        "tracked_targets": {k: v.tolist() for k, v in counts.items()},
+        "mean": {k: _json_float(np.nanmean(v[both])) for k, v in distances.items()},
+        "cpd_below_prior_fraction": _json_float(np.mean(cpd[both] < prior[both])),
+        "frames_compared": int(both.sum()),
+    }
+
+
+def discrimination_analysis(folder: Path, quick: bool = False) -> dict[str, Any]:
+    """Fig. 9 (module docstring) on the scripted crossing of a synthetic video scene's folder
+    (``jaxtrack simulate --video``: its two similarly dressed people), from
+    :data:`FIG9_LEAD` frames before it to its end (quick: its last :data:`QUICK_FIG9_FRAMES`
+    frames), as JSON-ready numbers."""
+    truth = json.loads((folder / TRUTH_FILE).read_text())
+    crossing = next(event for event in truth["events"] if event["type"] == "crossing")
+    ids = tuple(crossing["ids"])
+    first, last = crossing["frames"]
+    first = last - QUICK_FIG9_FRAMES if quick else first - FIG9_LEAD
+    loaded = load_sequence(folder)
+    frames, boxes = pair_boxes(loaded.gt_table, ids, first, last)
+    with open_sequence_frames(folder, loaded.info) as reader:
+        gaps = likelihood_gaps(reader, frames, boxes, ids)
+    return {
+        "sequence": loaded.info.name,
+        "ids": list(ids),
+        "crossing_frames": crossing["frames"],
+        "frames": gaps.frames.tolist(),
+        "COM": _json_floats(gaps.com),
+        "EWOM": _json_floats(gaps.ewom),
+        "mean": {"COM": _json_float(gaps.com.mean()), "EWOM": _json_float(gaps.ewom.mean())},
+        "com_above_ewom_fraction": _json_float(np.mean(gaps.com > gaps.ewom)),
+        "negative_frames": {"COM": int(np.sum(gaps.com < 0)), "EWOM": int(np.sum(gaps.ewom < 0))},
+    }
+
+
+def _json_float(value: float) -> float | None:
+    """A float for JSON (NaN as None)."""
+    return None if not np.isfinite(value) else round(float(value), 4)
+
+
+def _json_floats(values: np.ndarray) -> list[float | None]:
+    return [_json_float(value) for value in values]
