@@ -211,13 +211,15 @@ class AblationResult(NamedTuple):
         rows: per sequence then pooled, one row per tracker (:data:`TABLE_COLUMNS`).
         results: ``{sequence: {tracker: result rows}}``.
         seconds: ``{tracker: seconds}`` of tracking over all sequences (compiles included).
-        zones: ``{sequence: the zones CMT used, in words}``.
+        zones: ``{sequence: the zones CMT used}`` (None: no zones).
+        zone_notes: ``{sequence: the zones CMT used, in words}``.
     """
 
     rows: list[dict[str, Any]]
     results: dict[str, dict[str, MotTable]]
     seconds: dict[str, float]
-    zones: dict[str, str]
+    zones: dict[str, SceneZones | None]
+    zone_notes: dict[str, str]
 
 
 def ablation_table(
@@ -273,7 +275,7 @@ def ablation_table(
             for name in trackers:
                 pooled = combine_sequences(evaluations[s, name] for s in group)
                 table.append(score_row(combined, name, synthetic, pooled))
-    return AblationResult(table, results, seconds, notes)
+    return AblationResult(table, results, seconds, zones, notes)
 
 
 def goal_checks(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -437,6 +439,8 @@ def run_cmt_ablation(
         trackers["MTb"],
         trackers["MTb+CPD"],
         seed,
+        result.zones[real.name],
+        result.zone_notes[real.name],
     )
     if steps is not None:
         steps("Fig. 9: COM and EWOM on the crossing pair")
@@ -466,7 +470,7 @@ def run_cmt_ablation(
                 "video": None if s.video is None else str(s.video),
                 "frames": s.frames,
                 "synthetic": s.synthetic,
-                "zones": result.zones[s.name],
+                "zones": result.zone_notes[s.name],
             }
             for s in sequences
         ],

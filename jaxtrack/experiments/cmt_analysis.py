@@ -53,7 +53,6 @@ from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader, open_sequence_frames
 from jaxtrack.models.dynamics import POSITION
 from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES
-from jaxtrack.pipelines.zones import tracker_zones
 from jaxtrack.types import MotTable
 
 #: A component tracks a target when its particles' mean lies within this many of the
@@ -236,6 +235,8 @@ def prediction_analysis(
     prior: TrackerConfig,
     contextual: TrackerConfig,
     seed: int,
+    zones: SceneZones | None,
+    zone_note: str,
 ) -> dict[str, Any]:
     """Fig. 8 (module docstring) on a sequence span, as JSON-ready numbers.
 
@@ -245,11 +246,12 @@ def prediction_analysis(
         frames: the 1-based inclusive span.
         prior: CMT's configuration with the Gaussian prior (``variant="mtb"``).
         contextual: the same with the contextual proposal (``variant="cpd"``).
-        seed: the runs' seed; zones are learned on the fly as ``jaxtrack track`` does
-            (:func:`~jaxtrack.pipelines.zones.tracker_zones`).
+        seed: the runs' seed.
+        zones: the entry/exit zones of the sequence (e.g. those ``jaxtrack track`` learns
+            on the whole sequence, :func:`~jaxtrack.pipelines.zones.tracker_zones`).
+        zone_note: what the zones are, in words (for the record).
     """
     loaded = load_sequence(folder, frames)
-    zones, note = tracker_zones(loaded, None, seed)
     distances, counts = {}, {}
     labels = {"Gaussian prior (MTb)": prior, "contextual proposal (CPD)": contextual}
     for label, config in labels.items():
@@ -264,7 +266,7 @@ def prediction_analysis(
     return {
         "sequence": loaded.info.name,
         "frames": list(range(loaded.first_frame, loaded.last_frame + 1)),
-        "zones": note,
+        "zones": zone_note,
         "distances": {k: _json_floats(v) for k, v in distances.items()},
         "tracked_targets": {k: v.tolist() for k, v in counts.items()},
         "mean": {k: _json_float(np.nanmean(v[both])) for k, v in distances.items()},
