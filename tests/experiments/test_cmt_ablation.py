@@ -1,0 +1,260 @@
+"""``jaxtrack experiment cmt-ablation``: Fig. 8's distances against a loop, Fig. 9's gap on a
+drawn pair, the goals against hand rows, refusals, and (slow) the quick run's files."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from jaxtrack.cli import main
+from jaxtrack.experiments.cmt_ablation import (
+    BEST_PEER_IDF1,
+    MOT15_COMBINED,
+    PEERS,
+    SYNTHETIC_COMBINED,
+    TABLE_COLUMNS,
+    goal_checks,
+)
+from jaxtrack.experiments.cmt_analysis import likelihood_gaps, pair_boxes, proposal_distances
+from jaxtrack.io.motchallenge import read_mot_file
+from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.plot.cmt_analysis import discrimination_figure, prediction_figure
+from jaxtrack.types import MotTable
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _loop_distances(positions, alive, gt_boxes, gt_mask, gate):
+    """Fig. 8's per-frame value, one component and one target at a time."""
+    values, counts = [], []
+    for t in range(positions.shape[0]):
+        sums = []
+        for k in range(positions.shape[1]):
+            if not alive[t, k]:
+                continue
+            mean = positions[t, k].mean(axis=0)
+            best, best_gap = None, np.inf
+            for g in range(gt_boxes.shape[1]):
+                if not gt_mask[t, g]:
+                    continue
+                x, y, w, h = gt_boxes[t, g]
+                gap = np.hypot(mean[0] - (x + w / 2), mean[1] - (y + h / 2))
+                if gap < best_gap:
+                    best, best_gap = g, gap
+            if best is None or best_gap > gate * gt_boxes[t, best, 3]:
+                continue
+            x, y, w, h = gt_boxes[t, best]
+            sums.append(
+                sum(np.hypot(px - (x + w / 2), py - (y + h / 2)) for px, py in positions[t, k])
+            )
+        values.append(np.mean(sums) if sums else np.nan)
+        counts.append(len(sums))
+    return np.array(values), np.array(counts)
+
+
+def test_proposal_distances_against_a_loop():
+    rng = np.random.default_rng(0)
+    frames, slots, particles, targets = 6, 5, 7, 4
+    gt_boxes = np.concatenate(
+        [rng.uniform(0, 200, (frames, targets, 2)), rng.uniform(20, 60, (frames, targets, 2))], -1
+    )
+    gt_mask = rng.random((frames, targets)) < 0.8
+    gt_mask[0] = False  # a frame without ground truth: NaN, no component counted
+    centres = gt_boxes[..., :2] + gt_boxes[..., 2:] / 2
+    # components near a target (within the gate) and far ones (false tracks)
+    near = centres[:, rng.integers(0, targets, slots)] + rng.normal(0, 5, (frames, slots, 2))
+    positions = near[:, :, None, :] + rng.normal(0, 8, (frames, slots, particles, 2))
+    positions[:, -1] += 500.0
+    alive = rng.random((frames, slots)) < 0.8
+    values, counts = proposal_distances(positions, alive, gt_boxes, gt_mask, 0.5)
+    expected, expected_counts = _loop_distances(positions, alive, gt_boxes, gt_mask, 0.5)
+    np.testing.assert_allclose(values, expected, rtol=1e-10)
+    np.testing.assert_array_equal(counts, expected_counts)
+    assert np.isnan(values[0]) and counts[0] == 0
+    assert counts[1:].sum() > 0
+
+
+def test_proposal_distances_analytic():
+    """One component whose 4 particles sit at (3, 4) offsets from the target's centre: 4 x 5."""
+    box = np.array([[[100.0, 50.0, 20.0, 40.0]]])
+    centre = np.array([110.0, 70.0])
+    offsets = np.array([[3, 4], [-3, 4], [3, -4], [-3, -4]], float)
+    positions = (centre + offsets)[None, None]
+    values, counts = proposal_distances(
+        positions, np.ones((1, 1), bool), box, np.ones((1, 1), bool)
+    )
+    assert values[0] == pytest.approx(20.0) and counts[0] == 1
+
+
+class _Frames:
+    """A reader of drawn frames: two people side by side, the same top, bottoms differing."""
+
+    def __init__(self, num_frames: int):
+        rng = np.random.default_rng(1)
+        self.boxes = []
+        self.images = []
+        for k in range(num_frames):
+            image = rng.integers(90, 110, (120, 160, 3)).astype(np.uint8)
+            a = np.array([40 + k, 30, 20, 60], np.float32)
+            b = np.array([70 + k, 32, 20, 58], np.float32)
+            for (x, y, w, h), bottom in ((a, (30, 30, 200)), (b, (30, 200, 30))):
+                x, y, w, h = int(x), int(y), int(w), int(h)
+                image[y : y + h // 2, x : x + w] = (200, 60, 60)
+                image[y + h // 2 : y + h, x : x + w] = bottom
+            self.images.append(image)
+            self.boxes.append([a, b])
+        self.boxes = np.asarray(self.boxes)
+
+    def read(self, frame: int) -> np.ndarray:
+        return self.images[frame - 1]
+
+
+def test_com_separates_a_drawn_pair_better_than_ewom():
+    """Fig. 9 on a scene with known truth: the bottom colour tells A from B; once the
+    histograms have seen both, COM's gap exceeds EWOM's and both favour A."""
+    frames = _Frames(8)
+    gaps = likelihood_gaps(frames, np.arange(1, 9), frames.boxes, (1, 2))
+    np.testing.assert_array_equal(gaps.frames, np.arange(2, 9))
+    assert np.all(gaps.ewom > 0) and np.all(gaps.com > 0)
+    assert np.all(gaps.com[2:] > gaps.ewom[2:] + 0.1)
+
+
+def test_pair_boxes_keeps_the_shared_frames_in_the_span():
+    table = MotTable(
+        frames=np.array([1, 2, 3, 4, 2, 3, 5], float),
+        ids=np.array([7, 7, 7, 7, 9, 9, 9], float),
+        boxes=np.arange(28, dtype=float).reshape(7, 4),
+        confs=np.ones(7),
+        extra=np.ones((7, 2)),
+        lines=np.zeros(7, int),
+    )
+    frames, boxes = pair_boxes(table, (7, 9), 1, 4)
+    np.testing.assert_array_equal(frames, [2, 3])
+    np.testing.assert_array_equal(boxes[0], [table.boxes[1], table.boxes[4]])
+    np.testing.assert_array_equal(boxes[1], [table.boxes[2], table.boxes[5]])
+
+
+def _row(sequence, tracker, synthetic, oe, se, idf1, idsw):
+    return {
+        "sequence": sequence,
+        "tracker": tracker,
+        "synthetic": synthetic,
+        "OE": oe,
+        "SE": se,
+        "IDF1": idf1,
+        "IDSW": idsw,
+    }
+
+
+def test_goal_checks_against_hand_rows():
+    rows = [
+        _row("A", "MTb", False, 9.0, 1.0, 50.0, 10),
+        _row("A", "MTb+CPD", False, 5.0, 1.0, 55.0, 8),
+        _row("A", "CMT", False, 3.0, 1.0, 60.0, 5),  # falls, exactly 1/3: met
+        _row("B", "MTb", False, 6.0, 1.0, 50.0, 10),
+        _row("B", "MTb+CPD", False, 6.0, 1.0, 55.0, 8),  # not strictly falling
+        _row("B", "CMT", False, 1.0, 1.0, 60.0, 5),
+        _row(MOT15_COMBINED, "CMT", False, 2.0, 1.0, BEST_PEER_IDF1 + 0.1, 45),
+        _row("video-1", "MTb", True, 9.0, 3.0, 50.0, 4),
+        _row("video-1", "MTb+CPD", True, 8.0, 2.0, 50.0, 4),
+        _row("video-1", "CMT", True, 7.0, 2.0, 60.0, 3),  # SE does not fall
+        _row("video-1", "PHD", True, 9.0, 1.0, 59.0, 4),
+    ]
+    met = {check["goal"]: check["met"] for check in goal_checks(rows)}
+    assert met == {
+        "A: OE falls MTb -> MTb+CPD -> CMT": True,
+        "A: CMT's OE at most 1/3 of MTb's": True,
+        "B: OE falls MTb -> MTb+CPD -> CMT": False,
+        "B: CMT's OE at most 1/3 of MTb's": True,
+        "video-1: OE falls MTb -> MTb+CPD -> CMT": True,
+        "video-1: CMT's OE at most 1/3 of MTb's": False,
+        "video-1: SE falls with COM (MTb+CPD -> CMT)": False,
+        "video-1: CMT's IDF1 above PHD's and IDSW below": True,
+        f"{MOT15_COMBINED}: CMT's IDF1 above the best peer's and IDSW below": True,
+    }
+    # with a pooled synthetic row, the synthetic goals are checked on it alone
+    pooled = [
+        *rows,
+        _row("video-2", "MTb", True, 9.0, 3.0, 50.0, 4),
+        _row(SYNTHETIC_COMBINED, "MTb+CPD", True, 8.0, 2.0, 50.0, 4),
+        _row(SYNTHETIC_COMBINED, "CMT", True, 7.0, 1.0, 60.0, 5),
+        _row(SYNTHETIC_COMBINED, "PHD", True, 9.0, 1.0, 59.0, 4),
+    ]
+    met = {check["goal"]: check["met"] for check in goal_checks(pooled)}
+    assert met[f"{SYNTHETIC_COMBINED}: SE falls with COM (MTb+CPD -> CMT)"] is True
+    assert met[f"{SYNTHETIC_COMBINED}: CMT's IDF1 above PHD's and IDSW below"] is False
+    assert not any(goal.startswith("video-1: SE") for goal in met)
+
+
+def test_peers_are_the_issue_table():
+    best = max(PEERS, key=lambda peer: peer[2] if "jaxtrack" not in peer[0] else 0)
+    assert best[0].startswith("norfair 2.3.0 (no ReID)") and best[2] == BEST_PEER_IDF1
+
+
+def test_figures_draw_their_inputs():
+    frames = np.arange(5, 9)
+    figure = prediction_figure(frames, {"prior": np.arange(4.0), "cpd": np.ones(4)}, "t")
+    lines = figure.axes[0].lines
+    np.testing.assert_array_equal(lines[0].get_xdata(), frames)
+    np.testing.assert_array_equal(lines[1].get_ydata(), np.ones(4))
+    assert lines[0].get_label() == "prior (mean 2 px)"
+    figure = discrimination_figure(frames, {"COM": -np.ones(4), "EWOM": np.zeros(4)}, "t")
+    np.testing.assert_array_equal(figure.axes[0].lines[0].get_ydata(), -np.ones(4))
+
+
+def test_missing_data_exits_2(tmp_path, capsys):
+    argv = ["experiment", "cmt-ablation", "--out", str(tmp_path / "out"), "--quick"]
+    assert main([*argv, "--data", str(tmp_path / "none"), "--quiet"]) == 2
+    error = capsys.readouterr().err
+    assert "MOT15 sequence not found" in error and str(tmp_path / "none") in error
+
+
+def test_script_runs_the_command(tmp_path):
+    """``python experiments/cmt_ablation.py ARGS`` is ``jaxtrack experiment cmt-ablation``."""
+    argv = ["--out", str(tmp_path / "out"), "--seeds", "-1"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    script = ROOT / "experiments" / "cmt_ablation.py"
+    done = subprocess.run([sys.executable, script, *argv], env=env, capture_output=True, text=True)
+    assert done.returncode == 2 and "--seeds" in done.stderr
+
+
+@pytest.mark.slow
+def test_quick_run_writes_what_it_prints(tmp_path, capsys):
+    out = tmp_path / "cmt"
+    assert main(["experiment", "cmt-ablation", "--out", str(out), "--quick", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    record = json.loads((out / "results.json").read_text())
+    rows = record["rows"]
+    trackers = ["MTb", "MTb+CPD", "CMT", "PHD", "Kalman"]
+    assert [(r["sequence"], r["tracker"]) for r in rows] == [
+        (sequence, tracker) for sequence in ("TUD-Campus", "video-101") for tracker in trackers
+    ]
+    assert record["synthetic_seeds_held_out"] == [101]
+    assert printed.startswith("| " + " | ".join(TABLE_COLUMNS) + " |")
+    table = (out / "table.md").read_text()
+    assert "norfair 2.3.0 (no ReID) | 62.3 | 58.6 | 42.8 | 25 | 47 | 175 | 55.8 / 35" in table
+    # every row's scores are those of its result file
+    gt = read_mot_file(Path(record["sequences"][1]["folder"]) / "gt" / "gt.txt", "gt")
+    for row in rows[5:]:
+        name = row["tracker"].replace("+", "-")
+        result = read_mot_file(out / "sequences" / "video-101" / f"{name}.txt", "result")
+        summary = evaluate_sequence(gt.frame_span(1, 24), result, (1, 24)).summary()
+        assert row["IDF1"] == pytest.approx(100 * summary["IDF1"], abs=0.01)
+        assert row["OE"] == pytest.approx(100 * summary["OE"], abs=0.01)
+        assert row["IDSW"] == summary["IDSW"]
+    fig8, fig9 = record["fig8"], record["fig9"]
+    assert fig8["frames"] == list(range(1, 25)) and set(fig8["distances"]) == {
+        "Gaussian prior (MTb)",
+        "contextual proposal (CPD)",
+    }
+    assert len(fig9["COM"]) == len(fig9["EWOM"]) == len(fig9["frames"]) > 0
+    for name in ("fig8_prediction.png", "fig9_discrimination.png"):
+        pixels = imread(out / name)[..., :3]
+        assert np.unique(pixels.reshape(-1, 3), axis=0).shape[0] > 20, name
