@@ -244,7 +244,7 @@ def test_quick_run_writes_what_it_prints(tmp_path, capsys):
     gt = read_mot_file(Path(record["sequences"][1]["folder"]) / "gt" / "gt.txt", "gt")
     for row in rows[5:]:
         name = row["tracker"].replace("+", "-")
-        result = read_mot_file(out / "sequences" / "video-101" / f"{name}.txt", "result")
+        result = read_mot_file(out / "sequences" / "video-101" / f"{name}.txt", "res")
         summary = evaluate_sequence(gt.frame_span(1, 24), result, (1, 24)).summary()
         assert row["IDF1"] == pytest.approx(100 * summary["IDF1"], abs=0.01)
         assert row["OE"] == pytest.approx(100 * summary["OE"], abs=0.01)
