@@ -43,7 +43,7 @@ mixture tracker; + contextual proposal; + contextual observation model, the defa
 ``--zones zones.json`` (``jaxtrack learn-zones``) gives its entry/exit zones; without it they
 are learned on the fly from the PHD tracker's trajectories on the tracked span (the run says
 which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
-``variant``, ``max_components``, ``particles_per_component``, ``confirm_frames``,
+``variant``, ``max_components``, ``particles_per_component``,
 ``max_misses``, ``appearance_weight``, ``output``, ``max_gap``.
 
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance

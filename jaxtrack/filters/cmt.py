@@ -27,8 +27,12 @@ model look at the scene's context. One :func:`cmt_step` on
 6. **update** the appearance models and decayed histograms at the local decisions, except
    for components whose particles mostly drew *merge* (appearance frozen, Sec. IV-B).
 
-A component is output (``tracks``) once it has lived ``confirm_frames`` frames, on the frames
-a blob supports it; ``candidates`` are every supported component.
+A component is output (``tracks``) once a blob scoring at least ``confirm_score`` has
+explained it, on the frames a blob supports it; ``candidates`` are every supported
+component. The mixture weights ``pi_m`` are kept (eq. 4, reported as track scores) but the
+default deletion threshold on them is 0: with one component per target, ``pi_m`` mostly
+measures the box likelihood's density scale (bigger boxes have lower densities) and would
+delete every large target within a few frames.
 """
 
 from __future__ import annotations
@@ -41,7 +45,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.appearance import DEFAULT_PATCH_SHAPE
-from jaxtrack.boxes import cxcywh_to_xywh
+from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
+from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.births import LOG_ZERO
 from jaxtrack.filters.cmt_observation import (
@@ -75,7 +80,9 @@ from jaxtrack.filters.mixture_models import (
 )
 from jaxtrack.filters.mixture_state import MixtureParams, MixtureState, init_mixture
 from jaxtrack.models.dynamics import MEASURED, SIZE
-from jaxtrack.types import PAD_BOX, FrameInputs, Tracks
+from jaxtrack.models.likelihood import log_likelihood
+from jaxtrack.models.noise import state_dependent_std
+from jaxtrack.types import PAD_BOX, Detections, FrameInputs, Tracks
 
 #: The variants of the ablation (CMT Sec. VII): plain mixture tracker, + contextual
 #: proposal, + contextual observation model.
@@ -99,6 +106,14 @@ class CMTParams(NamedTuple):
         observation: the observation model's
             (:class:`~jaxtrack.filters.cmt_observation.COMParams`).
         appearance_weight: exponent ``a`` of the feature mixture in the likelihood (>= 0).
+        duplicate_iou: a component whose local decision overlaps an older component's by
+            more than this IoU is unsupported on the frame (a second tracker on one target;
+            deleted at once while unconfirmed).
+        confirm_score: a component is output once a blob of at least this score explains its
+            local decision (the PHD tracker's rule, :mod:`~jaxtrack.filters.phd_defaults`).
+        enter_distance: with the contextual proposal and known zones, a blob starts a
+            component (*enter*) only within this many box heights of a zone (foot point to
+            zone), or on the run's first frame (CMT initialises from every blob, Sec. VI).
         zone_boxes: ``[MAX_ZONES, 4]`` entry/exit zones ``(x, y, w, h)`` (padded).
         zone_mask: ``[MAX_ZONES]`` True for the real zones.
     """
@@ -107,6 +122,9 @@ class CMTParams(NamedTuple):
     proposal: CPDParams
     observation: COMParams
     appearance_weight: Float[Array, ""]
+    duplicate_iou: Float[Array, ""]
+    confirm_score: Float[Array, ""]
+    enter_distance: Float[Array, ""]
     zone_boxes: Float[Array, "max_zones 4"]
     zone_mask: Bool[Array, " max_zones"]
 
@@ -118,15 +136,17 @@ class CMTState(NamedTuple):
         mixture: the components' particles, weights, identities.
         appearance: their appearance models and decayed feature histograms.
         estimates: the last local decision of every slot (zeros for dead ones).
-        ages: frames since each slot's component started.
+        confirmed: True once a confident blob explained the slot's component.
         misses: consecutive frames each component went unsupported.
+        frame: frames stepped on.
     """
 
     mixture: MixtureState
     appearance: AppearanceState
     estimates: Float[Array, "max_components 6"]
-    ages: Int[Array, " max_components"]
+    confirmed: Bool[Array, " max_components"]
     misses: Int[Array, " max_components"]
+    frame: Int[Array, ""]
 
 
 class CMTInfo(NamedTuple):
@@ -185,7 +205,6 @@ def cmt_step(
     inputs_t: FrameInputs,
     *,
     variant: str,
-    confirm_frames: int,
     max_misses: int,
     step: float = FEATURE_STEP,
     patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
@@ -200,7 +219,6 @@ def cmt_step(
         params: the tracker's parameters.
         inputs_t: the frame's blobs (detections) and image.
         variant: ``"mtb"``, ``"cpd"`` or ``"cmt"`` (static).
-        confirm_frames: frames a component lives before it is output (static).
         max_misses: unsupported frames a component survives (static).
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
@@ -260,20 +278,23 @@ def cmt_step(
     log_weights = normalise_weights(log_weights)
     estimates = jax.vmap(local_estimate)(particles, log_weights)
 
-    # Verification: unsupported for too long, or a negligible mixture weight.
-    supported = log_support >= params.mixture.min_log_support
+    # Verification: unsupported (no blob, or on an older component's target) for too long,
+    # an unconfirmed duplicate, or a negligible mixture weight.
+    duplicate = _duplicates(estimates, alive, mixture.ids, params)
+    supported = (log_support >= params.mixture.min_log_support) & ~duplicate
     misses = jnp.where(alive & ~supported, state.misses + 1, 0)
     weak = (misses > max_misses) | (log_pi < jnp.log(params.mixture.min_mixture_weight))
+    weak = weak | (duplicate & ~state.confirmed)
     survivors = alive & ~jax.lax.stop_gradient(weak)
     kept_pi = jnp.where(survivors, log_pi, LOG_ZERO)
     log_total = jnp.where(jnp.any(survivors), jax.nn.logsumexp(kept_pi), 0.0)
     log_pi = jnp.where(survivors, kept_pi - log_total, LOG_ZERO)
     estimates = jnp.where(survivors[:, None], estimates, 0.0)
 
-    ages = jnp.where(survivors, state.ages + 1, 0)
+    confirmed = survivors & (state.confirmed | _confirms(estimates, blobs, params))
     shown = survivors & supported
     candidates = _tracks(estimates, mixture.ids, shown, log_pi)
-    tracks = _tracks(estimates, mixture.ids, shown & (ages >= confirm_frames), log_pi)
+    tracks = _tracks(estimates, mixture.ids, shown & confirmed, log_pi)
 
     new_particles, new_log_weights = resample_components(key_resample, particles, log_weights)
     resampled = MixtureState(
@@ -284,7 +305,10 @@ def cmt_step(
         ids=jnp.where(survivors, mixture.ids, -1),
         next_id=mixture.next_id,
     )
-    new_mixture, overflow = add_unexplained(key_add, resampled, blobs, params.mixture)
+    entering = blobs
+    if variant != "mtb":
+        entering = blobs._replace(mask=blobs.mask & _may_enter(blobs, state.frame, params))
+    new_mixture, overflow = add_unexplained(key_add, resampled, entering, params.mixture)
     born = new_mixture.alive & ~survivors
 
     # Appearance: features at the local decisions (a newborn's at its particles' mean).
@@ -304,8 +328,9 @@ def cmt_step(
         mixture=new_mixture,
         appearance=appearance,
         estimates=jnp.where(born[:, None], decisions, estimates),
-        ages=jnp.where(born, 0, ages),
+        confirmed=confirmed & ~born,
         misses=jnp.where(new_mixture.alive & ~born, misses, 0),
+        frame=state.frame + 1,
     )
     info = CMTInfo(
         tracks=tracks,
@@ -335,8 +360,9 @@ def init_cmt(
         mixture=mixture,
         appearance=init_appearance(max_components, num_features, num_values),
         estimates=jnp.zeros((max_components, 6), jnp.float32),
-        ages=jnp.zeros((max_components,), jnp.int32),
+        confirmed=jnp.zeros((max_components,), bool),
         misses=jnp.zeros((max_components,), jnp.int32),
+        frame=jnp.zeros((), jnp.int32),
     )
 
 
@@ -349,7 +375,6 @@ def cmt_filter(
     variant: str,
     max_components: int,
     particles_per_component: int = PARTICLES_PER_COMPONENT,
-    confirm_frames: int = 3,
     max_misses: int = 5,
 ) -> Filter:
     """Builds CMT; all arguments are static.
@@ -358,7 +383,6 @@ def cmt_filter(
         variant: ``"mtb"``, ``"cpd"`` or ``"cmt"`` (:data:`VARIANTS`).
         max_components: local tracker slots (> 0).
         particles_per_component: particles per local tracker (> 0; 40 in CMT).
-        confirm_frames: frames a component lives before it is output.
         max_misses: unsupported frames a component survives.
 
     Returns:
@@ -375,9 +399,7 @@ def cmt_filter(
             "max_components and particles_per_component must be positive, got "
             f"{max_components} and {particles_per_component}"
         )
-    step = functools.partial(
-        cmt_step, variant=variant, confirm_frames=confirm_frames, max_misses=max_misses
-    )
+    step = functools.partial(cmt_step, variant=variant, max_misses=max_misses)
     init = functools.partial(
         init_cmt,
         max_components=max_components,
@@ -385,6 +407,47 @@ def cmt_filter(
         num_features=num_features(),
     )
     return Filter(init=init, step=step)
+
+
+def _confirms(
+    estimates: Float[Array, "max_components 6"], blobs: Detections, params: CMTParams
+) -> Bool[Array, " max_components"]:
+    """True for the components a blob of score ``>= confirm_score`` explains (its box
+    log-likelihood under the local decision above ``birth_log_likelihood``)."""
+    measurements = xywh_to_cxcywh(blobs.boxes, jnp)
+    scores = log_likelihood(
+        measurements, estimates, params.mixture.measurement_noise_std, state_dependent_std
+    )
+    confident = blobs.mask & (blobs.scores >= params.confirm_score)
+    return jnp.any(confident[:, None] & (scores > params.mixture.birth_log_likelihood), axis=0)
+
+
+def _duplicates(
+    estimates: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    ids: Int[Array, " max_components"],
+    params: CMTParams,
+) -> Bool[Array, " max_components"]:
+    """True for a component whose local decision overlaps an older living component's by
+    IoU above ``duplicate_iou`` (Vermaak et al. merge overlapping components; here the
+    younger one is not supported on the frame: an unconfirmed one is deleted at once, a
+    confirmed one after ``max_misses`` such frames, so two targets crossing both live)."""
+    overlap = iou_matrix(particle_boxes(estimates), particle_boxes(estimates), jnp)
+    older = ids[None, :] < ids[:, None]
+    pair = alive[:, None] & alive[None, :] & older & (overlap > params.duplicate_iou)
+    return jnp.any(pair, axis=1)
+
+
+def _may_enter(
+    blobs: Detections, frame: Int[Array, ""], params: CMTParams
+) -> Bool[Array, " max_detections"]:
+    """The blobs that may start a component under the contextual proposal (*enter*): on the
+    first frame, or with no zone known, every blob; else those whose foot point lies within
+    ``enter_distance`` box heights of a zone."""
+    feet = blobs.boxes[:, :2] + blobs.boxes[:, 2:] * jnp.array([0.5, 1.0])
+    boxes = jnp.where(params.zone_mask[:, None], params.zone_boxes, -1e6)
+    near = zone_distance(boxes, feet) <= params.enter_distance * blobs.boxes[:, 3]
+    return near | (frame == 0) | ~jnp.any(params.zone_mask)
 
 
 def _tracks(

@@ -50,8 +50,15 @@ BACKGROUND_LOG_LIKELIHOOD = -38.0
 MIN_LOG_SUPPORT = -36.0
 #: A blob no particle scores above this (log box likelihood) starts a component.
 BIRTH_LOG_LIKELIHOOD = -24.0
-#: A component whose mixture weight falls below this is deleted.
-MIN_MIXTURE_WEIGHT = 1e-8
+#: A component whose mixture weight falls below this is deleted: 0, never (see
+#: :mod:`jaxtrack.filters.cmt`: ``pi_m`` measures the box size as much as the evidence).
+MIN_MIXTURE_WEIGHT = 0.0
+#: Score of a blob that confirms a component (the PHD tracker's ``confirm_score``).
+CONFIRM_SCORE = 0.97
+#: IoU of two local decisions above which the younger component is a duplicate.
+DUPLICATE_IOU = 0.5
+#: Box heights from a zone within which a blob may enter (start a component).
+ENTER_DISTANCE = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,9 +78,6 @@ class CMTConfig(TrackerConfig):
     )
     max_components: int = setting(16, Rule("local tracker slots", int, 1, 1024))
     particles_per_component: int = setting(40, Rule("particles per local tracker", int, 1, 4096))
-    confirm_frames: int = setting(
-        3, Rule("frames a component lives before it is output", int, 0, 1000)
-    )
     max_misses: int = setting(
         5, Rule("frames a component survives without a blob supporting it", int, 0, 1000)
     )
@@ -116,6 +120,9 @@ def cmt_params(config: CMTConfig, zones: SceneZones | None = None) -> CMTParams:
         proposal=default_cpd_params(),
         observation=default_com_params(),
         appearance_weight=jnp.float32(config.appearance_weight),
+        duplicate_iou=jnp.float32(DUPLICATE_IOU),
+        confirm_score=jnp.float32(CONFIRM_SCORE),
+        enter_distance=jnp.float32(ENTER_DISTANCE),
         zone_boxes=boxes,
         zone_mask=mask,
     )
@@ -139,15 +146,14 @@ def build_cmt(
         config.variant,
         config.max_components,
         config.particles_per_component,
-        config.confirm_frames,
         config.max_misses,
     )
     return filt, cmt_params(config, context)
 
 
 @functools.lru_cache(maxsize=8)
-def _cmt_filter(variant, max_components, particles, confirm_frames, max_misses) -> Filter:
-    return cmt_filter(variant, max_components, particles, confirm_frames, max_misses)
+def _cmt_filter(variant, max_components, particles, max_misses) -> Filter:
+    return cmt_filter(variant, max_components, particles, max_misses)
 
 
 def cmt_memory_estimate(config: CMTConfig, capacity: int, chunk_frames: int) -> MemoryEstimate:
