@@ -40,13 +40,12 @@ from jaxtrack.filters.base import run
 from jaxtrack.filters.cmt import FEATURE_STEP, NUM_LEVELS, num_features
 from jaxtrack.filters.cmt_observation import (
     box_features,
-    default_com_params,
     init_appearance,
     likelihood_gap,
     observation_weights,
     update_appearance,
 )
-from jaxtrack.filters.cmt_proposal import default_cpd_params
+from jaxtrack.filters.cmt_tracker import CMTConfig, cmt_params
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import MotSequence, load_sequence
 from jaxtrack.io.frame_stream import FrameStream
@@ -168,7 +167,7 @@ def likelihood_gaps(
     reader: VideoReader, frames: np.ndarray, boxes: np.ndarray, ids: tuple[int, int]
 ) -> LikelihoodGaps:
     """Fig. 9 on a pair of targets (module docstring), with CMT's default observation
-    parameters and its field of context radius (``d_thr`` box heights).
+    parameters and its field-of-context radius (``d_thr`` box heights, :func:`cmt_params`).
 
     Args:
         reader: the sequence's frames.
@@ -180,8 +179,7 @@ def likelihood_gaps(
     Returns:
         The gaps from the second frame on (the first initialises the models).
     """
-    params = default_com_params()
-    proposal = default_cpd_params()
+    params = cmt_params(CMTConfig())
     step = jax.jit(_gap_step, static_argnums=4)
     state = init_appearance(2, num_features(FEATURE_STEP))
     com, ewom = [], []
@@ -193,8 +191,8 @@ def likelihood_gaps(
             jnp.asarray(boxes[index]),
             index == 0,
             NUM_LEVELS,
-            params,
-            proposal.context_distance,
+            params.observation,
+            params.proposal.context_distance,
         )
         if index > 0:
             com.append(float(gaps[0]))
