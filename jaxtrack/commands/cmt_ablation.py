@@ -18,8 +18,11 @@ from jaxtrack.experiments.cmt_ablation import (
     goal_lines,
     run_cmt_ablation,
 )
+from jaxtrack.experiments.cmt_analysis import FIG8_FRAMES, FIG9_LEAD
 from jaxtrack.experiments.common import markdown_table
 
+SEEDS = " ".join(map(str, HELD_OUT_SEEDS))
+FIG8_SPAN = f"{FIG8_FRAMES[0]}-{FIG8_FRAMES[1]}"
 #: The shared data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
@@ -29,22 +32,26 @@ DESCRIPTION = f"""\
 CMT ablation (Cui et al., Sec. VII): MTb vs MTb+CPD vs CMT, with PHD and Kalman beside them.
 
 Sequences: PETS09-S2L1 (frames: --data/{PETS_VIDEO}), TUD-Campus and TUD-Stadtmitte (their
-.mp4) with their MOT15 detections, and the scripted video scenes (crossings of similarly
-dressed people, groups, an occluder) of --seeds (default {" ".join(map(str, HELD_OUT_SEEDS))}:
-held out, never used to tune any default), written to OUT/scenes/video-SEED with their
-simulated detections. Every tracker sees the same detections (CMT's foreground blobs) and
-runs with its default configuration and --seed: the CMT variants MTb (bootstrap proposal +
-equally weighted features), MTb+CPD (contextual proposal) and CMT (contextual proposal +
-contextual observation model), the PHD tracker and the Kalman baseline.
+.mp4), whole, with their MOT15 detections; and the scripted video scenes of --seeds (default
+{SEEDS}: held out, never used to tune any default; crossings of similarly dressed people,
+groups, an occluder), written to OUT/scenes/video-SEED with their simulated detections. Every
+tracker sees the same detections (CMT's foreground blobs) and runs with its default
+configuration and --seed: the CMT variants MTb (Gaussian prior + equally weighted features),
+MTb+CPD (contextual proposal) and CMT (contextual proposal + contextual observation model),
+the PHD tracker and the Kalman baseline. CMT's entry/exit zones are learned on the fly on
+each sequence, as jaxtrack track does without --zones (table.md says what was found).
+
+Fig. 8: MTb's and MTb+CPD's proposed particles on PETS09-S2L1 frames {FIG8_SPAN}, their
+summed distance to the ground truth per frame. Fig. 9: the likelihood difference between the
+two people of the first scene's scripted crossing under COM and EWOM, from {FIG9_LEAD} frames
+before the crossing to its end.
 
 Writes into --out: table.md (OE/DE/SE, MOTA/IDF1/HOTA/IDSW/MT/Frag per sequence and pooled
 over the three MOT15 sequences and over the synthetic scenes, the issue's off-the-shelf
-peers quoted (not re-run), the goals as PASS/FAIL), results.json (the same, with the
-configurations, run times and the figures' numbers), fig8_prediction.png (Fig. 8: summed
-particle-to-gt distance per frame of the contextual proposal and of the Gaussian prior) and
-fig9_discrimination.png (Fig. 9: likelihood difference per frame between two nearby similar
-targets under COM and EWOM), and sequences/SEQ/TRACKER.txt (every result, MOTChallenge
-format). Logic: jaxtrack.experiments.cmt_ablation.
+peers quoted (not re-run), the goals as PASS/FAIL, both analyses in numbers), results.json
+(the same, with the configurations, zones, run times and the figures' per-frame numbers),
+fig8_prediction.png, fig9_discrimination.png and sequences/SEQ/TRACKER.txt (every result,
+MOTChallenge format). Logic: jaxtrack.experiments.cmt_ablation and cmt_analysis.
 
 examples:
   jaxtrack experiment cmt-ablation --out /tmp/cmt
@@ -58,8 +65,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         type=SEED_TYPE,
         metavar="N",
-        help="seeds of the synthetic video scenes (default "
-        f"{' '.join(map(str, HELD_OUT_SEEDS))}, held out; with --quick the first only)",
+        help=f"seeds of the synthetic video scenes (default {SEEDS}, held out; with --quick "
+        "the first only)",
     )
     parser.add_argument(
         "--data",
