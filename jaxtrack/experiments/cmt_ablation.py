@@ -367,6 +367,12 @@ def write_results(out: Path, results: dict[str, dict[str, MotTable]]) -> list[Pa
     return files
 
 
+#: Fig. 8's comparisons (:func:`~jaxtrack.experiments.cmt_analysis.prediction_analysis`)
+#: and their titles.
+FIG8_PANELS = {
+    "same_particles": "same particles, proposed one frame ahead",
+    "tracker_runs": "each tracker run's own proposals",
+}
 #: The files the experiment writes into its output folder (besides ``sequences/`` and
 #: ``scenes/``).
 ABLATION_FILES = ("table.md", "results.json", "fig8_prediction.png", "fig9_discrimination.png")
@@ -449,7 +455,10 @@ def run_cmt_ablation(
     fig8_path = save_prediction_figure(
         out / "fig8_prediction.png",
         np.asarray(fig8["frames"]),
-        {k: np.asarray(v, float) for k, v in fig8["distances"].items()},
+        {
+            FIG8_PANELS[name]: {k: np.asarray(v, float) for k, v in fig8[name]["distances"].items()}
+            for name in FIG8_PANELS
+        },
         f"Fig. 8: prediction precision on {fig8['sequence']}",
     )
     fig9_path = save_discrimination_figure(
@@ -493,7 +502,6 @@ def run_cmt_ablation(
 def table_markdown(record: dict[str, Any]) -> str:
     """``table.md``: the scores, the quoted peers, the goals, both analyses, the setting."""
     fig8, fig9 = record["fig8"], record["fig9"]
-    prior, cpd = fig8["mean"].values()
     seeds = ", ".join(map(str, record["synthetic_seeds_held_out"]))
     lines = [
         "# CMT ablation (Cui et al., Sec. VII)\n",
@@ -512,11 +520,11 @@ def table_markdown(record: dict[str, Any]) -> str:
         "",
         f"## Fig. 8: prediction precision ({fig8['sequence']}, frames "
         f"{fig8['frames'][0]}-{fig8['frames'][-1]})\n",
-        f"Summed distance of a tracked target's proposed particles to its ground-truth centre "
-        f"(mean over the tracked targets), on the {fig8['frames_compared']} frames where both "
-        f"runs track a target: Gaussian prior {_cell(prior)} px, contextual proposal "
-        f"{_cell(cpd)} px; CPD below the prior on "
-        f"{_percent(fig8['cpd_below_prior_fraction'])} of them.\n",
+        "Summed distance of a tracked target's proposed particles to its ground-truth centre "
+        "(mean over the tracked targets), on the frames where both proposals track a target "
+        "(`jaxtrack.experiments.cmt_analysis`).\n",
+        *(_fig8_line(FIG8_PANELS[name], fig8[name]) for name in FIG8_PANELS),
+        "",
         f"## Fig. 9: discriminative power ({fig9['sequence']}, targets {fig9['ids'][0]} and "
         f"{fig9['ids'][1]}, crossing frames {fig9['crossing_frames'][0]}-"
         f"{fig9['crossing_frames'][1]})\n",
@@ -533,6 +541,15 @@ def table_markdown(record: dict[str, Any]) -> str:
         + f"; whole run {record['seconds']} s.\n",
     ]
     return "\n".join(lines)
+
+
+def _fig8_line(title: str, comparison: dict[str, Any]) -> str:
+    prior, cpd = comparison["mean"].values()
+    return (
+        f"- {title}: Gaussian prior {_cell(prior)} px, contextual proposal {_cell(cpd)} px; "
+        f"CPD below the prior on {_percent(comparison['cpd_below_prior_fraction'])} of "
+        f"{comparison['frames_compared']} frames."
+    )
 
 
 def _cell(value: float | None) -> str:

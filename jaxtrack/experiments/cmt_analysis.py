@@ -3,15 +3,21 @@
 **Fig. 8, prediction precision of the proposal.** The paper sums, over every proposed
 particle, the distance from its position ``(P_x, P_y)`` to the annotated target position, and
 compares the contextual proposal (CPD) with the Gaussian (constant-velocity transition)
-prior. Here CMT runs twice on the same span, as MTb (the prior) and as MTb+CPD (the
-contextual proposal), with the same seed and blobs; each frame's *proposed* particles are
-read from the tracker's per-frame info (``CMTInfo.particles``, before reweighting and
-resampling) and :func:`proposal_distances` sums, per component that tracks a ground-truth
-target, its particles' distances to that target's centre, and averages these sums over the
-tracked targets of the frame (so that a run that tracks more targets is not penalised). A
-component tracks the target whose centre is nearest to its particles' mean, when that is
-within :data:`MATCH_GATE` of the target's box height; other components (false tracks) are
-left out.
+prior. :func:`proposal_distances` sums, per component that tracks a ground-truth target, its
+proposed particles' distances to that target's centre, and averages these sums over the
+tracked targets of the frame (so that more tracked targets do not mean a larger number). A
+component tracks the target whose centre is nearest to where the component is (its
+*anchor*), when within :data:`MATCH_GATE` of the target's box height; other components (false
+tracks) are left out. Two comparisons (:func:`prediction_analysis`):
+
+* *same particles* (:func:`one_step_proposals`): on every frame ``t``, the particles of one
+  run (MTb+CPD's, after frame ``t``'s resampling, ``CMTState``) are proposed onto frame
+  ``t + 1`` by both proposals, with the same key: only the proposal differs. Anchor: the
+  particles' mean moved by their mean velocity (the prior's expected position).
+* *tracker runs* (:func:`tracker_particles`): MTb and MTb+CPD each run on the span (same seed
+  and blobs) and each frame's proposed particles (``CMTInfo.particles``, before reweighting)
+  are scored; the runs' components differ, so this mixes the proposal with what it did to
+  the tracks. Anchor: the proposed particles' mean.
 
 **Fig. 9, discriminative power of the observation model.** Two nearby, similarly dressed
 targets A and B (the scripted *crossing* of a synthetic video scene,
@@ -32,12 +38,13 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array
 
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.datasets.video_files import TRUTH_FILE
 from jaxtrack.filters.base import run
-from jaxtrack.filters.cmt import FEATURE_STEP, NUM_LEVELS, num_features
+from jaxtrack.filters.cmt import FEATURE_STEP, NUM_LEVELS, CMTParams, num_features
 from jaxtrack.filters.cmt_observation import (
     box_features,
     init_appearance,
@@ -45,44 +52,74 @@ from jaxtrack.filters.cmt_observation import (
     observation_weights,
     update_appearance,
 )
+from jaxtrack.filters.cmt_proposal import contextual_proposal
 from jaxtrack.filters.cmt_tracker import CMTConfig, cmt_params
+from jaxtrack.filters.mixture_models import bootstrap_proposal
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import MotSequence, load_sequence
 from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader, open_sequence_frames
-from jaxtrack.models.dynamics import POSITION
+from jaxtrack.models.dynamics import POSITION, VELOCITY
 from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES
-from jaxtrack.types import MotTable
+from jaxtrack.types import Detections, MotTable
 
-#: A component tracks a target when its particles' mean lies within this many of the
-#: target's box heights of the target's centre.
+#: A component tracks a target when its anchor lies within this many of the target's box
+#: heights of the target's centre (:func:`proposal_distances`).
 MATCH_GATE = 0.5
 
+#: Fig. 8's span of PETS09-S2L1 (the paper used a subsequence of PETS2004).
+FIG8_FRAMES = (1, 100)
+#: Fig. 8's labels of the two proposals.
+PRIOR = "Gaussian prior (MTb)"
+CONTEXTUAL = "contextual proposal (CPD)"
+#: Fig. 9 starts this many frames before the crossing's first frame.
+FIG9_LEAD = 40
+#: Frames of Fig. 9 in quick runs.
+QUICK_FIG9_FRAMES = 12
 
-class ProposedParticles(NamedTuple):
-    """What :func:`proposed_particles` keeps of each frame: the proposed positions and the
-    living slots."""
 
-    positions: np.ndarray
+class FrameParticles(NamedTuple):
+    """What :func:`tracker_particles` keeps of each frame ``t``.
+
+    Attributes:
+        proposed: the positions of the particles proposed on frame ``t``
+            (``CMTInfo.particles``) ``[T, K, N, 2]``.
+        proposed_alive: the slots alive while frame ``t`` was proposed ``[T, K]``.
+        posterior: the particles after frame ``t``'s resampling (the next proposal's input)
+            ``[T, K, N, 6]``.
+        estimates: the local decisions after frame ``t`` ``[T, K, 6]``.
+        alive: the slots alive after frame ``t`` ``[T, K]``.
+    """
+
+    proposed: np.ndarray
+    proposed_alive: np.ndarray
+    posterior: np.ndarray
+    estimates: np.ndarray
     alive: np.ndarray
 
 
-def _proposal_output(state: Any, info: Any, index: Any) -> ProposedParticles:
-    """The per-frame output of :func:`proposed_particles` (``frame_output`` of ``run``)."""
-    del state, index
-    return ProposedParticles(info.particles[..., POSITION], info.alive)
+def _particles_output(state: Any, info: Any, index: Any) -> FrameParticles:
+    """The per-frame output of :func:`tracker_particles` (``frame_output`` of ``run``)."""
+    del index
+    return FrameParticles(
+        info.particles[..., POSITION],
+        info.alive,
+        state.mixture.particles,
+        state.estimates,
+        state.mixture.alive,
+    )
 
 
-def proposed_particles(
+def tracker_particles(
     loaded: MotSequence,
     reader: VideoReader,
     config: TrackerConfig,
     seed: int,
     zones: SceneZones | None,
-) -> ProposedParticles:
-    """CMT's proposed particle positions ``[T, K, N, 2]`` and living slots ``[T, K]`` on every
-    frame of a sequence span, run as :func:`~jaxtrack.pipelines.stream.track_streamed`
-    runs it (same key, chunks and detection capacities)."""
+) -> FrameParticles:
+    """CMT's particles on every frame of a sequence span (:class:`FrameParticles`), run as
+    :func:`~jaxtrack.pipelines.stream.track_streamed` runs it (same key, chunks and
+    detection capacities)."""
     filt, params = build_tracker(config, loaded.info, zones)
     with FrameStream(reader, loaded.first_frame, loaded.last_frame, STREAM_CHUNK_FRAMES) as frames:
         _, output = run(
@@ -92,14 +129,55 @@ def proposed_particles(
             loaded.detections,
             chunk_frames=STREAM_CHUNK_FRAMES,
             fit_capacity=True,
-            frame_output=_proposal_output,
+            frame_output=_particles_output,
             frames=frames,
         )
-    return ProposedParticles(np.asarray(output.positions), np.asarray(output.alive))
+    return FrameParticles(*(np.asarray(leaf) for leaf in output))
+
+
+@jax.jit
+def one_step_proposals(
+    key: Array, particles: FrameParticles, params: CMTParams, blobs: Detections
+) -> tuple[Array, Array]:
+    """Both proposals from the same particles: frame ``t``'s posterior proposed onto frame
+    ``t + 1``'s blobs by the Gaussian prior (the constant-velocity transition,
+    :func:`~jaxtrack.filters.mixture_models.bootstrap_proposal`) and by the contextual
+    proposal (:func:`~jaxtrack.filters.cmt_proposal.contextual_proposal`, CMT eq. 5), one
+    key per frame shared by both.
+
+    Args:
+        key: PRNG key.
+        particles: :func:`tracker_particles` of frames ``0..T-2`` (posterior, estimates,
+            alive are read).
+        params: the tracker's parameters.
+        blobs: the detections of frames ``1..T-1``.
+
+    Returns:
+        The proposed positions ``[T-1, K, N, 2]`` of the prior and of the contextual proposal.
+    """
+    keys = jax.random.split(key, blobs.mask.shape[0])
+
+    def frame(key_t, posterior, estimates, alive, blobs_t):
+        prior, _ = bootstrap_proposal(key_t, posterior, params.mixture, blobs_t)
+        draw = contextual_proposal(
+            key_t,
+            posterior,
+            estimates,
+            alive,
+            params.proposal,
+            params.mixture.motion_noise_std,
+            blobs_t,
+            params.zone_boxes,
+            params.zone_mask,
+        )
+        return prior[..., POSITION], draw.particles[..., POSITION]
+
+    return jax.vmap(frame)(keys, particles.posterior, particles.estimates, particles.alive, blobs)
 
 
 def proposal_distances(
     positions: np.ndarray,
+    anchors: np.ndarray,
     alive: np.ndarray,
     gt_boxes: np.ndarray,
     gt_mask: np.ndarray,
@@ -109,10 +187,13 @@ def proposal_distances(
 
     Args:
         positions: proposed particle positions ``[T, K, N, 2]`` (pixels).
+        anchors: where each component is taken to be when it is matched to a target
+            ``[T, K, 2]`` (e.g. its particles' mean).
         alive: ``[T, K]`` slots holding a component.
         gt_boxes: ground-truth boxes ``(x, y, w, h)`` ``[T, G, 4]``.
         gt_mask: ``[T, G]`` real ground-truth slots.
-        gate: a component tracks a target within ``gate`` box heights of its centre.
+        gate: a component tracks the target whose centre is nearest to its anchor, when
+            within ``gate`` box heights of it.
 
     Returns:
         Per frame, the mean over the tracking components of the summed distance of their
@@ -120,8 +201,7 @@ def proposal_distances(
         tracking components ``[T]``.
     """
     centres = gt_boxes[..., :2] + gt_boxes[..., 2:] / 2
-    means = positions.mean(axis=2)
-    gap = np.linalg.norm(means[:, :, None, :] - centres[:, None, :, :], axis=-1)
+    gap = np.linalg.norm(anchors[:, :, None, :] - centres[:, None, :, :], axis=-1)
     gap = np.where(gt_mask[:, None, :], gap, np.inf)
     target = np.argmin(gap, axis=-1)
     nearest = np.take_along_axis(gap, target[..., None], -1)[..., 0]
@@ -218,14 +298,6 @@ def _gap_step(state, image, boxes, first, num_levels, params, context_distance):
     return state, jnp.stack(gaps)
 
 
-#: Fig. 8's span of PETS09-S2L1 (the paper used a subsequence of PETS2004).
-FIG8_FRAMES = (1, 100)
-#: Fig. 9 starts this many frames before the crossing's first frame.
-FIG9_LEAD = 40
-#: Frames of Fig. 9 in quick runs.
-QUICK_FIG9_FRAMES = 12
-
-
 def prediction_analysis(
     folder: Path,
     video: Path | None,
@@ -250,24 +322,48 @@ def prediction_analysis(
         zone_note: what the zones are, in words (for the record).
     """
     loaded = load_sequence(folder, frames)
-    distances, counts = {}, {}
-    labels = {"Gaussian prior (MTb)": prior, "contextual proposal (CPD)": contextual}
-    for label, config in labels.items():
+    gt_boxes, gt_mask = np.asarray(loaded.ground_truth.boxes), np.asarray(loaded.ground_truth.mask)
+    runs = {}
+    for label, config in {PRIOR: prior, CONTEXTUAL: contextual}.items():
         with open_sequence_frames(folder, loaded.info, video) as reader:
-            proposed = proposed_particles(loaded, reader, config, seed, zones)
-        gt = loaded.ground_truth
-        distances[label], counts[label] = proposal_distances(
-            proposed.positions, proposed.alive, np.asarray(gt.boxes), np.asarray(gt.mask)
-        )
-    both = np.all([np.isfinite(d) for d in distances.values()], axis=0)
-    prior, cpd = distances.values()
+            runs[label] = tracker_particles(loaded, reader, config, seed, zones)
+    tracker_runs = {
+        label: proposal_distances(
+            run.proposed, run.proposed.mean(axis=2), run.proposed_alive, gt_boxes, gt_mask
+        )[0]
+        for label, run in runs.items()
+    }
+    # the same particles (the MTb+CPD run's posterior on frame t) proposed onto frame t + 1
+    source = runs[CONTEXTUAL]
+    _, params = build_tracker(contextual, loaded.info, zones)
+    previous = FrameParticles(*(leaf[:-1] for leaf in source))
+    blobs = jax.tree.map(lambda x: x[1:], loaded.detections)
+    drawn = one_step_proposals(jax.random.PRNGKey(seed), previous, params, blobs)
+    posterior = previous.posterior
+    anchors = (posterior[..., POSITION] + posterior[..., VELOCITY]).mean(axis=2)
+    same_particles = {
+        label: proposal_distances(
+            np.asarray(positions), anchors, previous.alive, gt_boxes[1:], gt_mask[1:]
+        )[0]
+        for label, positions in zip((PRIOR, CONTEXTUAL), drawn, strict=True)
+    }
     return {
         "sequence": loaded.info.name,
         "frames": list(range(loaded.first_frame, loaded.last_frame + 1)),
         "zones": zone_note,
-        "distances": {k: _json_floats(v) for k, v in distances.items()},
-        "tracked_targets": {k: v.tolist() for k, v in counts.items()},
-        "mean": {k: _json_float(np.nanmean(v[both])) for k, v in distances.items()},
+        "same_particles": _comparison(same_particles, 1),
+        "tracker_runs": _comparison(tracker_runs, 0),
+    }
+
+
+def _comparison(distances: dict[str, np.ndarray], offset: int) -> dict[str, Any]:
+    """The two proposals' distances, per frame (``None`` before ``offset`` and where a run
+    tracks no target) and summarised over the frames where both track one."""
+    both = np.all([np.isfinite(d) for d in distances.values()], axis=0)
+    prior, cpd = distances[PRIOR], distances[CONTEXTUAL]
+    return {
+        "distances": {k: [None] * offset + _json_floats(v) for k, v in distances.items()},
+        "mean": {k: _json_float(np.mean(v[both])) for k, v in distances.items()},
         "cpd_below_prior_fraction": _json_float(np.mean(cpd[both] < prior[both])),
         "frames_compared": int(both.sum()),
     }

@@ -2,7 +2,7 @@
 :mod:`jaxtrack.experiments.cmt_analysis`).
 
 * :func:`prediction_figure`: the summed particle-to-ground-truth distance per frame of each
-  proposal (the contextual proposal against the Gaussian prior).
+  proposal (the contextual proposal against the Gaussian prior), one panel per comparison.
 * :func:`discrimination_figure`: the likelihood difference per frame between two nearby
   similar targets under COM and EWOM, with the zero line (below it: A's model prefers B).
 
@@ -21,20 +21,24 @@ from matplotlib.figure import Figure
 
 
 def prediction_figure(
-    frames: np.ndarray, distances: Mapping[str, np.ndarray], title: str
+    frames: np.ndarray, panels: Mapping[str, Mapping[str, np.ndarray]], title: str
 ) -> Figure:
-    """One line per proposal: the summed distance of a target's proposed particles to its
-    ground-truth centre (mean over the tracked targets), per frame."""
-    figure = Figure(figsize=(8, 3.5), layout="constrained")
+    """One panel per comparison (its title -> the proposals' values), one line per proposal:
+    the summed distance of a target's proposed particles to its ground-truth centre (mean
+    over the tracked targets), per frame."""
+    figure = Figure(figsize=(8, 3 * len(panels)), layout="constrained")
     FigureCanvasAgg(figure)
-    axes = figure.add_subplot()
-    for label, values in distances.items():
-        axes.plot(frames, values, label=f"{label} (mean {np.nanmean(values):.0f} px)")
-    axes.set_xlabel("frame")
-    axes.set_ylabel("summed particle-to-gt distance (px)")
-    axes.set_title(title)
-    axes.grid(alpha=0.3)
-    axes.legend()
+    figure.suptitle(title)
+    for axes, (name, distances) in zip(
+        figure.subplots(len(panels), 1, squeeze=False)[:, 0], panels.items(), strict=True
+    ):
+        for label, values in distances.items():
+            axes.plot(frames, values, label=f"{label} (mean {np.nanmean(values):.0f} px)")
+        axes.set_xlabel("frame")
+        axes.set_ylabel("summed distance (px)")
+        axes.set_title(name)
+        axes.grid(alpha=0.3)
+        axes.legend()
     return figure
 
 

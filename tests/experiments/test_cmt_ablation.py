@@ -31,7 +31,7 @@ from jaxtrack.types import MotTable
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _loop_distances(positions, alive, gt_boxes, gt_mask, gate):
+def _loop_distances(positions, anchors, alive, gt_boxes, gt_mask, gate):
     """Fig. 8's per-frame value, one component and one target at a time."""
     values, counts = [], []
     for t in range(positions.shape[0]):
@@ -39,7 +39,7 @@ def _loop_distances(positions, alive, gt_boxes, gt_mask, gate):
         for k in range(positions.shape[1]):
             if not alive[t, k]:
                 continue
-            mean = positions[t, k].mean(axis=0)
+            mean = anchors[t, k]
             best, best_gap = None, np.inf
             for g in range(gt_boxes.shape[1]):
                 if not gt_mask[t, g]:
@@ -73,8 +73,9 @@ def test_proposal_distances_against_a_loop():
     positions = near[:, :, None, :] + rng.normal(0, 8, (frames, slots, particles, 2))
     positions[:, -1] += 500.0
     alive = rng.random((frames, slots)) < 0.8
-    values, counts = proposal_distances(positions, alive, gt_boxes, gt_mask, 0.5)
-    expected, expected_counts = _loop_distances(positions, alive, gt_boxes, gt_mask, 0.5)
+    anchors = positions.mean(axis=2) + rng.normal(0, 2, (frames, slots, 2))
+    values, counts = proposal_distances(positions, anchors, alive, gt_boxes, gt_mask, 0.5)
+    expected, expected_counts = _loop_distances(positions, anchors, alive, gt_boxes, gt_mask, 0.5)
     np.testing.assert_allclose(values, expected, rtol=1e-10)
     np.testing.assert_array_equal(counts, expected_counts)
     assert np.isnan(values[0]) and counts[0] == 0
@@ -82,15 +83,18 @@ def test_proposal_distances_against_a_loop():
 
 
 def test_proposal_distances_analytic():
-    """One component whose 4 particles sit at (3, 4) offsets from the target's centre: 4 x 5."""
+    """One component whose 4 particles sit at (3, 4) offsets from the target's centre: 4 x 5;
+    anchored beyond the gate (half a box height), it tracks nothing."""
     box = np.array([[[100.0, 50.0, 20.0, 40.0]]])
     centre = np.array([110.0, 70.0])
     offsets = np.array([[3, 4], [-3, 4], [3, -4], [-3, -4]], float)
     positions = (centre + offsets)[None, None]
-    values, counts = proposal_distances(
-        positions, np.ones((1, 1), bool), box, np.ones((1, 1), bool)
-    )
+    one = np.ones((1, 1), bool)
+    values, counts = proposal_distances(positions, centre[None, None], one, box, one)
     assert values[0] == pytest.approx(20.0) and counts[0] == 1
+    far = (centre + np.array([0.0, 20.5]))[None, None]
+    values, counts = proposal_distances(positions, far, one, box, one)
+    assert np.isnan(values[0]) and counts[0] == 0
 
 
 class _Frames:
@@ -200,11 +204,14 @@ def test_peers_are_the_issue_table():
 
 def test_figures_draw_their_inputs():
     frames = np.arange(5, 9)
-    figure = prediction_figure(frames, {"prior": np.arange(4.0), "cpd": np.ones(4)}, "t")
+    panels = {"a": {"prior": np.arange(4.0), "cpd": np.ones(4)}, "b": {"prior": np.zeros(4)}}
+    figure = prediction_figure(frames, panels, "t")
+    assert [axes.get_title() for axes in figure.axes] == ["a", "b"]
     lines = figure.axes[0].lines
     np.testing.assert_array_equal(lines[0].get_xdata(), frames)
     np.testing.assert_array_equal(lines[1].get_ydata(), np.ones(4))
     assert lines[0].get_label() == "prior (mean 2 px)"
+    np.testing.assert_array_equal(figure.axes[1].lines[0].get_ydata(), np.zeros(4))
     figure = discrimination_figure(frames, {"COM": -np.ones(4), "EWOM": np.zeros(4)}, "t")
     np.testing.assert_array_equal(figure.axes[0].lines[0].get_ydata(), -np.ones(4))
 
@@ -250,10 +257,11 @@ def test_quick_run_writes_what_it_prints(tmp_path, capsys):
         assert row["OE"] == pytest.approx(100 * summary["OE"], abs=0.01)
         assert row["IDSW"] == summary["IDSW"]
     fig8, fig9 = record["fig8"], record["fig9"]
-    assert fig8["frames"] == list(range(1, 25)) and set(fig8["distances"]) == {
-        "Gaussian prior (MTb)",
-        "contextual proposal (CPD)",
-    }
+    assert fig8["frames"] == list(range(1, 25))
+    for comparison in (fig8["same_particles"], fig8["tracker_runs"]):
+        assert set(comparison["distances"]) == {"Gaussian prior (MTb)", "contextual proposal (CPD)"}
+        assert all(len(values) == 24 for values in comparison["distances"].values())
+    assert fig8["same_particles"]["distances"]["Gaussian prior (MTb)"][0] is None
     assert len(fig9["COM"]) == len(fig9["EWOM"]) == len(fig9["frames"]) > 0
     for name in ("fig8_prediction.png", "fig9_discrimination.png"):
         pixels = imread(out / name)[..., :3]
