@@ -256,6 +256,15 @@ def test_quick_run_writes_what_it_prints(tmp_path, capsys):
         assert row["IDF1"] == pytest.approx(100 * summary["IDF1"], abs=0.01)
         assert row["OE"] == pytest.approx(100 * summary["OE"], abs=0.01)
         assert row["IDSW"] == summary["IDSW"]
+    # the rows are those ``jaxtrack track`` writes with the same configuration and seed
+    config = tmp_path / "cmt.json"
+    values = {k: v for k, v in record["trackers"]["CMT"].items() if k != "tracker"}
+    config.write_text(json.dumps(values))
+    tracked = tmp_path / "tud.txt"
+    tud = record["sequences"][0]["folder"]
+    argv = ["track", tud, "--tracker", "cmt", "--config", str(config), "--frames", "1:24"]
+    assert main([*argv, "--out", str(tracked)]) == 0
+    assert tracked.read_text() == (out / "sequences" / "TUD-Campus" / "CMT.txt").read_text()
     fig8, fig9 = record["fig8"], record["fig9"]
     assert fig8["frames"] == list(range(1, 25))
     for comparison in (fig8["same_particles"], fig8["tracker_runs"]):
