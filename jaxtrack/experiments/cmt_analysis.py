@@ -31,6 +31,7 @@ prefers B: a potential swap.
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -231,7 +232,9 @@ class LikelihoodGaps(NamedTuple):
     ids: tuple[int, int]
 
 
-def pair_boxes(gt: MotTable, ids: tuple[int, int], first: int, last: int):
+def pair_boxes(
+    gt: MotTable, ids: tuple[int, int], first: int, last: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The frames in ``first..last`` where both targets have a box, and their boxes
     ``[T, 2, 4]`` (A first)."""
     by_id = [
@@ -260,12 +263,11 @@ def likelihood_gaps(
         The gaps from the second frame on (the first initialises the models).
     """
     params = cmt_params(CMTConfig())
-    step = jax.jit(_gap_step, static_argnums=4)
     state = init_appearance(2, num_features(FEATURE_STEP))
     com, ewom = [], []
     for index, frame_number in enumerate(frames):
         image = jnp.asarray(reader.read(int(frame_number)))
-        state, gaps = step(
+        state, gaps = _gap_step(
             state,
             image,
             jnp.asarray(boxes[index]),
@@ -280,6 +282,7 @@ def likelihood_gaps(
     return LikelihoodGaps(np.asarray(frames[1:]), np.asarray(com), np.asarray(ewom), ids)
 
 
+@functools.partial(jax.jit, static_argnums=4)
 def _gap_step(state, image, boxes, first, num_levels, params, context_distance):
     """One frame of :func:`likelihood_gaps`: the COM and EWOM gaps of A under the models
     learned so far, then the models updated with the frame's boxes."""
