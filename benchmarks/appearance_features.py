@@ -9,10 +9,10 @@ dotted with a fixed vector), so XLA computes every histogram but the scan does n
 out. Times are per frame, after compilation, ``block_until_ready``, median and minimum of
 ``--repeats`` runs of the scan, runs interleaved within a group (so a change in the
 machine's other load affects them alike): the default, its bilinear twin and its float
-quantisation twin first (a short group), then the other variants, then the two slow ones (3 repeats). Also reported: the
-process CPU time per frame (both cores' threads summed) and ``others_cpu_share``, the CPU time
-other processes took during each group's timed runs as a share of all the cores' time (the
-machine is shared; 0 means nothing else ran). Reported:
+quantisation twin first (a short group), then the other variants, then the two slow ones
+(3 repeats). Also reported: the process CPU time per frame (both cores' threads summed) and
+``others_cpu_share``, the CPU time other processes took during each group's timed runs as a
+share of all the cores' time (the machine is shared; 0 means nothing else ran). Reported:
 
 * ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.top_bottom_histograms`
   (nearest-pixel uint8 samples binned by a bit shift, ``v >> 5``; scatter-add counting) with
@@ -109,7 +109,7 @@ def nearest_top_bottom(frame, boxes, patch_shape):
 
 
 def as_float(pixels):
-    """RGB as float colours: the colour spaces' float path, unlike :func:`jaxtrack.appearance.rgb` (uint8 kept)."""
+    """RGB as float colours (the float path; :func:`jaxtrack.appearance.rgb` keeps uint8)."""
     return pixels.astype(jnp.float32)
 
 
@@ -334,8 +334,9 @@ def main() -> None:
     boxes = jnp.asarray(particle_boxes(gt, args.frames, np.random.default_rng(args.seed)))
     load_before = os.getloadavg()[0]
 
-    # The default against bilinear and float quantisation alone first (short, so other load is less likely to
-    # fall on it), then the other sizes and variants, then the slow ones with 3 repeats.
+    # The default against bilinear and float quantisation alone first (short, so other load
+    # is less likely to fall on it), then the other sizes and variants, then the slow ones
+    # with 3 repeats.
     default_name = f"nearest_{DEFAULT_PATCH_SHAPE[0]}x{DEFAULT_PATCH_SHAPE[1]}"
     main, main_share = time_scans(
         {
