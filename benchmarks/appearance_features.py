@@ -371,7 +371,7 @@ def main() -> None:
         "goal_ms_per_frame": 2.0,
         "patch_shape": list(DEFAULT_PATCH_SHAPE),
         "boxes_per_frame": NUM_TARGETS * NUM_PARTICLES,
-        "histograms": "top + bottom halves, joint RGB, 8 bins per channel (512), scatter-add",
+        "histograms": "top + bottom halves, joint RGB, 8 bins a channel (512, v >> 5), scatter-add",
         "sampler": "nearest pixel (sample_nearest)",
         "frame_size": [768, 576],
         "scan_frames": args.frames,

@@ -76,7 +76,8 @@ def top_bottom_histograms(
         box: ``(x, y, w, h)``, pixels.
         patch_shape: ``(ph, pw)`` samples, ``ph`` even.
         step: quantisation step ``lambda`` (``ceil(256 / lambda)`` bins per channel).
-        colour_space: :func:`~jaxtrack.appearance.colour.rgb` (default),
+        colour_space: :func:`~jaxtrack.appearance.colour.rgb` (default; nearest-pixel
+            samples then stay uint8 and a power-of-two step bins them by a bit shift),
             :func:`~jaxtrack.appearance.colour.normalised_rg` or
             :func:`~jaxtrack.appearance.colour.hsv`.
         kernel: ``[ph, pw]`` sample weights (e.g. one

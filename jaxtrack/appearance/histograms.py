@@ -8,6 +8,8 @@ Quantisation step ``lambda`` = bin width on the ``[0, 256]`` channel scale
 histograms (CMT's "2 x 3 x 255 / lambda" bucket features, Collins' 49 feature histograms) are
 those of the channels themselves, or the marginals of a joint one (:func:`marginals`).
 
+Raw uint8 colours with a whole power-of-two step are binned by a bit shift (:func:`quantise`;
+the default RGB features, ``lambda = 32``: ``v >> 5``), the same bins as the float formula.
 Counting is one scatter-add of the sample weights per box (``.at[].add``):
 ``benchmarks/appearance_features.py`` found it more than ten times faster on CPU than
 summing one-hot vectors over 512 bins, and an integral histogram of the frame slower still
