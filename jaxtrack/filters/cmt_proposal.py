@@ -1,0 +1,287 @@
+"""CMT's contextual proposal: motion conditions and blob-driven draws (CMT eqs. 5-10).
+
+Each particle ``x'`` of component ``m`` draws a motion condition ``h ~ q_m(h)``
+(:func:`~jaxtrack.filters.cmt_conditions.condition_probabilities`, eqs. 6-10), then a new
+state from the condition's proposal (CMT Sec. IV-A and IV-B-2):
+
+* normal and split: the blob-driven proposal ``q_blob``. Among the real blobs within
+  ``blob_gate`` heights of the particle's constant-velocity (CV) prediction ``G x'``, blob
+  ``j`` is picked with probability ``c_j / sum_k c_k``, ``c_j`` the CV transition's marginal
+  density of the blob's ``(cx, cy, w, h)`` (its Gaussian closeness to the prediction); the
+  centre and size are drawn from ``N(b_j, diag(blob_spread * (w_j, h_j, w_j, h_j))^2)`` and
+  the velocity set to ``v = 2 (y - y') - v'`` (so that the CV position update
+  ``y = y' + (v' + v) / 2`` holds). With probability ``defensive_weight`` (``beta``), or
+  when no blob is near, the draw comes from the CV transition ``p_cv`` instead:
+  ``q_blob = beta p_cv + (1 - beta) sum_j (c_j / sum_k c_k) N_j``;
+* merge: the CV transition ``p_cv`` (the paper's AR(2) prediction: the state holds the
+  velocity);
+* exit: the particle is invalidated (``exited``; the caller gives it zero weight). Its
+  state is a CV draw.
+
+``log_q`` is the exact density of the whole proposal (eq. 5), marginalised over the
+condition and the blob choice, at the drawn particle: for a particle that did not exit,
+``q(x) = (q(normal) + q(split)) q_blob(x) + q(merge) p_cv(x)``, which integrates to
+``1 - q(exit)``. Densities are w.r.t. the measure of
+:func:`~jaxtrack.filters.mixture_models.log_transition`, the four noise coordinates
+``(v1, v2, w, h)`` given ``x'``: a position drawn with density ``N(y)`` gives the velocity
+``v = 2 (y - y') - v'`` the density ``N(y) / 2`` per position dimension. Sizes clipped at
+:data:`~jaxtrack.models.dynamics.MIN_SIZE` are not corrected for (as in ``log_transition``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from jaxtrack.boxes import xywh_to_cxcywh
+from jaxtrack.filters.births import LOG_ZERO
+from jaxtrack.filters.cmt_conditions import (
+    EXIT,
+    MERGE,
+    NORMAL,
+    SPLIT,
+    CPDParams,
+    condition_probabilities,
+    near_blobs,
+    predicted_mean,
+)
+from jaxtrack.models.dynamics import (
+    MEASURED,
+    MIN_SIZE,
+    POSITION,
+    SIZE,
+    STATE_DIM,
+    VELOCITY,
+    sample_constant_velocity,
+)
+from jaxtrack.models.noise import NoiseModel, state_dependent_std
+from jaxtrack.types import Detections
+
+#: Standard deviation of the CV prediction's ``(y1, y2, w, h)`` per unit of noise std: the
+#: positions move by half the velocity noise (``T^2 / 2``), the sizes by the size noise.
+MEASURED_GAIN = (0.5, 0.5, 1.0, 1.0)
+
+
+class CPDDraw(NamedTuple):
+    """One draw of the contextual proposal.
+
+    Attributes:
+        particles: the proposed particles.
+        log_q: the proposal's log-density at each particle (module docstring).
+        conditions: the condition each particle drew (``NORMAL``, ``SPLIT``, ``MERGE`` or
+            ``EXIT`` of :mod:`~jaxtrack.filters.cmt_conditions`).
+        exited: True for the invalidated (``EXIT``) particles.
+        probabilities: ``q(h)`` of each component, ``[max_components, 4]``.
+    """
+
+    particles: Float[Array, "max_components num_particles 6"]
+    log_q: Float[Array, "max_components num_particles"]
+    conditions: Int[Array, "max_components num_particles"]
+    exited: Bool[Array, "max_components num_particles"]
+    probabilities: Float[Array, "max_components 4"]
+
+
+def _safe_log(values: Array) -> Array:
+    """``log`` floored at the smallest normal float32 (finite values and gradients at 0)."""
+    return jnp.log(jnp.maximum(values, jnp.finfo(jnp.float32).tiny))
+
+
+def _gaussian_logpdf(values: Array, means: Array, stds: Array) -> Array:
+    """``sum_d log N(values_d; means_d, stds_d^2)`` over the last axis."""
+    return jnp.sum(jax.scipy.stats.norm.logpdf(values, means, stds), axis=-1)
+
+
+def log_constant_velocity(
+    new: Float[Array, "*batch 6"],
+    old: Float[Array, "*batch 6"],
+    motion_noise_std: Float[Array, " 4"],
+    noise_model: NoiseModel = state_dependent_std,
+) -> Float[Array, " *batch"]:
+    """``log p_cv(x | x')``: the CV transition's density of ``(v1, v2, w, h)`` (CMT eq. 3).
+
+    ``N(v; v', std_{1,2}) N((w, h); (w', h'), std_{w,h})`` with ``std = noise_model((w', h'),
+    motion_noise_std)`` (:mod:`~jaxtrack.models.dynamics`).
+    """
+    std = noise_model(old[..., SIZE], motion_noise_std)
+    noise_coordinates = (*VELOCITY, *SIZE)
+    return _gaussian_logpdf(new[..., noise_coordinates], old[..., noise_coordinates], std)
+
+
+def blob_log_closeness(
+    particles: Float[Array, "max_components num_particles 6"],
+    blobs: Detections,
+    params: CPDParams,
+    motion_noise_std: Float[Array, " 4"],
+    noise_model: NoiseModel = state_dependent_std,
+) -> Float[Array, "max_components num_particles max_detections"]:
+    """``log c_j``: the CV prediction's marginal log-density of each near blob's box.
+
+    ``c_j = N(b_j; C G x', diag(MEASURED_GAIN * std(x'))^2)`` with ``b_j = (cx, cy, w, h)``
+    of blob ``j``; ``LOG_ZERO`` for the blobs that are not near the prediction
+    (:func:`~jaxtrack.filters.cmt_conditions.near_blobs`).
+
+    Args:
+        particles: the previous particles ``x'``.
+        blobs: the frame's padded foreground blobs.
+        params: the proposal's parameters (``blob_gate``).
+        motion_noise_std: the CV transition's noise std.
+        noise_model: noise model of the dynamics.
+
+    Returns:
+        The log-closeness of every particle to every blob.
+    """
+    prediction = predicted_mean(particles)
+    std = noise_model(particles[..., SIZE], motion_noise_std) * jnp.asarray(MEASURED_GAIN)
+    boxes = xywh_to_cxcywh(blobs.boxes, jnp)
+    closeness = _gaussian_logpdf(boxes, prediction[..., None, MEASURED], std[..., None, :])
+    near = near_blobs(prediction, blobs, params.blob_gate)
+    return jnp.where(near, closeness, LOG_ZERO)
+
+
+def log_blob_gaussians(
+    new: Float[Array, "max_components num_particles 6"],
+    blobs: Detections,
+    blob_spread: Float[Array, " 4"],
+) -> Float[Array, "max_components num_particles max_detections"]:
+    """``log N_j(x)``: density of ``(v1, v2, w, h)`` under the Gaussian around each blob.
+
+    ``N((y1, y2, w, h); b_j, diag(blob_spread * (w_j, h_j, w_j, h_j))^2) / 4``: the factor
+    ``1 / 4`` is the Jacobian of ``v = 2 (y - y') - v'`` in the two position dimensions.
+    """
+    boxes = xywh_to_cxcywh(blobs.boxes, jnp)
+    std = blob_spread * boxes[:, (2, 3, 2, 3)]
+    return _gaussian_logpdf(new[..., None, MEASURED], boxes, std) - 2 * math.log(2.0)
+
+
+def log_proposal_density(
+    new: Float[Array, "max_components num_particles 6"],
+    old: Float[Array, "max_components num_particles 6"],
+    log_closeness: Float[Array, "max_components num_particles max_detections"],
+    probabilities: Float[Array, "max_components 4"],
+    blobs: Detections,
+    params: CPDParams,
+    motion_noise_std: Float[Array, " 4"],
+    noise_model: NoiseModel = state_dependent_std,
+) -> Float[Array, "max_components num_particles"]:
+    """``log q(x | x')`` of the non-exit part of the proposal (CMT eq. 5; module docstring).
+
+    Args:
+        new: the proposed particles ``x``.
+        old: the previous particles ``x'``.
+        log_closeness: :func:`blob_log_closeness` of ``old``.
+        probabilities: ``q(h)`` per component (``NORMAL``, ``SPLIT``, ``MERGE``, ``EXIT``).
+        blobs: the frame's padded foreground blobs.
+        params: the proposal's parameters (``blob_spread``, ``defensive_weight``).
+        motion_noise_std: the CV transition's noise std.
+        noise_model: noise model of the dynamics.
+
+    Returns:
+        The log-densities.
+    """
+    log_cv = log_constant_velocity(new, old, motion_noise_std, noise_model)
+    log_choice = jax.nn.log_softmax(log_closeness, axis=-1)
+    log_blobs = jax.nn.logsumexp(
+        log_choice + log_blob_gaussians(new, blobs, params.blob_spread), axis=-1
+    )
+    beta = params.defensive_weight
+    log_blob_driven = jnp.logaddexp(_safe_log(beta) + log_cv, _safe_log(1 - beta) + log_blobs)
+    any_near = jnp.any(log_closeness > LOG_ZERO, axis=-1)
+    log_blob_driven = jnp.where(any_near, log_blob_driven, log_cv)
+    blob_share = _safe_log(probabilities[:, NORMAL] + probabilities[:, SPLIT])[:, None]
+    merge_share = _safe_log(probabilities[:, MERGE])[:, None]
+    return jnp.logaddexp(blob_share + log_blob_driven, merge_share + log_cv)
+
+
+def sample_near_blobs(
+    key: Array,
+    particles: Float[Array, "max_components num_particles 6"],
+    log_closeness: Float[Array, "max_components num_particles max_detections"],
+    blobs: Detections,
+    blob_spread: Float[Array, " 4"],
+) -> Float[Array, "max_components num_particles 6"]:
+    """Draws from ``sum_j (c_j / sum_k c_k) N_j`` (module docstring), sizes >= ``MIN_SIZE``.
+
+    Rows without a near blob get an arbitrary blob's draw (the caller replaces them).
+    """
+    key_choice, key_noise = jax.random.split(key)
+    chosen = jax.random.categorical(key_choice, log_closeness, axis=-1)
+    boxes = xywh_to_cxcywh(blobs.boxes, jnp)[chosen]
+    noise = jax.random.normal(key_noise, boxes.shape, boxes.dtype)
+    drawn = boxes + noise * blob_spread * boxes[..., (2, 3, 2, 3)]
+    positions = drawn[..., :2]
+    velocities = 2 * (positions - particles[..., POSITION]) - particles[..., VELOCITY]
+    sizes = jnp.maximum(drawn[..., 2:], MIN_SIZE)
+    return jnp.stack(
+        [
+            positions[..., 0],
+            velocities[..., 0],
+            positions[..., 1],
+            velocities[..., 1],
+            sizes[..., 0],
+            sizes[..., 1],
+        ],
+        axis=-1,
+    )
+
+
+def contextual_proposal(
+    key: Array,
+    particles: Float[Array, "max_components num_particles 6"],
+    estimates: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    params: CPDParams,
+    motion_noise_std: Float[Array, " 4"],
+    blobs: Detections,
+    zone_boxes: Float[Array, "num_zones 4"],
+    zone_mask: Bool[Array, " num_zones"],
+    noise_model: NoiseModel = state_dependent_std,
+) -> CPDDraw:
+    """One draw of CMT's motion-condition-specific proposal (CMT eq. 5; module docstring).
+
+    Args:
+        key: PRNG key of the draws.
+        particles: the previous (resampled) particles ``x'`` of every component slot.
+        estimates: the components' previous local decisions (the context of eqs. 7-10).
+        alive: the living components.
+        params: the proposal's parameters.
+        motion_noise_std: the CV transition's noise std (``MixtureParams.motion_noise_std``).
+        blobs: the frame's padded foreground blobs ``z~_t``.
+        zone_boxes: padded entry/exit zone boxes ``(x, y, w, h)``, pixels.
+        zone_mask: True for the real zones.
+        noise_model: noise model of the dynamics.
+
+    Returns:
+        The proposed particles, ``log q``, the drawn conditions and the exits, and ``q(h)``.
+    """
+    key_condition, key_defensive, key_cv, key_blob = jax.random.split(key, 4)
+    num_components, num_particles = particles.shape[:2]
+    probabilities = condition_probabilities(estimates, alive, zone_boxes, zone_mask, blobs, params)
+    conditions = jax.random.categorical(
+        key_condition, _safe_log(probabilities)[:, None, :], shape=(num_components, num_particles)
+    )
+    cv = sample_constant_velocity(
+        key_cv, particles.reshape(-1, STATE_DIM), motion_noise_std, noise_model
+    ).reshape(particles.shape)
+    log_closeness = blob_log_closeness(particles, blobs, params, motion_noise_std, noise_model)
+    from_blobs = sample_near_blobs(key_blob, particles, log_closeness, blobs, params.blob_spread)
+    defensive = jax.random.uniform(key_defensive, conditions.shape) < params.defensive_weight
+    blob_driven = (
+        ((conditions == NORMAL) | (conditions == SPLIT))
+        & jnp.any(log_closeness > LOG_ZERO, axis=-1)
+        & ~defensive
+    )
+    new = jnp.where(blob_driven[..., None], from_blobs, cv)
+    log_q = log_proposal_density(
+        new, particles, log_closeness, probabilities, blobs, params, motion_noise_std, noise_model
+    )
+    return CPDDraw(
+        particles=new,
+        log_q=log_q,
+        conditions=conditions,
+        exited=conditions == EXIT,
+        probabilities=probabilities,
+    )
