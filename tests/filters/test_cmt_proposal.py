@@ -14,7 +14,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy.special import logsumexp
 from scipy.stats import norm
 
 from jaxtrack.filters.cmt_conditions import (
@@ -33,7 +32,7 @@ from jaxtrack.types import Detections
 
 MOTION = np.array([0.05, 0.05, 0.01, 0.01], np.float32)
 PARAMS = default_cpd_params()
-NO_ZONE = (np.zeros((1, 4), np.float32), np.zeros(1, bool))
+NO_ZONE = (np.zeros((2, 4), np.float32), np.zeros(2, bool))
 
 
 def blobs_of(boxes, mask=None) -> Detections:
@@ -150,11 +149,15 @@ def test_condition_probabilities_match_a_loop(alive, zones, blob_boxes, expected
     if blob_boxes == "at0":
         blobs = blobs_of([box_at(ESTIMATES[0], 3.0), box_at(ESTIMATES[2])], [True, False])
     else:
-        blobs = blobs_of(np.zeros((1, 4)), [False])
+        blobs = blobs_of(np.zeros((2, 4)), [False, False])
     got = jax.jit(condition_probabilities)(
-        jnp.asarray(ESTIMATES), jnp.asarray(alive), jnp.asarray(zones[0]),
-        jnp.asarray(zones[1]), blobs, PARAMS,
-    )  # fmt: skip
+        jnp.asarray(ESTIMATES),
+        jnp.asarray(alive),
+        jnp.asarray(zones[0]),
+        jnp.asarray(zones[1]),
+        blobs,
+        PARAMS,
+    )
     want = reference_probabilities(ESTIMATES, alive, zones[0], zones[1], blobs, PARAMS)
     np.testing.assert_allclose(got, want, atol=1e-6)
     np.testing.assert_allclose(np.sum(got, axis=1), 1.0, atol=1e-6)
@@ -165,8 +168,8 @@ def test_condition_probabilities_match_a_loop(alive, zones, blob_boxes, expected
 def test_blob_penalises_exit_and_the_pair_share_grows_when_close():
     alive = jnp.ones(4, bool)
     zones = (jnp.asarray(ZONES[0]), jnp.asarray(ZONES[1]))
-    none = blobs_of(np.zeros((1, 4)), [False])
-    blob = blobs_of([box_at(ESTIMATES[0])])
+    none = blobs_of(np.zeros((2, 4)), [False, False])
+    blob = blobs_of([box_at(ESTIMATES[0]), box_at(ESTIMATES[0])], [True, False])
     without = condition_probabilities(jnp.asarray(ESTIMATES), alive, *zones, none, PARAMS)
     with_blob = condition_probabilities(jnp.asarray(ESTIMATES), alive, *zones, blob, PARAMS)
     assert float(with_blob[0, EXIT]) < 0.2 * float(without[0, EXIT])
@@ -184,22 +187,38 @@ def scene(num_particles: int, seed: int):
     estimates = ESTIMATES[:3]
     particles = estimates[:, None] + rng.normal(size=(3, num_particles, 6)) * [3, 1, 3, 1, 2, 4]
     blobs = blobs_of(
-        [box_at(estimates[0], 4.0, -5.0), box_at(estimates[0], -15.0), box_at(estimates[1], 2.0),
-         box_at(estimates[2], 500.0), box_at(estimates[1])],
+        [
+            box_at(estimates[0], 4.0, -5.0),
+            box_at(estimates[0], -15.0),
+            box_at(estimates[1], 2.0),
+            box_at(estimates[2], 500.0),
+            box_at(estimates[1]),
+        ],
         [True, True, True, True, False],
-    )  # fmt: skip
+    )
     alive = jnp.array([True, True, False])
     return (
-        jnp.asarray(particles, jnp.float32), jnp.asarray(estimates), alive, blobs,
-        jnp.asarray(ZONES[0]), jnp.asarray(ZONES[1]),
-    )  # fmt: skip
+        jnp.asarray(particles, jnp.float32),
+        jnp.asarray(estimates),
+        alive,
+        blobs,
+        jnp.asarray(ZONES[0]),
+        jnp.asarray(ZONES[1]),
+    )
 
 
 def eager_propose(key, particles, estimates, alive, blobs, zone_boxes, zone_mask, params=PARAMS):
     return contextual_proposal(
-        key, particles, estimates, alive, params, jnp.asarray(MOTION), blobs, zone_boxes,
+        key,
+        particles,
+        estimates,
+        alive,
+        params,
+        jnp.asarray(MOTION),
+        blobs,
+        zone_boxes,
         zone_mask,
-    )  # fmt: skip
+    )
 
 
 propose = jax.jit(eager_propose)
@@ -211,8 +230,9 @@ def test_log_q_matches_a_loop_of_the_mixture_density(seed):
     params = PARAMS._replace(
         blob_gate=jnp.asarray(0.5), defensive_weight=jnp.asarray(0.3), exit_penalty=jnp.asarray(0.5)
     )
-    draw = propose(jax.random.key(seed), particles, estimates, alive, blobs, zone_boxes,
-                   zone_mask, params)  # fmt: skip
+    draw = propose(
+        jax.random.key(seed), particles, estimates, alive, blobs, zone_boxes, zone_mask, params
+    )
     probabilities = reference_probabilities(
         estimates, np.asarray(alive), zone_boxes, np.asarray(zone_mask), blobs, params
     )
@@ -252,9 +272,10 @@ def test_importance_weights_recover_the_transition_moments():
     blobs = blobs_of([box_at(estimates[0], 3.0, -4.0), box_at(estimates[1], -2.0, 5.0)])
     draw = propose(jax.random.key(7), old, estimates, alive, blobs, zone_boxes, zone_mask)
     weights = np.exp(
-        np.asarray(log_constant_velocity(draw.particles, old, jnp.asarray(MOTION)) - draw.log_q,
-                   np.float64)
-    ) * ~np.asarray(draw.exited)  # fmt: skip
+        np.asarray(
+            log_constant_velocity(draw.particles, old, jnp.asarray(MOTION)) - draw.log_q, np.float64
+        )
+    ) * ~np.asarray(draw.exited)
     new = np.asarray(draw.particles, np.float64)
     for k in range(2):
         keep = 1.0 - float(draw.probabilities[k, EXIT])
@@ -281,8 +302,7 @@ def test_blob_driven_draws_concentrate_on_a_blob_at_the_prediction():
     far_in_gate = box_at(state, 30.0)
     blobs = blobs_of([far_in_gate, box_at(state)])
     params = PARAMS._replace(defensive_weight=jnp.asarray(0.0))
-    draw = propose(jax.random.key(2), old, old[:, 0], jnp.array([True]), blobs, *NO_ZONE,
-                   params)  # fmt: skip
+    draw = propose(jax.random.key(2), old, old[:, 0], jnp.array([True]), blobs, *NO_ZONE, params)
     np.testing.assert_array_equal(draw.conditions, NORMAL)
     new = np.asarray(draw.particles[0], np.float64)
     spread = 0.1 * np.array([40.0, 100.0, 40.0, 100.0])
@@ -295,8 +315,8 @@ def test_blob_driven_draws_concentrate_on_a_blob_at_the_prediction():
 
 
 def test_without_a_near_blob_the_proposal_is_the_transition_less_the_exits():
-    particles, estimates, alive, _, zone_boxes, zone_mask = scene(32, 4)
-    blobs = blobs_of([box_at(ESTIMATES[0], 0.0, 400.0)])
+    particles, estimates, alive, blobs, zone_boxes, zone_mask = scene(32, 4)
+    blobs = blobs._replace(boxes=blobs.boxes.at[:, 1].add(400.0))
     draw = propose(jax.random.key(3), particles, estimates, alive, blobs, zone_boxes, zone_mask)
     log_cv = log_constant_velocity(draw.particles, particles, jnp.asarray(MOTION))
     keep = 1.0 - np.asarray(draw.probabilities[:, EXIT])
@@ -320,8 +340,10 @@ def test_jit_equals_eager_and_vmap_over_params_equals_a_loop():
     jitted = propose(key, *inputs)
     for a, b in zip(eager, jitted, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-4)
-    sweep = [PARAMS, PARAMS._replace(context_distance=jnp.asarray(3.0),
-                                     defensive_weight=jnp.asarray(0.5))]  # fmt: skip
+    sweep = [
+        PARAMS,
+        PARAMS._replace(context_distance=jnp.asarray(3.0), defensive_weight=jnp.asarray(0.5)),
+    ]
     stacked = jax.tree.map(lambda *leaves: jnp.stack(leaves), *sweep)
     batched = jax.jit(jax.vmap(functools.partial(eager_propose, key, *inputs)))(stacked)
     for i, params in enumerate(sweep):
