@@ -35,6 +35,26 @@ PARAMS = default_cpd_params()
 NO_ZONE = (np.zeros((2, 4), np.float32), np.zeros(2, bool))
 
 
+def eager_propose(key, particles, estimates, alive, blobs, zone_boxes, zone_mask, params=PARAMS):
+    """The proposal with this file's motion noise (eager; :data:`propose` is compiled)."""
+    return contextual_proposal(
+        key,
+        particles,
+        estimates,
+        alive,
+        params,
+        jnp.asarray(MOTION),
+        blobs,
+        zone_boxes,
+        zone_mask,
+    )
+
+
+propose = jax.jit(eager_propose)
+log_cv = jax.jit(log_constant_velocity)
+probabilities_of = jax.jit(condition_probabilities)
+
+
 def blobs_of(boxes, mask=None) -> Detections:
     """Padded blobs from ``(x, y, w, h)`` boxes (all real unless ``mask`` says otherwise)."""
     boxes = np.asarray(boxes, np.float32).reshape(-1, 4)
@@ -150,7 +170,7 @@ def test_condition_probabilities_match_a_loop(alive, zones, blob_boxes, expected
         blobs = blobs_of([box_at(ESTIMATES[0], 3.0), box_at(ESTIMATES[2])], [True, False])
     else:
         blobs = blobs_of(np.zeros((2, 4)), [False, False])
-    got = jax.jit(condition_probabilities)(
+    got = probabilities_of(
         jnp.asarray(ESTIMATES),
         jnp.asarray(alive),
         jnp.asarray(zones[0]),
@@ -170,13 +190,13 @@ def test_blob_penalises_exit_and_the_pair_share_grows_when_close():
     zones = (jnp.asarray(ZONES[0]), jnp.asarray(ZONES[1]))
     none = blobs_of(np.zeros((2, 4)), [False, False])
     blob = blobs_of([box_at(ESTIMATES[0]), box_at(ESTIMATES[0])], [True, False])
-    without = condition_probabilities(jnp.asarray(ESTIMATES), alive, *zones, none, PARAMS)
-    with_blob = condition_probabilities(jnp.asarray(ESTIMATES), alive, *zones, blob, PARAMS)
+    without = probabilities_of(jnp.asarray(ESTIMATES), alive, *zones, none, PARAMS)
+    with_blob = probabilities_of(jnp.asarray(ESTIMATES), alive, *zones, blob, PARAMS)
     assert float(with_blob[0, EXIT]) < 0.2 * float(without[0, EXIT])
     np.testing.assert_allclose(with_blob[2:], without[2:])  # components 2, 3: no blob near
     closer = ESTIMATES.copy()
     closer[1, 0] = 120.0
-    near = condition_probabilities(jnp.asarray(closer), alive, *zones, none, PARAMS)
+    near = probabilities_of(jnp.asarray(closer), alive, *zones, none, PARAMS)
     assert float(near[0, NORMAL]) < float(without[0, NORMAL])
     assert float(near[0, SPLIT]) > float(without[0, SPLIT])
 
@@ -205,23 +225,6 @@ def scene(num_particles: int, seed: int):
         jnp.asarray(ZONES[0]),
         jnp.asarray(ZONES[1]),
     )
-
-
-def eager_propose(key, particles, estimates, alive, blobs, zone_boxes, zone_mask, params=PARAMS):
-    return contextual_proposal(
-        key,
-        particles,
-        estimates,
-        alive,
-        params,
-        jnp.asarray(MOTION),
-        blobs,
-        zone_boxes,
-        zone_mask,
-    )
-
-
-propose = jax.jit(eager_propose)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -257,8 +260,8 @@ def test_constant_velocity_density_is_the_mixture_transition():
         birth_log_likelihood=jnp.zeros(()),
     )
     np.testing.assert_allclose(
-        log_constant_velocity(new, particles, jnp.asarray(MOTION)),
-        log_transition(new, particles, mixture),
+        log_cv(new, particles, jnp.asarray(MOTION)),
+        jax.jit(log_transition)(new, particles, mixture),
         rtol=1e-6,
     )
 
@@ -272,13 +275,13 @@ def test_importance_weights_recover_the_transition_moments():
     blobs = blobs_of([box_at(estimates[0], 3.0, -4.0), box_at(estimates[1], -2.0, 5.0)])
     draw = propose(jax.random.key(7), old, estimates, alive, blobs, zone_boxes, zone_mask)
     weights = np.exp(
-        np.asarray(
-            log_constant_velocity(draw.particles, old, jnp.asarray(MOTION)) - draw.log_q, np.float64
-        )
+        np.asarray(log_cv(draw.particles, old, jnp.asarray(MOTION)) - draw.log_q, np.float64)
     ) * ~np.asarray(draw.exited)
     new = np.asarray(draw.particles, np.float64)
     for k in range(2):
         keep = 1.0 - float(draw.probabilities[k, EXIT])
+        exits = np.asarray(draw.exited[k], np.float64)
+        assert abs(exits.mean() - (1 - keep)) < 4 * math.sqrt(keep * (1 - keep) / num)
         state = np.asarray(estimates[k], np.float64)
         blob_driven = np.mean(np.abs(new[k, :, 1] - state[1]) > 4 * MOTION[0] * state[4])
         assert blob_driven > 0.2  # the test is about the blob-driven draws
@@ -318,9 +321,11 @@ def test_without_a_near_blob_the_proposal_is_the_transition_less_the_exits():
     particles, estimates, alive, blobs, zone_boxes, zone_mask = scene(32, 4)
     blobs = blobs._replace(boxes=blobs.boxes.at[:, 1].add(400.0))
     draw = propose(jax.random.key(3), particles, estimates, alive, blobs, zone_boxes, zone_mask)
-    log_cv = log_constant_velocity(draw.particles, particles, jnp.asarray(MOTION))
+    log_transition_cv = log_cv(draw.particles, particles, jnp.asarray(MOTION))
     keep = 1.0 - np.asarray(draw.probabilities[:, EXIT])
-    np.testing.assert_allclose(draw.log_q, log_cv + np.log(keep)[:, None], rtol=1e-6, atol=1e-5)
+    np.testing.assert_allclose(
+        draw.log_q, log_transition_cv + np.log(keep)[:, None], rtol=1e-6, atol=1e-5
+    )
     assert np.all(keep[:2] < 0.99)  # the exits are taken out of q
 
 
