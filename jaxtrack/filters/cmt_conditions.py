@@ -46,6 +46,9 @@ from jaxtrack.types import Detections
 #: :data:`NUM_PARTICLE_CONDITIONS`, ``ENTER`` marks births.
 NORMAL, SPLIT, MERGE, EXIT, ENTER = range(5)
 NUM_PARTICLE_CONDITIONS = 4
+#: Stands in for the estimates of dead slots (which may hold zeros): no division by a zero
+#: height, so no NaN gradient through the masked rows.
+UNIT_BOX_STATE = (0.0, 0.0, 0.0, 0.0, 1.0, 1.0)
 
 
 class CPDParams(NamedTuple):
@@ -170,7 +173,8 @@ def condition_probabilities(
     """``q(h | x_{t-1}, z~_t)`` of each component (CMT eqs. 6-10; module docstring).
 
     Args:
-        estimates: the components' previous local decisions ``x_{t-1}``.
+        estimates: the components' previous local decisions ``x_{t-1}`` (any values in dead
+            slots).
         alive: the living components.
         zone_boxes: padded entry/exit zone boxes ``(x, y, w, h)``, pixels.
         zone_mask: True for the real zones.
@@ -181,6 +185,7 @@ def condition_probabilities(
         ``[max_components, 4]`` probabilities of ``(NORMAL, SPLIT, MERGE, EXIT)``, rows
         summing to 1; ``(1, 0, 0, 0)`` for dead slots.
     """
+    estimates = jnp.where(alive[:, None], estimates, jnp.asarray(UNIT_BOX_STATE))
     heights = estimates[:, SIZE[1]]
     d_object, has_other = object_distances(estimates, alive)
     has_zone = jnp.any(zone_mask)
