@@ -63,8 +63,9 @@ class CPDParams(NamedTuple):
         zone_scale: ``p~(exit) = exp(-d_B / (zone_scale h))`` (eq. 9), box heights, > 0.
         blob_gate: a blob is near a (predicted) box when its centre lies within
             ``blob_gate`` box heights of the box centre, > 0.
-        blob_spread: ``(s_1, s_2, s_w, s_h)``, > 0: standard deviations of the Gaussian
-            around a blob, relative to the blob's size (SDV-style: ``s * (w, h, w, h)``).
+        blob_spread: ``(s_1, s_2, s_w, s_h)``, > 0: standard deviations of a blob's box
+            around the target's (its centre and size), relative to the blob's size
+            (SDV-style: ``s * (w, h, w, h)``); the spread of the Gaussian around a blob.
         defensive_weight: ``beta`` in ``[0, 1]``: the share of the blob-driven proposal
             drawn from the constant-velocity transition, so that ``q`` has the prior's tails.
         exit_penalty: ``p(z~ | exit)`` in ``(0, 1]`` when a blob is near the component's

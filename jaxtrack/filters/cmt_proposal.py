@@ -4,12 +4,16 @@ Each particle ``x'`` of component ``m`` draws a motion condition ``h ~ q_m(h)``
 (:func:`~jaxtrack.filters.cmt_conditions.condition_probabilities`, eqs. 6-10), then a new
 state from the condition's proposal (CMT Sec. IV-A and IV-B-2):
 
-* normal and split: the blob-driven proposal ``q_blob``. Among the real blobs within
-  ``blob_gate`` heights of the particle's constant-velocity (CV) prediction ``G x'``, blob
-  ``j`` is picked with probability ``c_j / sum_k c_k``, ``c_j`` the CV transition's marginal
-  density of the blob's ``(cx, cy, w, h)`` (its Gaussian closeness to the prediction); the
-  centre and size are drawn from ``N(b_j, diag(blob_spread * (w_j, h_j, w_j, h_j))^2)`` and
-  the velocity set to ``v = 2 (y - y') - v'`` (so that the CV position update
+* normal and split: the blob-driven proposal ``q_blob``. A blob ``j`` (box centre and size
+  ``b_j = (cx, cy, w, h)``) is taken as a Gaussian observation ``N(b_j, r_j^2)`` of the
+  particle's ``(y1, y2, w, h)``, ``r_j = blob_spread * (w_j, h_j, w_j, h_j)``; the CV
+  prediction's marginal is ``N(p, s^2)``. Among the real blobs within ``blob_gate`` heights
+  of the prediction, blob ``j`` is picked with probability ``c_j / sum_k c_k``, ``c_j =
+  N(b_j; p, s^2 + r_j^2)`` (its Gaussian closeness to the prediction), and the centre and
+  size are drawn from the product of the two Gaussians, ``N_j`` (:func:`blob_gaussians`):
+  the blob's Gaussian pulled towards the prediction by the prior's precision (the locally
+  optimal proposal of a linear-Gaussian observation, so the weights ``p / q`` stay
+  bounded). The velocity is set to ``v = 2 (y - y') - v'`` (so that the CV position update
   ``y = y' + (v' + v) / 2`` holds). With probability ``defensive_weight`` (``beta``), or
   when no blob is near, the draw comes from the CV transition ``p_cv`` instead:
   ``q_blob = beta p_cv + (1 - beta) sum_j (c_j / sum_k c_k) N_j``;
@@ -111,58 +115,79 @@ def log_constant_velocity(
     return _gaussian_logpdf(new[..., noise_coordinates], old[..., noise_coordinates], std)
 
 
-def blob_log_closeness(
+class BlobGaussians(NamedTuple):
+    """The blob-driven Gaussians of every particle and blob (module docstring).
+
+    Attributes:
+        log_closeness: ``log c_j``; ``LOG_ZERO`` for the blobs not near the prediction.
+        means: means of ``(y1, y2, w, h)``.
+        stds: standard deviations of ``(y1, y2, w, h)``.
+    """
+
+    log_closeness: Float[Array, "max_components num_particles max_detections"]
+    means: Float[Array, "max_components num_particles max_detections 4"]
+    stds: Float[Array, "max_components num_particles max_detections 4"]
+
+
+def blob_gaussians(
     particles: Float[Array, "max_components num_particles 6"],
     blobs: Detections,
     params: CPDParams,
     motion_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
-) -> Float[Array, "max_components num_particles max_detections"]:
-    """``log c_j``: the CV prediction's marginal log-density of each near blob's box.
+) -> BlobGaussians:
+    """The CV prediction of each particle fused with each blob, per coordinate (CMT Sec. IV-A).
 
-    ``c_j = N(b_j; C G x', diag(MEASURED_GAIN * std(x'))^2)`` with ``b_j = (cx, cy, w, h)``
-    of blob ``j``; ``LOG_ZERO`` for the blobs that are not near the prediction
-    (:func:`~jaxtrack.filters.cmt_conditions.near_blobs`).
+    With the prediction's marginal ``N(p, s^2)`` of ``(y1, y2, w, h)`` (``p = C G x'``,
+    ``s = MEASURED_GAIN * std(x')``) and the blob's ``N(b_j, r_j^2)`` (``r_j = blob_spread *
+    (w_j, h_j, w_j, h_j)``): ``c_j = N(b_j; p, s^2 + r_j^2)`` and the Gaussian of mean
+    ``(p r_j^2 + b_j s^2) / (s^2 + r_j^2)`` and variance ``s^2 r_j^2 / (s^2 + r_j^2)``.
 
     Args:
         particles: the previous particles ``x'``.
         blobs: the frame's padded foreground blobs.
-        params: the proposal's parameters (``blob_gate``).
+        params: the proposal's parameters (``blob_gate``, ``blob_spread``).
         motion_noise_std: the CV transition's noise std.
         noise_model: noise model of the dynamics.
 
     Returns:
-        The log-closeness of every particle to every blob.
+        The closeness, means and standard deviations.
     """
     prediction = predicted_mean(particles)
-    std = noise_model(particles[..., SIZE], motion_noise_std) * jnp.asarray(MEASURED_GAIN)
+    predicted = prediction[..., None, MEASURED]
+    prior_var = (noise_model(particles[..., SIZE], motion_noise_std) * jnp.asarray(MEASURED_GAIN))[
+        ..., None, :
+    ] ** 2
     boxes = xywh_to_cxcywh(blobs.boxes, jnp)
-    closeness = _gaussian_logpdf(boxes, prediction[..., None, MEASURED], std[..., None, :])
+    blob_var = (params.blob_spread * boxes[:, (2, 3, 2, 3)]) ** 2
+    total_var = prior_var + blob_var
+    closeness = _gaussian_logpdf(boxes, predicted, jnp.sqrt(total_var))
     near = near_blobs(prediction, blobs, params.blob_gate)
-    return jnp.where(near, closeness, LOG_ZERO)
+    return BlobGaussians(
+        log_closeness=jnp.where(near, closeness, LOG_ZERO),
+        means=(predicted * blob_var + boxes * prior_var) / total_var,
+        stds=jnp.sqrt(prior_var * blob_var / total_var),
+    )
 
 
 def log_blob_gaussians(
-    new: Float[Array, "max_components num_particles 6"],
-    blobs: Detections,
-    blob_spread: Float[Array, " 4"],
+    new: Float[Array, "max_components num_particles 6"], gaussians: BlobGaussians
 ) -> Float[Array, "max_components num_particles max_detections"]:
-    """``log N_j(x)``: density of ``(v1, v2, w, h)`` under the Gaussian around each blob.
+    """``log N_j(x)``: density of ``(v1, v2, w, h)`` under each blob-driven Gaussian.
 
-    ``N((y1, y2, w, h); b_j, diag(blob_spread * (w_j, h_j, w_j, h_j))^2) / 4``: the factor
-    ``1 / 4`` is the Jacobian of ``v = 2 (y - y') - v'`` in the two position dimensions.
+    ``N((y1, y2, w, h); mean_j, std_j^2) / 4``: the factor ``1 / 4`` is the Jacobian of
+    ``v = 2 (y - y') - v'`` in the two position dimensions.
     """
-    boxes = xywh_to_cxcywh(blobs.boxes, jnp)
-    std = blob_spread * boxes[:, (2, 3, 2, 3)]
-    return _gaussian_logpdf(new[..., None, MEASURED], boxes, std) - 2 * math.log(2.0)
+    return _gaussian_logpdf(new[..., None, MEASURED], gaussians.means, gaussians.stds) - 2 * (
+        math.log(2.0)
+    )
 
 
 def log_proposal_density(
     new: Float[Array, "max_components num_particles 6"],
     old: Float[Array, "max_components num_particles 6"],
-    log_closeness: Float[Array, "max_components num_particles max_detections"],
+    gaussians: BlobGaussians,
     probabilities: Float[Array, "max_components 4"],
-    blobs: Detections,
     params: CPDParams,
     motion_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
@@ -172,10 +197,9 @@ def log_proposal_density(
     Args:
         new: the proposed particles ``x``.
         old: the previous particles ``x'``.
-        log_closeness: :func:`blob_log_closeness` of ``old``.
+        gaussians: :func:`blob_gaussians` of ``old``.
         probabilities: ``q(h)`` per component (``NORMAL``, ``SPLIT``, ``MERGE``, ``EXIT``).
-        blobs: the frame's padded foreground blobs.
-        params: the proposal's parameters (``blob_spread``, ``defensive_weight``).
+        params: the proposal's parameters (``defensive_weight``).
         motion_noise_std: the CV transition's noise std.
         noise_model: noise model of the dynamics.
 
@@ -183,13 +207,11 @@ def log_proposal_density(
         The log-densities.
     """
     log_cv = log_constant_velocity(new, old, motion_noise_std, noise_model)
-    log_choice = jax.nn.log_softmax(log_closeness, axis=-1)
-    log_blobs = jax.nn.logsumexp(
-        log_choice + log_blob_gaussians(new, blobs, params.blob_spread), axis=-1
-    )
+    log_choice = jax.nn.log_softmax(gaussians.log_closeness, axis=-1)
+    log_blobs = jax.nn.logsumexp(log_choice + log_blob_gaussians(new, gaussians), axis=-1)
     beta = params.defensive_weight
     log_blob_driven = jnp.logaddexp(_safe_log(beta) + log_cv, _safe_log(1 - beta) + log_blobs)
-    any_near = jnp.any(log_closeness > LOG_ZERO, axis=-1)
+    any_near = jnp.any(gaussians.log_closeness > LOG_ZERO, axis=-1)
     log_blob_driven = jnp.where(any_near, log_blob_driven, log_cv)
     blob_share = _safe_log(probabilities[:, NORMAL] + probabilities[:, SPLIT])[:, None]
     merge_share = _safe_log(probabilities[:, MERGE])[:, None]
@@ -199,19 +221,17 @@ def log_proposal_density(
 def sample_near_blobs(
     key: Array,
     particles: Float[Array, "max_components num_particles 6"],
-    log_closeness: Float[Array, "max_components num_particles max_detections"],
-    blobs: Detections,
-    blob_spread: Float[Array, " 4"],
+    gaussians: BlobGaussians,
 ) -> Float[Array, "max_components num_particles 6"]:
     """Draws from ``sum_j (c_j / sum_k c_k) N_j`` (module docstring), sizes >= ``MIN_SIZE``.
 
     Rows without a near blob get an arbitrary blob's draw (the caller replaces them).
     """
     key_choice, key_noise = jax.random.split(key)
-    chosen = jax.random.categorical(key_choice, log_closeness, axis=-1)
-    boxes = xywh_to_cxcywh(blobs.boxes, jnp)[chosen]
-    noise = jax.random.normal(key_noise, boxes.shape, boxes.dtype)
-    drawn = boxes + noise * blob_spread * boxes[..., (2, 3, 2, 3)]
+    chosen = jax.random.categorical(key_choice, gaussians.log_closeness, axis=-1)[..., None, None]
+    means = jnp.take_along_axis(gaussians.means, chosen, axis=-2)[..., 0, :]
+    stds = jnp.take_along_axis(gaussians.stds, chosen, axis=-2)[..., 0, :]
+    drawn = means + stds * jax.random.normal(key_noise, means.shape, means.dtype)
     positions = drawn[..., :2]
     velocities = 2 * (positions - particles[..., POSITION]) - particles[..., VELOCITY]
     sizes = jnp.maximum(drawn[..., 2:], MIN_SIZE)
@@ -266,17 +286,17 @@ def contextual_proposal(
     cv = sample_constant_velocity(
         key_cv, particles.reshape(-1, STATE_DIM), motion_noise_std, noise_model
     ).reshape(particles.shape)
-    log_closeness = blob_log_closeness(particles, blobs, params, motion_noise_std, noise_model)
-    from_blobs = sample_near_blobs(key_blob, particles, log_closeness, blobs, params.blob_spread)
+    gaussians = blob_gaussians(particles, blobs, params, motion_noise_std, noise_model)
+    from_blobs = sample_near_blobs(key_blob, particles, gaussians)
     defensive = jax.random.uniform(key_defensive, conditions.shape) < params.defensive_weight
     blob_driven = (
         ((conditions == NORMAL) | (conditions == SPLIT))
-        & jnp.any(log_closeness > LOG_ZERO, axis=-1)
+        & jnp.any(gaussians.log_closeness > LOG_ZERO, axis=-1)
         & ~defensive
     )
     new = jnp.where(blob_driven[..., None], from_blobs, cv)
     log_q = log_proposal_density(
-        new, particles, log_closeness, probabilities, blobs, params, motion_noise_std, noise_model
+        new, particles, gaussians, probabilities, params, motion_noise_std, noise_model
     )
     return CPDDraw(
         particles=new,

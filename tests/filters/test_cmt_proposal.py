@@ -124,9 +124,14 @@ def reference_log_q(new, old, probabilities, blobs, params):
                 if not real or math.hypot(b[0] - cx - vx, b[1] - cy - vy) > p["blob_gate"] * h:
                     continue
                 pred = np.array([cx + vx, cy + vy, w, h])
-                closeness.append(np.prod(norm.pdf(b, pred, s * [0.5, 0.5, 1, 1])))
-                spread = p["blob_spread"] * np.array([bw, bh, bw, bh])
-                gaussians.append(np.prod(norm.pdf(x[[0, 2, 4, 5]], b, spread)) / 4)
+                prior_precision = 1 / (s * [0.5, 0.5, 1, 1]) ** 2
+                blob_precision = 1 / (p["blob_spread"] * np.array([bw, bh, bw, bh])) ** 2
+                var = 1 / (prior_precision + blob_precision)
+                mean = var * (prior_precision * pred + blob_precision * b)
+                closeness.append(
+                    np.prod(norm.pdf(b, pred, np.sqrt(1 / prior_precision + 1 / blob_precision)))
+                )
+                gaussians.append(np.prod(norm.pdf(x[[0, 2, 4, 5]], mean, np.sqrt(var))) / 4)
             if closeness:
                 c = np.array(closeness) / sum(closeness)
                 beta = p["defensive_weight"]
@@ -269,28 +274,32 @@ def test_constant_velocity_density_is_the_mixture_transition():
 def test_importance_weights_recover_the_transition_moments():
     """``mean(p / q f 1{no exit}) = (1 - q(exit)) E_p[f]`` (exact log q in the weights)."""
     num = 20_000
+    motion = jnp.asarray([0.3, 0.3, 0.05, 0.05])  # a broad prior: q differs from it
     _, estimates, _, _, zone_boxes, zone_mask = scene(1, 0)
     alive = jnp.array([True, True, False])
     old = jnp.repeat(estimates[:, None], num, axis=1)
     blobs = blobs_of([box_at(estimates[0], 3.0, -4.0), box_at(estimates[1], -2.0, 5.0)])
-    draw = propose(jax.random.key(7), old, estimates, alive, blobs, zone_boxes, zone_mask)
-    weights = np.exp(
-        np.asarray(log_cv(draw.particles, old, jnp.asarray(MOTION)) - draw.log_q, np.float64)
-    ) * ~np.asarray(draw.exited)
+    draw = jax.jit(contextual_proposal)(
+        jax.random.key(7), old, estimates, alive, PARAMS, motion, blobs, zone_boxes, zone_mask
+    )
+    log_p = log_cv(draw.particles, old, motion)
+    weights = np.exp(np.asarray(log_p - draw.log_q, np.float64)) * ~np.asarray(draw.exited)
     new = np.asarray(draw.particles, np.float64)
     for k in range(2):
         keep = 1.0 - float(draw.probabilities[k, EXIT])
         exits = np.asarray(draw.exited[k], np.float64)
         assert abs(exits.mean() - (1 - keep)) < 4 * math.sqrt(keep * (1 - keep) / num)
         state = np.asarray(estimates[k], np.float64)
-        blob_driven = np.mean(np.abs(new[k, :, 1] - state[1]) > 4 * MOTION[0] * state[4])
-        assert blob_driven > 0.2  # the test is about the blob-driven draws
+        width, height = state[4], state[5]
+        shift = abs(np.mean(new[k, :, 3]) - state[3]) / np.std(new[k, :, 3]) * math.sqrt(num)
+        assert shift > 20  # the blobs pull the unweighted draws away from the prior
         moments = {
             "one": (np.ones(num), 1.0),
             "vx": (new[k, :, 1], state[1]),
+            "vy": (new[k, :, 3], state[3]),
             "vy above": (new[k, :, 3] > state[3], 0.5),
-            "h": (new[k, :, 5], state[5]),
-            "w^2": (new[k, :, 4] ** 2, state[4] ** 2 + (MOTION[2] * state[4]) ** 2),
+            "h": (new[k, :, 5], height),
+            "w^2": (new[k, :, 4] ** 2, width**2 + (float(motion[2]) * width) ** 2),
         }
         for name, (values, expected) in moments.items():
             terms = weights[k] * values
@@ -298,22 +307,28 @@ def test_importance_weights_recover_the_transition_moments():
             assert abs(np.mean(terms) - keep * expected) < 4 * error + 1e-9, name
 
 
-def test_blob_driven_draws_concentrate_on_a_blob_at_the_prediction():
+def test_with_a_broad_prior_blob_driven_draws_concentrate_on_the_near_blob():
     num = 4000
+    motion = jnp.asarray([0.3, 0.3, 0.05, 0.05])
     state = np.array([200.0, 3.0, 150.0, -2.0, 40.0, 100.0], np.float32)
     old = jnp.broadcast_to(jnp.asarray(state), (1, num, 6))
-    far_in_gate = box_at(state, 30.0)
-    blobs = blobs_of([far_in_gate, box_at(state)])
-    params = PARAMS._replace(defensive_weight=jnp.asarray(0.0))
-    draw = propose(jax.random.key(2), old, old[:, 0], jnp.array([True]), blobs, *NO_ZONE, params)
+    blobs = blobs_of([box_at(state, 60.0), box_at(state, 6.0, -8.0)])
+    params = PARAMS._replace(defensive_weight=jnp.asarray(0.0), blob_spread=jnp.full(4, 0.05))
+    draw = jax.jit(contextual_proposal)(
+        jax.random.key(2), old, old[:, 0], jnp.array([True]), params, motion, blobs, *NO_ZONE
+    )
     np.testing.assert_array_equal(draw.conditions, NORMAL)
     new = np.asarray(draw.particles[0], np.float64)
-    spread = 0.1 * np.array([40.0, 100.0, 40.0, 100.0])
-    centre = np.array([203.0, 148.0, 40.0, 100.0])
+    blob = np.array([203.0 + 6.0, 148.0 - 8.0, 40.0, 100.0])
+    prior_var = (np.asarray(motion) * [40.0, 100.0, 40.0, 100.0] * [0.5, 0.5, 1, 1]) ** 2
+    blob_var = (0.05 * np.array([40.0, 100.0, 40.0, 100.0])) ** 2
+    std = np.sqrt(prior_var * blob_var / (prior_var + blob_var))
+    mean = blob + (np.array([203.0, 148.0, 40.0, 100.0]) - blob) * blob_var / (prior_var + blob_var)
+    assert np.all(np.abs(mean - blob) < np.sqrt(blob_var))  # the blob dominates the prior
     measured = new[:, [0, 2, 4, 5]]
-    assert np.all(np.abs(measured - centre) < 5 * spread)
-    np.testing.assert_allclose(measured.mean(0), centre, atol=4 * spread.max() / math.sqrt(num))
-    np.testing.assert_allclose(measured.std(0), spread, rtol=0.05)
+    assert np.all(np.abs(measured - mean) < 5 * std)  # never the other blob
+    np.testing.assert_allclose(measured.mean(0), mean, atol=4 * std.max() / math.sqrt(num))
+    np.testing.assert_allclose(measured.std(0), std, rtol=0.05)
     np.testing.assert_allclose(new[:, 1], 2 * (new[:, 0] - 200.0) - 3.0, atol=1e-3)
 
 
