@@ -68,6 +68,8 @@ from jaxtrack.types import Detections
 #: Standard deviation of the CV prediction's ``(y1, y2, w, h)`` per unit of noise std: the
 #: positions move by half the velocity noise (``T^2 / 2``), the sizes by the size noise.
 MEASURED_GAIN = (0.5, 0.5, 1.0, 1.0)
+#: ``log(1 / 4)``: the Jacobian of ``v = 2 (y - y') - v'`` in the two position dimensions.
+LOG_POSITION_JACOBIAN = -2 * math.log(2.0)
 
 
 class CPDDraw(NamedTuple):
@@ -155,9 +157,8 @@ def blob_gaussians(
     """
     prediction = predicted_mean(particles)
     predicted = prediction[..., None, MEASURED]
-    prior_var = (noise_model(particles[..., SIZE], motion_noise_std) * jnp.asarray(MEASURED_GAIN))[
-        ..., None, :
-    ] ** 2
+    prior_std = noise_model(particles[..., SIZE], motion_noise_std) * jnp.asarray(MEASURED_GAIN)
+    prior_var = prior_std[..., None, :] ** 2
     boxes = xywh_to_cxcywh(blobs.boxes, jnp)
     blob_var = (params.blob_spread * boxes[:, (2, 3, 2, 3)]) ** 2
     total_var = prior_var + blob_var
@@ -178,8 +179,9 @@ def log_blob_gaussians(
     ``N((y1, y2, w, h); mean_j, std_j^2) / 4``: the factor ``1 / 4`` is the Jacobian of
     ``v = 2 (y - y') - v'`` in the two position dimensions.
     """
-    return _gaussian_logpdf(new[..., None, MEASURED], gaussians.means, gaussians.stds) - 2 * (
-        math.log(2.0)
+    return (
+        _gaussian_logpdf(new[..., None, MEASURED], gaussians.means, gaussians.stds)
+        + LOG_POSITION_JACOBIAN
     )
 
 
