@@ -44,12 +44,14 @@ from jaxtyping import Array, Bool, Float, Int
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.filters.births import LOG_ZERO
 from jaxtrack.filters.cmt_conditions import (
+    ENTER,
     EXIT,
     MERGE,
     NORMAL,
     SPLIT,
     CPDParams,
     condition_probabilities,
+    default_cpd_params,
     near_blobs,
     predicted_mean,
 )
@@ -64,6 +66,27 @@ from jaxtrack.models.dynamics import (
 )
 from jaxtrack.models.noise import NoiseModel, state_dependent_std
 from jaxtrack.types import Detections
+
+#: The proposal's public API; the conditions, their probabilities and the parameters live in
+#: :mod:`~jaxtrack.filters.cmt_conditions` and are re-exported here for the tracker.
+__all__ = [
+    "ENTER",
+    "EXIT",
+    "MERGE",
+    "NORMAL",
+    "SPLIT",
+    "BlobGaussians",
+    "CPDDraw",
+    "CPDParams",
+    "blob_gaussians",
+    "condition_probabilities",
+    "contextual_proposal",
+    "default_cpd_params",
+    "log_blob_gaussians",
+    "log_constant_velocity",
+    "log_proposal_density",
+    "sample_near_blobs",
+]
 
 #: Standard deviation of the CV prediction's ``(y1, y2, w, h)`` per unit of noise std: the
 #: positions move by half the velocity noise (``T^2 / 2``), the sizes by the size noise.
