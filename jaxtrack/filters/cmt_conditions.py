@@ -20,7 +20,10 @@ resolutions and for near and far targets alike (the paper states them in pixels)
   proportion to ``p~(split) = p~(merge) = exp(-min_j d_O(m, j))`` and ``p~(exit) =
   exp(-d_B(m) / (zone_scale h_m))`` (computed as a softmax of the log values, so far-away
   context does not underflow to 0 / 0). Without any zone ``p~(exit) = 0``; a lone
-  component in a scene without zones has no context at all and gets ``p(normal) = 1``;
+  component in a scene without zones has no context at all and gets ``p(normal) = 1``.
+  Taken literally, eq. 8 gives a lone component ``p(exit) = eps`` however far it is from
+  every zone (``d_B`` only sets exit's share against split and merge); the blob evidence
+  below lowers it where a blob supports the target;
 * eq. 6, blob evidence: ``q(h) = p(h) p(z~ | h) / sum_h' p(h') p(z~ | h')`` with
   ``p(z~ | exit) = exit_penalty`` when a foreground blob lies near the component's
   constant-velocity prediction (within ``blob_gate`` box heights of its centre) and 1
