@@ -2,7 +2,8 @@
 
 Oracles: float64 NumPy loops of eqs. 6-10 on hand-built scenes and of the mixture density of
 eq. 5; the importance-sampling identity ``E_q[p / q f 1{no exit}] = (1 - q(exit)) E_p[f]``
-with the constant-velocity transition's analytic moments; a blob at the prediction.
+with the constant-velocity transition's analytic moments; the product of Gaussians of the
+prediction and a blob; finite differences.
 """
 
 from __future__ import annotations
@@ -385,3 +386,21 @@ def test_gradients_wrt_continuous_params_are_finite():
         assert np.all(np.isfinite(value)), name
     for name in ("context_distance", "zone_scale", "blob_spread", "defensive_weight"):
         assert np.any(np.asarray(getattr(grads, name)) != 0.0), name
+
+
+@pytest.mark.parametrize("name", ["context_distance", "zone_scale", "exit_penalty"])
+def test_gradients_of_the_condition_probabilities_equal_finite_differences(name):
+    _, estimates, _, blobs, zone_boxes, zone_mask = scene(32, 8)
+    alive = jnp.array([True, True, True])
+
+    def objective(value):
+        params = PARAMS._replace(**{name: value})
+        probabilities = probabilities_of(estimates, alive, zone_boxes, zone_mask, blobs, params)
+        return jnp.sum(probabilities * jnp.arange(4.0))
+
+    value = getattr(PARAMS, name)
+    step = 1e-2 * value
+    numeric = (objective(value + step) - objective(value - step)) / (2 * step)
+    analytic = jax.grad(objective)(value)
+    assert abs(float(analytic)) > 1e-3
+    np.testing.assert_allclose(analytic, numeric, rtol=2e-2)
