@@ -199,7 +199,6 @@ def observation_weights(
     num_components, num_pool = counts.shape[:2]
     if not contextual:
         return jnp.full((num_components, num_pool), 1.0 / num_pool, counts.dtype)
-    # A [K, 1] radius compares row m of the squared distances with r_m^2.
     radii = jnp.broadcast_to(radius, (num_components,))[:, None]
     context = field_of_context(positions, alive, radii)
     weights = feature_weights(counts, context, num_levels)
