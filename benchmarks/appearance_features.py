@@ -8,17 +8,18 @@ their boxes jittered (5 px, 5 %). The step's output is one number per box (the h
 dotted with a fixed vector), so XLA computes every histogram but the scan does not write them
 out. Times are per frame, after compilation, ``block_until_ready``, median and minimum of
 ``--repeats`` runs of the scan, runs interleaved within a group (so a change in the
-machine's other load affects them alike): the default and its bilinear twin first (a short
-group), then the other variants, then the two slow ones (3 repeats). Also reported: the
-process CPU time per frame (both cores' threads summed) and ``others_cpu_share``, the CPU time
-other processes took during each group's timed runs as a share of all the cores' time (the
-machine is shared; 0 means nothing else ran). Reported:
+machine's other load affects them alike): the default, its bilinear twin and its float
+quantisation twin first (a short group), then the other variants, then the two slow ones
+(3 repeats). Also reported: the process CPU time per frame (both cores' threads summed) and
+``others_cpu_share``, the CPU time other processes took during each group's timed runs as a
+share of all the cores' time (the machine is shared; 0 means nothing else ran). Reported:
 
 * ``features_ms_per_frame``: the default, :func:`jaxtrack.appearance.top_bottom_histograms`
-  (nearest-pixel samples, scatter-add counting) with the patch
-  :data:`jaxtrack.appearance.DEFAULT_PATCH_SHAPE`;
+  (nearest-pixel uint8 samples binned by a bit shift, ``v >> 5``; scatter-add counting) with
+  the patch :data:`jaxtrack.appearance.DEFAULT_PATCH_SHAPE`;
 * ``alternatives``: other patch sizes; bilinear samples
-  (:func:`jaxtrack.appearance.sample_patch`) instead of nearest-pixel ones;
+  (:func:`jaxtrack.appearance.sample_patch`) instead of nearest-pixel ones; the samples
+  quantised as floats (``floor(v / 32)``, the same bins; the default before the shift);
   counting by summed one-hot vectors instead of the scatter-add; per-channel histograms
   (3 x 8 bins, CMT's bucket features) instead of joint, from patch samples or exact from an
   integral histogram of the frame; the Epanechnikov kernel per half;
@@ -105,6 +106,17 @@ def nearest_top_bottom(frame, boxes, patch_shape):
     return jax.vmap(top_bottom_histograms, in_axes=(None, 0, None, None))(
         frame, boxes, patch_shape, STEP
     )
+
+
+def as_float(pixels):
+    """RGB as float colours (the float path; :func:`jaxtrack.appearance.rgb` keeps uint8)."""
+    return pixels.astype(jnp.float32)
+
+
+def float_quantise_top_bottom(frame, boxes, patch_shape):
+    """The default but quantising the samples as floats (``floor(v / 32)``, not ``v >> 5``)."""
+    features = functools.partial(top_bottom_histograms, colour_space=as_float)
+    return jax.vmap(features, in_axes=(None, 0, None, None))(frame, boxes, patch_shape, STEP)
 
 
 def bilinear_top_bottom(frame, boxes, patch_shape):
@@ -322,13 +334,15 @@ def main() -> None:
     boxes = jnp.asarray(particle_boxes(gt, args.frames, np.random.default_rng(args.seed)))
     load_before = os.getloadavg()[0]
 
-    # The default against bilinear alone first (short, so other load is less likely to
-    # fall on it), then the other sizes and variants, then the slow ones with 3 repeats.
+    # The default against bilinear and float quantisation alone first (short, so other load
+    # is less likely to fall on it), then the other sizes and variants, then the slow ones
+    # with 3 repeats.
     default_name = f"nearest_{DEFAULT_PATCH_SHAPE[0]}x{DEFAULT_PATCH_SHAPE[1]}"
     main, main_share = time_scans(
         {
             default_name: scan_function(nearest_top_bottom, DEFAULT_PATCH_SHAPE),
             "bilinear_16x8": scan_function(bilinear_top_bottom, DEFAULT_PATCH_SHAPE),
+            "float_quantise_16x8": scan_function(float_quantise_top_bottom, DEFAULT_PATCH_SHAPE),
         },
         frames,
         boxes,
@@ -357,7 +371,7 @@ def main() -> None:
         "goal_ms_per_frame": 2.0,
         "patch_shape": list(DEFAULT_PATCH_SHAPE),
         "boxes_per_frame": NUM_TARGETS * NUM_PARTICLES,
-        "histograms": "top + bottom halves, joint RGB, 8 bins per channel (512), scatter-add",
+        "histograms": "top + bottom halves, joint RGB, 8 bins a channel (512, v >> 5), scatter-add",
         "sampler": "nearest pixel (sample_nearest)",
         "frame_size": [768, 576],
         "scan_frames": args.frames,

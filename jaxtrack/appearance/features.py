@@ -43,11 +43,17 @@ ColourSpace = Callable[[Float[Array, "*shape 3"]], Float[Array, "*shape channels
 Sampler = Callable[[UInt8[Array, "height width 3"], Float[Array, " 4"], tuple[int, int]], Patch]
 
 
-def _samples(frame, box, patch_shape, sampler) -> Patch:
-    """The box's samples as float colours, after checking the frame."""
+def _samples(frame, box, patch_shape, sampler, colour_space) -> Patch:
+    """The box's samples in ``colour_space``, after checking the frame.
+
+    The colour spaces take float colours, except :func:`~jaxtrack.appearance.colour.rgb`,
+    the identity, which keeps the sampler's dtype: nearest-pixel samples stay uint8, which
+    :func:`~jaxtrack.appearance.histograms.quantise` bins by a bit shift (same bins).
+    """
     check_frame(frame)
     patch = sampler(frame, box, patch_shape)
-    return Patch(patch.values.astype(jnp.float32), patch.valid)
+    values = patch.values if colour_space is rgb else patch.values.astype(jnp.float32)
+    return Patch(colour_space(values), patch.valid)
 
 
 def top_bottom_histograms(
@@ -70,7 +76,8 @@ def top_bottom_histograms(
         box: ``(x, y, w, h)``, pixels.
         patch_shape: ``(ph, pw)`` samples, ``ph`` even.
         step: quantisation step ``lambda`` (``ceil(256 / lambda)`` bins per channel).
-        colour_space: :func:`~jaxtrack.appearance.colour.rgb` (default),
+        colour_space: :func:`~jaxtrack.appearance.colour.rgb` (default; nearest-pixel
+            samples then stay uint8 and a power-of-two step bins them by a bit shift),
             :func:`~jaxtrack.appearance.colour.normalised_rg` or
             :func:`~jaxtrack.appearance.colour.hsv`.
         kernel: ``[ph, pw]`` sample weights (e.g. one
@@ -82,8 +89,8 @@ def top_bottom_histograms(
         ``[top, bottom]`` histograms of ``ceil(256 / step) ** channels`` bins.
     """
     splits = halves(patch_shape[0])
-    patch = _samples(frame, box, patch_shape, sampler)
-    channels = quantise(colour_space(patch.values), step)
+    patch = _samples(frame, box, patch_shape, sampler, colour_space)
+    channels = quantise(patch.values, step)
     per_channel = num_bins(step)
     bins = joint_bins(channels, per_channel)[..., None]
     total = per_channel ** channels.shape[-1]
@@ -112,8 +119,8 @@ def linear_combination_histograms(
         kernel: ``[ph, pw]`` sample weights, or None for uniform weights.
         sampler: how samples read the frame (nearest pixel or bilinear).
     """
-    patch = _samples(frame, box, patch_shape, sampler)
-    channels = quantise(linear_combinations(patch.values), step)
+    patch = _samples(frame, box, patch_shape, sampler, linear_combinations)
+    channels = quantise(patch.values, step)
     return band_histograms(channels, patch.valid, (), num_bins(step), kernel)[0]
 
 
@@ -139,9 +146,9 @@ def profile_histograms(
         min_rows: fewest patch rows in a part.
         sampler: how samples read the frame (nearest pixel or bilinear).
     """
-    patch = _samples(frame, box, patch_shape, sampler)
+    patch = _samples(frame, box, patch_shape, sampler, hsv)
     per_channel = num_bins(step)
-    bins = joint_bins(quantise(hsv(patch.values), step), per_channel)[..., None]
+    bins = joint_bins(quantise(patch.values, step), per_channel)[..., None]
     rows = tuple(range(1, patch_shape[0]))
     counts = band_counts(bins, patch.valid, rows, per_channel**3)
     return best_split(counts[:, 0], min_rows)

@@ -8,6 +8,8 @@ Quantisation step ``lambda`` = bin width on the ``[0, 256]`` channel scale
 histograms (CMT's "2 x 3 x 255 / lambda" bucket features, Collins' 49 feature histograms) are
 those of the channels themselves, or the marginals of a joint one (:func:`marginals`).
 
+Raw uint8 colours with a whole power-of-two step are binned by a bit shift (:func:`quantise`;
+the default RGB features, ``lambda = 32``: ``v >> 5``), the same bins as the float formula.
 Counting is one scatter-add of the sample weights per box (``.at[].add``):
 ``benchmarks/appearance_features.py`` found it more than ten times faster on CPU than
 summing one-hot vectors over 512 bins, and an integral histogram of the frame slower still
@@ -21,7 +23,7 @@ import math
 
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float, Int, Real
 
 from jaxtrack.appearance.colour import SCALE
 from jaxtrack.errors import InputError
@@ -38,9 +40,21 @@ def num_bins(step: float) -> int:
     return math.ceil(SCALE / step)
 
 
-def quantise(values: Float[Array, "*shape"], step: float) -> Int[Array, "*shape"]:
-    """Bin index ``floor(v / lambda)`` of each channel value, clipped to the bins."""
-    return jnp.clip(jnp.floor(values / step), 0, num_bins(step) - 1).astype(jnp.int32)
+def quantise(values: Real[Array, "*shape"], step: float) -> Int[Array, "*shape"]:
+    """Bin index ``floor(v / lambda)`` of each channel value, clipped to the bins.
+
+    uint8 values (raw pixel colours, e.g. nearest-pixel RGB samples) with a whole
+    power-of-two step ``lambda = 2^k`` take the exact integer shortcut ``v >> k``: no value
+    needs clipping (``255 >> k < 256 / 2^k``) and the result is that of the float formula.
+    ``benchmarks/appearance_features.py`` measured it a quarter faster than the float formula
+    for the default features (``float_quantise_16x8``). Any other values or step: the float
+    formula.
+    """
+    bins = num_bins(step)
+    shift = math.log2(step)
+    if values.dtype == jnp.uint8 and shift.is_integer() and shift >= 0:
+        return values.astype(jnp.int32) >> int(shift)
+    return jnp.clip(jnp.floor(values / step), 0, bins - 1).astype(jnp.int32)
 
 
 def joint_bins(

@@ -76,12 +76,13 @@ def decay_update(
 def field_of_context(
     positions: Float[Array, "max_targets 2"],
     active: Bool[Array, " max_targets"],
-    radius: Float[Array, ""],
+    radius: Float[Array, "*radius"],
 ) -> Bool[Array, "max_targets max_targets"]:
     """``context[m, u]``: target ``u`` is in target ``m``'s field of context (CMT Sec. V-A).
 
     ``u = m`` or ``d_O(m, u) < d_thr``, ``d_O`` the Euclidean distance of the positions (e.g.
-    box centres); both targets active. An inactive target's row is all False.
+    box centres); both targets active. An inactive target's row is all False. ``radius`` is
+    ``d_thr``: a scalar, or ``[max_targets, 1]`` for one threshold per target ``m`` (row).
     """
     gaps = positions[:, None, :] - positions[None, :, :]
     close = jnp.sum(gaps**2, axis=-1) < radius**2

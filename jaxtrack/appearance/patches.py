@@ -43,9 +43,9 @@ from jaxtrack.errors import InputError
 #: Default ``(ph, pw)``: 16 x 8 samples (64 per half) suit pedestrian boxes (about 2.5 times
 #: as tall as wide). On PETS09-S2L1 people (median box 80 px tall) the halves' 512-bin RGB
 #: histograms lie at a median Bhattacharyya distance 0.29 from full-resolution ones (0.61
-#: between two people), and 16 targets x 64 particles take about 2 ms per 768x576 frame on 2
-#: CPU cores; 8 x 4 halves the time at distance 0.45, 32 x 16 triples it at 0.15
-#: (``benchmarks/appearance_features.py``).
+#: between two people), and 16 targets x 64 particles take about 1.5 ms per 768x576 frame on 2
+#: otherwise idle CPU cores; 8 x 4 halves the time at distance 0.45, 32 x 16 triples it at
+#: 0.15 (``benchmarks/appearance_features.py``).
 DEFAULT_PATCH_SHAPE = (16, 8)
 
 

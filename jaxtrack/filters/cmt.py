@@ -50,11 +50,15 @@ from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.births import LOG_ZERO
 from jaxtrack.filters.cmt_observation import (
+    NUM_LEVELS,
+    NUM_VALUES,
+    STEP,
     AppearanceState,
     COMParams,
     appearance_log_likelihood,
     box_features,
     init_appearance,
+    num_features,
     observation_weights,
     update_appearance,
 )
@@ -87,12 +91,6 @@ from jaxtrack.types import PAD_BOX, Detections, FrameInputs, Tracks
 #: The variants of the ablation (CMT Sec. VII): plain mixture tracker, + contextual
 #: proposal, + contextual observation model.
 VARIANTS = ("mtb", "cpd", "cmt")
-#: Quantisation step ``lambda`` of the colour features: 8 buckets per channel, so the pool
-#: is 2 halves x 3 channels x 8 buckets + the shape = 49 features.
-FEATURE_STEP = 32.0
-#: Value bins ``V`` of the decayed feature histograms (eq. 16); levels of eq. 17.
-NUM_VALUES = 16
-NUM_LEVELS = 3
 #: Zone slots of :class:`CMTParams` (padded).
 MAX_ZONES = 16
 
@@ -206,9 +204,8 @@ def cmt_step(
     *,
     variant: str,
     max_misses: int,
-    step: float = FEATURE_STEP,
+    step: float = STEP,
     patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
-    num_values: int = NUM_VALUES,
     num_levels: int = NUM_LEVELS,
 ) -> tuple[CMTState, CMTInfo]:
     """One frame of CMT (the module's steps 1-6).
@@ -222,7 +219,6 @@ def cmt_step(
         max_misses: unsupported frames a component survives (static).
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
-        num_values: value bins of the decayed histograms (static).
         num_levels: quantisation levels of eq. 17 (static).
 
     Returns:
@@ -322,7 +318,6 @@ def cmt_step(
         merge_share > 0.5,
         born,
         params.observation,
-        num_values,
     )
     new_state = CMTState(
         mixture=new_mixture,
@@ -364,11 +359,6 @@ def init_cmt(
         misses=jnp.zeros((max_components,), jnp.int32),
         frame=jnp.zeros((), jnp.int32),
     )
-
-
-def num_features(step: float = FEATURE_STEP) -> int:
-    """Size of CMT's feature pool: ``2 x 3 x ceil(256 / step)`` colour buckets + the shape."""
-    return 2 * 3 * int(-(-256 // step)) + 1
 
 
 def cmt_filter(

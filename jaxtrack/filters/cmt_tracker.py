@@ -27,15 +27,8 @@ from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
-from jaxtrack.filters.cmt import (
-    MAX_ZONES,
-    NUM_VALUES,
-    VARIANTS,
-    CMTParams,
-    cmt_filter,
-    num_features,
-)
-from jaxtrack.filters.cmt_observation import default_com_params
+from jaxtrack.filters.cmt import MAX_ZONES, VARIANTS, CMTParams, cmt_filter
+from jaxtrack.filters.cmt_observation import NUM_VALUES, default_com_params, num_features
 from jaxtrack.filters.cmt_proposal import default_cpd_params
 from jaxtrack.filters.mixture_state import MixtureParams
 from jaxtrack.filters.phd_defaults import DEFAULT_MEASUREMENT_NOISE_STD, DEFAULT_MOTION_NOISE_STD

@@ -24,7 +24,7 @@ INFO = SequenceInfo("drawn", 30, SIZE[0], SIZE[1], 25.0)
 
 def two_tone(image: np.ndarray, box, top, bottom) -> None:
     """Draws a target: the top half of its box in ``top``, the bottom half in ``bottom``."""
-    x, y, w, h = (int(round(v)) for v in box)
+    x, y, w, h = (round(v) for v in box)
     image[y : y + h // 2, x : x + w] = top
     image[y + h // 2 : y + h, x : x + w] = bottom
 
