@@ -45,11 +45,14 @@ from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.datasets.video_files import TRUTH_FILE
 from jaxtrack.filters.base import run
-from jaxtrack.filters.cmt import FEATURE_STEP, NUM_LEVELS, CMTParams, num_features
+from jaxtrack.filters.cmt import CMTParams
 from jaxtrack.filters.cmt_observation import (
+    NUM_LEVELS,
+    STEP,
     box_features,
     init_appearance,
     likelihood_gap,
+    num_features,
     observation_weights,
     update_appearance,
 )
@@ -263,7 +266,7 @@ def likelihood_gaps(
         The gaps from the second frame on (the first initialises the models).
     """
     params = cmt_params(CMTConfig())
-    state = init_appearance(2, num_features(FEATURE_STEP))
+    state = init_appearance(2, num_features(STEP))
     com, ewom = [], []
     for index, frame_number in enumerate(frames):
         image = jnp.asarray(reader.read(int(frame_number)))
