@@ -119,7 +119,7 @@ class ExperimentSequence(NamedTuple):
         name: its name in the table.
         folder: the MOTChallenge folder (``seqinfo.ini``, ``det/``, ``gt/``).
         video: its frames when the folder has none of its own (PETS09-S2L1), else None.
-        frames: the 1-based inclusive span tracked and scored.
+        frames: the 1-based inclusive span tracked and scored (None: every frame).
         synthetic: a scripted video scene (else a MOT15 sequence).
     """
 
