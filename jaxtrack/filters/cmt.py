@@ -11,8 +11,9 @@ model look at the scene's context. One :func:`cmt_step` on
    :func:`~jaxtrack.filters.cmt_proposal.contextual_proposal`, eqs. 5-10; an exit
    invalidates the particle);
 2. **observe**: ``log p(z | x) = log p_box(z~ | x) + a log sum_k rho_k N(f_k(x); m_k,
-   sigma^2)``: the box likelihood of the nearest blob
-   (:func:`~jaxtrack.filters.mixture_models.nearest_detection_log_likelihood`) times the
+   sigma^2)``: the box likelihood of the nearest blob the component may use (its own, matched
+   greedily to its prediction, or a free one: :func:`blob_owners`,
+   :func:`owned_log_likelihood`) times the
    feature mixture of eq. 11 (:mod:`~jaxtrack.filters.cmt_observation`) raised to
    ``a = appearance_weight``; the weights ``rho_k`` are uniform (EWOM, ``"mtb"`` and
    ``"cpd"``) or the mutual information of each feature with the identities in the
@@ -20,8 +21,10 @@ model look at the scene's context. One :func:`cmt_step` on
 3. reweight (eq. 3), mixture weights (eq. 4), local decisions (heaviest cluster), as in
    :func:`~jaxtrack.filters.mixture.mixture_step`;
 4. **verify**: a component whose likelihood support stays below ``min_log_support`` (no blob
-   explains it) for more than ``max_misses`` frames, or whose ``pi_m`` falls below
-   ``min_mixture_weight``, is deleted (CMT Algorithm 1);
+   explains it) for more than ``max_misses`` frames (four times as many under the contextual
+   proposal while another component is in its field of context: a *merge*, the target
+   hidden behind another), or whose ``pi_m`` falls below ``min_mixture_weight``, is deleted
+   (CMT Algorithm 1);
 5. resample per component; **enter**: a blob that no component explains starts one (the
    dispelling rule: a blob explained by another component's hypothesis starts none);
 6. **update** the appearance models and decayed histograms at the local decisions, except
@@ -49,6 +52,7 @@ from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.births import LOG_ZERO
+from jaxtrack.filters.cmt_conditions import predicted_mean
 from jaxtrack.filters.cmt_observation import (
     NUM_LEVELS,
     NUM_VALUES,
@@ -83,7 +87,7 @@ from jaxtrack.filters.mixture_models import (
     nearest_detection_log_likelihood,
 )
 from jaxtrack.filters.mixture_state import MixtureParams, MixtureState, init_mixture
-from jaxtrack.models.dynamics import MEASURED, SIZE
+from jaxtrack.models.dynamics import MEASURED, POSITION, SIZE
 from jaxtrack.models.likelihood import log_likelihood
 from jaxtrack.models.noise import state_dependent_std
 from jaxtrack.types import PAD_BOX, Detections, FrameInputs, Tracks
@@ -261,7 +265,8 @@ def cmt_step(
         variant == "cmt",
     )
     log_appearance = appearance_log_likelihood(features, state.appearance, rho, params.observation)
-    log_box = nearest_detection_log_likelihood(particles, params.mixture, blobs)
+    owner = blob_owners(predicted_mean(state.estimates), alive, blobs, params)
+    log_box = owned_log_likelihood(particles, params, blobs, owner)
     log_likelihood = log_box + params.appearance_weight * log_appearance
     log_likelihood = jnp.where(exited, LOG_ZERO, log_likelihood)
     log_weights = reweight(
@@ -279,7 +284,11 @@ def cmt_step(
     duplicate = _duplicates(estimates, alive, mixture.ids, params)
     supported = (log_support >= params.mixture.min_log_support) & ~duplicate
     misses = jnp.where(alive & ~supported, state.misses + 1, 0)
-    weak = (misses > max_misses) | (log_pi < jnp.log(params.mixture.min_mixture_weight))
+    patience = max_misses
+    if variant != "mtb":
+        # Merge (Sec. IV-B): a component close to another may hide behind it.
+        patience = jnp.where(_merging(state.estimates, alive, params), 4 * max_misses, max_misses)
+    weak = (misses > patience) | (log_pi < jnp.log(params.mixture.min_mixture_weight))
     weak = weak | (duplicate & ~state.confirmed)
     survivors = alive & ~jax.lax.stop_gradient(weak)
     kept_pi = jnp.where(survivors, log_pi, LOG_ZERO)
@@ -410,6 +419,77 @@ def _confirms(
     )
     confident = blobs.mask & (blobs.scores >= params.confirm_score)
     return jnp.any(confident[:, None] & (scores > params.mixture.birth_log_likelihood), axis=0)
+
+
+def blob_owners(
+    predictions: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    blobs: Detections,
+    params: CMTParams,
+) -> Int[Array, " max_detections"]:
+    """The component each blob is evidence for (-1: none, a blob free to start one).
+
+    Greedy on the box log-likelihood of the blob under each component's constant-velocity
+    prediction: the best (component, blob) pair is matched, both are removed, and so on,
+    over pairs scoring above ``birth_log_likelihood`` (the gate). One blob is evidence for
+    one component, so two components cannot both feed on it (the nearest-blob likelihood
+    alone lets a component whose target vanished latch onto a neighbour's blob).
+    """
+    measurements = xywh_to_cxcywh(blobs.boxes, jnp)
+    scores = log_likelihood(
+        measurements, predictions, params.mixture.measurement_noise_std, state_dependent_std
+    )
+    gate = blobs.mask[:, None] & alive[None, :] & (scores > params.mixture.birth_log_likelihood)
+    scores = jax.lax.stop_gradient(jnp.where(gate, scores, -jnp.inf))
+    num_blobs, num_slots = scores.shape
+
+    def match(carry, _):
+        remaining, owner = carry
+        best = jnp.argmax(remaining)
+        blob, slot = best // num_slots, best % num_slots
+        found = jnp.isfinite(remaining[blob, slot])
+        owner = jnp.where(found, owner.at[blob].set(slot), owner)
+        remaining = jnp.where(found, remaining.at[blob].set(-jnp.inf), remaining)
+        remaining = jnp.where(found, remaining.at[:, slot].set(-jnp.inf), remaining)
+        return (remaining, owner), None
+
+    owner = jnp.full((num_blobs,), -1, jnp.int32)
+    (_, owner), _ = jax.lax.scan(match, (scores, owner), None, length=min(num_blobs, num_slots))
+    return owner
+
+
+def owned_log_likelihood(
+    particles: Float[Array, "max_components num_particles 6"],
+    params: CMTParams,
+    blobs: Detections,
+    owner: Int[Array, " max_detections"],
+) -> Float[Array, "max_components num_particles"]:
+    """The box likelihood of each particle: the best of its component's own blob and the
+    free blobs (:func:`blob_owners`), floored at ``background_log_likelihood``
+    (:func:`~jaxtrack.filters.mixture_models.nearest_detection_log_likelihood` over the
+    blobs the component may use)."""
+    slots = jnp.arange(particles.shape[0])
+    usable = blobs.mask[None, :] & ((owner[None, :] == slots[:, None]) | (owner[None, :] < 0))
+
+    def one(component_particles, component_usable):
+        own = blobs._replace(mask=component_usable)
+        return nearest_detection_log_likelihood(component_particles[None], params.mixture, own)[0]
+
+    return jax.vmap(one)(particles, usable)
+
+
+def _merging(
+    estimates: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    params: CMTParams,
+) -> Bool[Array, " max_components"]:
+    """True for a component with another living one within ``context_distance`` of its
+    box heights (its field of context, where merges happen)."""
+    gaps = estimates[:, None, POSITION] - estimates[None, :, POSITION]
+    distance = jnp.sqrt(jnp.sum(gaps**2, axis=-1))
+    near = distance < context_radius(estimates, params)[:, None]
+    others = alive[None, :] & ~jnp.eye(alive.shape[0], dtype=bool)
+    return alive & jnp.any(near & others, axis=1)
 
 
 def _duplicates(
