@@ -26,6 +26,7 @@ from jaxtrack.plot.cmt_frames import (
     LEGEND_MARGIN,
     LEGEND_ROW,
     LEGEND_WIDTH,
+    OUTLINE_COLOUR,
     PARTICLE_RADIUS,
     draw_condition_legend,
     draw_particles,
@@ -202,17 +203,28 @@ def test_draw_particles_against_a_pixel_oracle():
         colour = CONDITION_COLOURS[int(condition)][0]
         assert tuple(out[y, x]) == colour
         assert np.all(out[y - 1 : y + 2, x - 1 : x + 2] == colour)  # a dot, not a point
-    # the drawn pixels are the discs of radius PARTICLE_RADIUS around the living particles
+    # the drawn pixels are the discs of radius PARTICLE_RADIUS around the living particles,
+    # outlined by a ring one pixel wide
     rows, cols = np.mgrid[:40, :60]
-    discs = np.zeros((40, 60), bool)
+    discs, rings = np.zeros((40, 60), bool), np.zeros((40, 60), bool)
     for x, y in np.round(centres[:2].reshape(-1, 2)):
         discs |= np.hypot(cols - x, rows - y) <= PARTICLE_RADIUS
-    assert np.array_equal(np.any(out != 7, axis=-1), discs)
+        rings |= np.hypot(cols - x, rows - y) <= PARTICLE_RADIUS + 1
+    rings &= ~discs
+    assert np.array_equal(np.any(out != 7, axis=-1), discs | rings)
+    assert np.all(out[rings] == OUTLINE_COLOUR)
     # an exit particle on top of a normal one: the rare condition is drawn last
     both = draw_particles(
         image, np.array([[[9.0, 9.0], [9.0, 9.0]]]), np.array([[EXIT, NORMAL]]), np.array([True])
     )
     assert tuple(both[9, 9]) == CONDITION_COLOURS[EXIT][0]
+    # the outlines lie under every dot: a neighbour's ring does not cut into a dot
+    pair = draw_particles(
+        image, np.array([[[9.0, 9.0], [13.0, 9.0]]]), np.array([[NORMAL, EXIT]]), np.array([True])
+    )
+    assert tuple(pair[9, 10]) == CONDITION_COLOURS[NORMAL][0]  # in the exit dot's ring
+    assert tuple(pair[9, 12]) == CONDITION_COLOURS[EXIT][0]  # in the normal dot's ring
+    assert tuple(pair[9, 16]) == OUTLINE_COLOUR
 
 
 @pytest.mark.parametrize(

@@ -33,6 +33,9 @@ CONDITION_COLOURS: dict[int, tuple[tuple[int, int, int], str]] = {
 }
 #: Radius in pixels of a particle's dot.
 PARTICLE_RADIUS = 2
+#: Colour of the one-pixel outline around the particle cloud (sets the dots apart from the
+#: tracks' boxes and trails, whose id colours may be close to the conditions').
+OUTLINE_COLOUR = (0, 0, 0)
 #: Height in pixels of a legend row; the legend's margin from the image's corner.
 LEGEND_ROW = 16
 LEGEND_MARGIN = 6
@@ -74,8 +77,10 @@ def draw_particles(
 ) -> np.ndarray:
     """Draws the living components' particles as dots coloured by their motion condition.
 
-    The conditions are drawn in the order of :data:`CONDITION_COLOURS` (within one, component
-    by component, particle by particle), so a later dot covers an earlier one.
+    Each dot is a disc of :data:`PARTICLE_RADIUS` pixels in its condition's colour; all dots
+    are first drawn one pixel larger in :data:`OUTLINE_COLOUR`, which outlines the cloud. The
+    conditions are drawn in the order of :data:`CONDITION_COLOURS` (within one, component by
+    component, particle by particle), so a later dot covers an earlier one.
 
     Args:
         image: RGB ``uint8`` ``[height, width, 3]`` (not modified).
@@ -99,8 +104,11 @@ def draw_particles(
         raise InputError(f"particle conditions {unknown} have no colour")
     if not np.all(np.isfinite(centres)):
         raise InputError("non-finite particle centres")
+    points = np.round(centres).astype(int)
+    for x, y in points.reshape(-1, 2).tolist():
+        cv2.circle(out, (x, y), PARTICLE_RADIUS + 1, OUTLINE_COLOUR, -1)
     for condition, (colour, _) in CONDITION_COLOURS.items():
-        for x, y in np.round(centres[conditions == condition]).astype(int).tolist():
+        for x, y in points[conditions == condition].tolist():
             cv2.circle(out, (x, y), PARTICLE_RADIUS, colour, -1)
     return out
 
