@@ -152,7 +152,8 @@ def test_cmt_annotation_draws_particles_in_condition_colours(synthetic_folder, t
     assert sorted(p.name for p in frames_dir.iterdir()) == [
         f"{k:06d}.png" for k in range(1, CMT_FRAMES + 1)
     ]
-    assert "1 tracks" in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "1 tracks" in printed.out and f"zones from {zones}" in printed.err
 
     infos = cmt_reference_run(synthetic_folder, det, seed=0)
     legend_left = SIZE[0] - LEGEND_MARGIN - LEGEND_WIDTH

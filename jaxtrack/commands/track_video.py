@@ -233,26 +233,9 @@ def run(args: argparse.Namespace) -> int:
             "fps": info.frame_rate,
             "detector": "file" if args.detections else method,
         }
-        particles = None
-        if tracker_entry(config.tracker).uses_frames:
-            if tracker_entry(config.tracker).takes_zones:
-                context, used["zones"] = tracker_zones(sequence, args.zones, args.seed)
-                if not args.quiet:
-                    print(used["zones"], file=sys.stderr)
-            _, params = build_tracker(config, info, context)
-            draws_particles = args.annotate is not None and config.tracker == "cmt"
-            frame_output = cmt_frame_outputs if draws_particles else track_outputs
-            frame_outputs = streamed_outputs(
-                sequence, reader, config, args.seed, params, frame_output=frame_output
-            )
-            rows = output_rows(frame_outputs, config, span[0])
-            warn_if_no_tracks(sequence, rows, config)
-            particles = frame_outputs if draws_particles else None
-        else:
-            _, params = build_tracker(config, info, context, variant or DEFAULT_VARIANT)
-            (rows,) = track_sequences(
-                [sequence], config, args.seed, [params], progress=not args.quiet
-            )
+        rows, particles = track_span(
+            sequence, reader, config, args, context, variant, used, progress=not args.quiet
+        )
         elapsed = time.perf_counter() - start
         write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
         if tracker_entry(config.tracker).takes_context:
@@ -316,6 +299,34 @@ def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]
     if not entry.takes_context:
         refuse_ignored(args, ["variant"], f"applies to the PHD tracker, not to {args.tracker}")
     return config, context_variant(args)
+
+
+def track_span(sequence, reader, config, args, context, variant, used, progress: bool):
+    """Tracks the span's detections: streamed with its frames for a tracker that uses them
+    (CMT with its zones, recorded in ``used`` and printed), else as ``jaxtrack track`` does.
+
+    Returns:
+        The result rows, and with ``--annotate`` and CMT the per-frame
+        :class:`~jaxtrack.plot.cmt_frames.CMTFrame` stacked over the span (else None).
+    """
+    entry = tracker_entry(config.tracker)
+    if not entry.uses_frames:
+        _, params = build_tracker(config, sequence.info, context, variant or DEFAULT_VARIANT)
+        (rows,) = track_sequences([sequence], config, args.seed, [params], progress=progress)
+        return rows, None
+    zones = None
+    if entry.takes_zones:
+        zones, used["zones"] = tracker_zones(sequence, args.zones, args.seed)
+        print(used["zones"], file=sys.stderr)
+    _, params = build_tracker(config, sequence.info, zones)
+    draws_particles = args.annotate is not None and config.tracker == "cmt"
+    frame_output = cmt_frame_outputs if draws_particles else track_outputs
+    outputs = streamed_outputs(
+        sequence, reader, config, args.seed, params, frame_output=frame_output
+    )
+    rows = output_rows(outputs, config, sequence.first_frame)
+    warn_if_no_tracks(sequence, rows, config)
+    return rows, outputs if draws_particles else None
 
 
 def print_tracking_scores(gt_path: str, rows, span: tuple[int, int], num_frames: int) -> dict:
