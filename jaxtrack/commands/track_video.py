@@ -88,7 +88,7 @@ the PHD tracker, --zones for CMT: given to another tracker they are errors.
 last --trail centres of the feet) and the detections (thin white boxes) to a video (.mp4 or
 .avi) or, for any other path, a folder of PNGs; --overlay birth|clutter blends in the
 context's birth or clutter intensity over the image (heat map). With --tracker cmt it also
-draws each living component's particles (box centres) as dots coloured by the motion
+draws each living component's particles (box centres) as outlined dots coloured by the motion
 condition they were proposed under: normal cyan, split yellow, merge magenta, exit
 orange-red (legend in the top-right corner). --gt GT.txt prints MOTA, MOTP, MODA, MODP and
 IDF1 against that ground truth.
@@ -304,6 +304,17 @@ def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]
 def track_span(sequence, reader, config, args, context, variant, used, progress: bool):
     """Tracks the span's detections: streamed with its frames for a tracker that uses them
     (CMT with its zones, recorded in ``used`` and printed), else as ``jaxtrack track`` does.
+
+    Args:
+        sequence: the span with its detections (:func:`~jaxtrack.detect.sequence.
+            video_sequence`).
+        reader: the open video, the frames' source.
+        config: the tracker's configuration.
+        args: the parsed arguments (``seed``, ``zones``, ``annotate``).
+        context: the PHD tracker's learned context, or None.
+        variant: its variant (None without a context).
+        used: the run's description for ``.config.json`` (the zones used are added).
+        progress: show progress bars.
 
     Returns:
         The result rows, and with ``--annotate`` and CMT the per-frame
