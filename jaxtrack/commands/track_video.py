@@ -1,13 +1,15 @@
-"""``jaxtrack track-video``: video -> background-subtraction detections -> PHD tracks."""
+"""``jaxtrack track-video``: video -> background-subtraction detections -> tracks (PHD, CMT)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
 import cv2
+import jax
 import numpy as np
 from tqdm import tqdm
 
@@ -20,6 +22,7 @@ from jaxtrack.commands.arguments import (
     add_out,
     add_quiet,
     add_seed,
+    add_tracker,
     context_variant,
     load_config,
     ranged,
@@ -33,35 +36,62 @@ from jaxtrack.commands.paths import (
     side_file,
     video_input,
 )
+from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_info, video_sequence
 from jaxtrack.errors import InputError
-from jaxtrack.filters.registry import build_tracker
+from jaxtrack.filters.cmt import VARIANTS as CMT_VARIANTS
+from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
 from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.evaluate import evaluate_sequence
-from jaxtrack.pipelines.tracking import load_tracker_context, track_sequences, tracker_description
+from jaxtrack.pipelines.stream import streamed_outputs
+from jaxtrack.pipelines.tracking import (
+    load_tracker_context,
+    output_rows,
+    track_outputs,
+    track_sequences,
+    tracker_description,
+    warn_if_no_tracks,
+)
+from jaxtrack.pipelines.zones import tracker_zones
+from jaxtrack.plot.cmt_frames import (
+    CMTFrame,
+    cmt_frame_outputs,
+    draw_condition_legend,
+    draw_particles,
+)
 from jaxtrack.plot.context import position_map
 
 DESCRIPTION = """\
 Track people in a video end to end: detect them by background subtraction (as `jaxtrack
-detect`, --method horprasert or mog2) on the frame span, then run the particle PHD tracker
-(as `jaxtrack track`, same default configuration; --config overrides it) and write
-MOTChallenge results `frame,id,x,y,w,h,score,-1,-1,-1` (frames numbered from 1: video frame
-i counting from 0 is frame i+1).
+detect`, --method horprasert or mog2) on the frame span, then run a tracker (as `jaxtrack
+track`, same default configurations; --config overrides them) and write MOTChallenge results
+`frame,id,x,y,w,h,score,-1,-1,-1` (frames numbered from 1: video frame i counting from 0 is
+frame i+1). --detections DET.txt tracks those detections instead of detecting. The frame
+rate (motion model) is the video's unless --fps overrides it (vtest.avi's header says 10
+fps; PETS 2009 was recorded at 7).
 
---context CTX.npz uses a learned context (`jaxtrack learn-context VIDEO --detections ...`),
---variant picks its parts (default GM). --detections DET.txt tracks those detections instead
-of detecting. The frame rate (motion model) is the video's unless --fps overrides it
-(vtest.avi's header says 10 fps; PETS 2009 was recorded at 7).
+--tracker phd (default) runs the particle PHD tracker: --context CTX.npz uses a learned
+context (`jaxtrack learn-context VIDEO --detections ...`), --variant picks its parts
+(default GM). --tracker kalman runs the data-association baseline (default preset).
+--tracker cmt runs contextual mixture tracking (one particle tracker per target; see
+`jaxtrack track --help`) on the video's frames, streamed, with the detections as its
+foreground blobs: --variant mtb|cpd|cmt picks the ablation's variant (default cmt), --zones
+ZONES.json its entry/exit zones (`jaxtrack learn-zones`; default: learned on the fly from the
+PHD tracker's trajectories on the span; the run says which). --context, --overlay are for
+the PHD tracker, --zones for CMT: given to another tracker they are errors.
 
 --annotate writes the frames with the tracks (box and id in the id's colour, a trail of the
 last --trail centres of the feet) and the detections (thin white boxes) to a video (.mp4 or
 .avi) or, for any other path, a folder of PNGs; --overlay birth|clutter blends in the
-context's birth or clutter intensity over the image (heat map). --gt GT.txt prints MOTA,
-MOTP, MODA, MODP and IDF1 against that ground truth.
+context's birth or clutter intensity over the image (heat map). With --tracker cmt it also
+draws each living component's particles (box centres) as outlined dots coloured by the motion
+condition they were proposed under: normal cyan, split yellow, merge magenta, exit
+orange-red (legend in the top-right corner). --gt GT.txt prints MOTA, MOTP, MODA, MODP and
+IDF1 against that ground truth.
 
 Writes RES.txt, RES.config.json (settings used) and, with --save-detections, the detections."""
 
@@ -70,7 +100,9 @@ examples:
   jaxtrack track-video ../shared/data/video/vtest.avi --frames 401:795 --out v.txt \\
       --annotate v.mp4
   jaxtrack track-video ../shared/data/video/vtest.avi --frames 401:795 --fps 7 \\
-      --context ctx.npz --out gm.txt --gt ../shared/data/mot15/PETS09-S2L1/gt/gt.txt"""
+      --context ctx.npz --out gm.txt --gt ../shared/data/mot15/PETS09-S2L1/gt/gt.txt
+  jaxtrack track-video ../shared/data/video/vtest.avi --frames 1:100 --fps 7 \\
+      --tracker cmt --variant cmt --out cmt.txt --annotate cmt.mp4"""
 
 #: Centres of the feet drawn behind each track by --annotate (default).
 DEFAULT_TRAIL = 20
@@ -83,7 +115,7 @@ def register(subparsers) -> None:
 
     parser = subparsers.add_parser(
         "track-video",
-        help="detect (background subtraction) and track (PHD) people in a video",
+        help="detect (background subtraction) and track (PHD, CMT, ...) people in a video",
         description=DESCRIPTION,
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -104,8 +136,17 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--save-detections", metavar="DET.txt", help="also write the detections made"
     )
+    add_tracker(parser)
     add_config(parser)
-    add_context_arguments(parser, "see jaxtrack track --help")
+    add_context_arguments(
+        parser, "see jaxtrack track --help; mtb, cpd, cmt for --tracker cmt", CMT_VARIANTS
+    )
+    parser.add_argument(
+        "--zones",
+        metavar="ZONES.json",
+        help="entry/exit zones for --tracker cmt (jaxtrack learn-zones; default: learned on "
+        "the fly from the tracked span)",
+    )
     add_seed(parser)
     parser.add_argument("--annotate", metavar="OUT.mp4", help="write the annotated frames")
     parser.add_argument(
@@ -134,7 +175,8 @@ def run(args: argparse.Namespace) -> int:
         0 on success.
 
     Raises:
-        InputError: a bad argument, an unreadable video, detections, context or gt file.
+        InputError: a bad argument, an unreadable video, detections, context, zones or gt
+            file.
     """
 
     if args.detections is not None:
@@ -147,9 +189,9 @@ def run(args: argparse.Namespace) -> int:
         refuse_ignored(
             args, ("trail", "overlay"), "needs --annotate (it only changes the annotated frames)"
         )
+    config, variant = tracker_config(args)
     if args.overlay and not args.context:
         raise InputError("--overlay needs --context and --annotate")
-    variant = context_variant(args)
     trail = DEFAULT_TRAIL if args.trail is None else args.trail
     method = args.method or DEFAULT_METHOD
     outputs = [output_file("--out", args.out), side_file("--out", args.out, ".config.json")]
@@ -164,10 +206,10 @@ def run(args: argparse.Namespace) -> int:
             *file_input(args.detections, f"the detections --detections {args.detections}"),
             *file_input(args.config, f"the tracker configuration --config {args.config}"),
             *file_input(args.context, f"the context --context {args.context}"),
+            *file_input(args.zones, f"the zones --zones {args.zones}"),
             *file_input(args.gt, f"the ground truth --gt {args.gt}"),
         ],
     )
-    config = load_config(args.config)
     context = load_tracker_context(args.context)
     start = time.perf_counter()
     with VideoReader(args.video, fps=args.fps) as reader:
@@ -183,10 +225,6 @@ def run(args: argparse.Namespace) -> int:
                 write_mot_file(args.save_detections, detections)
         detect_seconds = time.perf_counter() - start
         sequence = video_sequence(args.video, detections, span, info)
-        _, params = build_tracker(config, info, context, variant or DEFAULT_VARIANT)
-        (rows,) = track_sequences([sequence], config, args.seed, [params], progress=not args.quiet)
-        elapsed = time.perf_counter() - start
-        write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
         used = {
             **tracker_description(config),
             "seed": args.seed,
@@ -194,8 +232,14 @@ def run(args: argparse.Namespace) -> int:
             "frames": list(span),
             "fps": info.frame_rate,
             "detector": "file" if args.detections else method,
-            "variant": variant or "UM",
         }
+        rows, particles = track_span(
+            sequence, reader, config, args, context, variant, used, progress=not args.quiet
+        )
+        elapsed = time.perf_counter() - start
+        write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
+        if tracker_entry(config.tracker).takes_context:
+            used["variant"] = variant or "UM"
         if args.context:
             used["context"] = str(args.context)
         Path(f"{Path(args.out).with_suffix('')}.config.json").write_text(json.dumps(used, indent=2))
@@ -220,10 +264,80 @@ def run(args: argparse.Namespace) -> int:
                 args.annotate,
                 trail,
                 overlay,
+                particles,
                 progress=not args.quiet,
             )
             print(f"  annotated: {args.annotate}")
     return 0
+
+
+def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]:
+    """The tracker's configuration (``--tracker``, ``--config``, CMT's ``--variant``) and the
+    PHD context's variant (None without ``--context``).
+
+    Raises:
+        InputError: an option the tracker does not take (``--zones`` but for CMT,
+            ``--context`` and ``--overlay`` but for PHD, a variant of another tracker), or a
+            bad configuration file.
+    """
+    entry = tracker_entry(args.tracker)
+    if not entry.takes_zones:
+        refuse_ignored(args, ["zones"], f"applies to --tracker cmt, not to {args.tracker}")
+    if not entry.takes_context:
+        refuse_ignored(
+            args, ("context", "overlay"), f"applies to the PHD tracker, not to {args.tracker}"
+        )
+    config = load_config(args.config, args.tracker)
+    if args.variant in CMT_VARIANTS:
+        if args.tracker != "cmt":
+            raise InputError(f"--variant {args.variant} applies to --tracker cmt")
+        return config.replace(variant=args.variant), None
+    if args.tracker == "cmt" and args.variant is not None:
+        raise InputError(
+            f"--variant {args.variant} is a PHD context variant; CMT's are mtb, cpd, cmt"
+        )
+    if not entry.takes_context:
+        refuse_ignored(args, ["variant"], f"applies to the PHD tracker, not to {args.tracker}")
+    return config, context_variant(args)
+
+
+def track_span(sequence, reader, config, args, context, variant, used, progress: bool):
+    """Tracks the span's detections: streamed with its frames for a tracker that uses them
+    (CMT with its zones, recorded in ``used`` and printed), else as ``jaxtrack track`` does.
+
+    Args:
+        sequence: the span with its detections (:func:`~jaxtrack.detect.sequence.
+            video_sequence`).
+        reader: the open video, the frames' source.
+        config: the tracker's configuration.
+        args: the parsed arguments (``seed``, ``zones``, ``annotate``).
+        context: the PHD tracker's learned context, or None.
+        variant: its variant (None without a context).
+        used: the run's description for ``.config.json`` (the zones used are added).
+        progress: show progress bars.
+
+    Returns:
+        The result rows, and with ``--annotate`` and CMT the per-frame
+        :class:`~jaxtrack.plot.cmt_frames.CMTFrame` stacked over the span (else None).
+    """
+    entry = tracker_entry(config.tracker)
+    if not entry.uses_frames:
+        _, params = build_tracker(config, sequence.info, context, variant or DEFAULT_VARIANT)
+        (rows,) = track_sequences([sequence], config, args.seed, [params], progress=progress)
+        return rows, None
+    zones = None
+    if entry.takes_zones:
+        zones, used["zones"] = tracker_zones(sequence, args.zones, args.seed)
+        print(used["zones"], file=sys.stderr)
+    _, params = build_tracker(config, sequence.info, zones)
+    draws_particles = args.annotate is not None and config.tracker == "cmt"
+    frame_output = cmt_frame_outputs if draws_particles else track_outputs
+    outputs = streamed_outputs(
+        sequence, reader, config, args.seed, params, frame_output=frame_output
+    )
+    rows = output_rows(outputs, config, sequence.first_frame)
+    warn_if_no_tracks(sequence, rows, config)
+    return rows, outputs if draws_particles else None
 
 
 def print_tracking_scores(gt_path: str, rows, span: tuple[int, int], num_frames: int) -> dict:
@@ -246,11 +360,24 @@ def intensity_overlay(context, part: str, width: int, height: int):
 
 
 def write_annotated(
-    reader, rows, det_table, span, path: str, trail: int, overlay=None, progress: bool = True
+    reader,
+    rows,
+    det_table,
+    span,
+    path: str,
+    trail: int,
+    overlay=None,
+    particles: CMTFrame | None = None,
+    progress: bool = True,
 ) -> None:
-    """Writes the span's frames with detections, tracks (id colours), trails and overlay."""
+    """Writes the span's frames with detections, tracks (id colours), trails and overlay;
+    with ``particles`` (a CMT run's per-frame :class:`~jaxtrack.plot.cmt_frames.CMTFrame`,
+    stacked over the span), the living components' particles coloured by motion condition
+    on top, and their legend."""
 
     feet = np.stack([rows.boxes[:, 0] + rows.boxes[:, 2] / 2, rows.boxes[:, 1] + rows.boxes[:, 3]])
+    if particles is not None:
+        particles = jax.device_get(particles)
     with FrameWriter(path, (reader.width, reader.height), reader.fps) as writer:
         frames = range(span[0], span[1] + 1)
         for k in tqdm(frames, desc="annotate", unit="frame", disable=not progress):
@@ -266,4 +393,10 @@ def write_annotated(
             image = annotate_frame(
                 image, rows.boxes[here], rows.ids[here], trails, label=f"frame {k}"
             )
+            if particles is not None:
+                t = k - span[0]
+                image = draw_particles(
+                    image, particles.centres[t], particles.conditions[t], particles.alive[t]
+                )
+                image = draw_condition_legend(image)
             writer.write(image, k)

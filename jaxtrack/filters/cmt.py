@@ -265,7 +265,20 @@ def cmt_step(
         variant == "cmt",
     )
     log_appearance = appearance_log_likelihood(features, state.appearance, rho, params.observation)
-    owner = blob_owners(predicted_mean(state.estimates), alive, blobs, params)
+    blob_features = frame_features(frame, blobs.boxes, step, patch_shape)
+    blob_appearance = appearance_log_likelihood(
+        jnp.broadcast_to(blob_features, (alive.shape[0], *blob_features.shape)),
+        state.appearance,
+        rho,
+        params.observation,
+    )
+    owner = blob_owners(
+        predicted_mean(state.estimates),
+        alive,
+        blobs,
+        params.appearance_weight * blob_appearance,
+        params,
+    )
     log_box = owned_log_likelihood(particles, params, blobs, owner)
     log_likelihood = log_box + params.appearance_weight * log_appearance
     log_likelihood = jnp.where(exited, LOG_ZERO, log_likelihood)
@@ -425,22 +438,25 @@ def blob_owners(
     predictions: Float[Array, "max_components 6"],
     alive: Bool[Array, " max_components"],
     blobs: Detections,
+    log_appearance: Float[Array, "max_components max_detections"],
     params: CMTParams,
 ) -> Int[Array, " max_detections"]:
     """The component each blob is evidence for (-1: none, a blob free to start one).
 
-    Greedy on the box log-likelihood of the blob under each component's constant-velocity
-    prediction: the best (component, blob) pair is matched, both are removed, and so on,
-    over pairs scoring above ``birth_log_likelihood`` (the gate). One blob is evidence for
-    one component, so two components cannot both feed on it (the nearest-blob likelihood
-    alone lets a component whose target vanished latch onto a neighbour's blob).
+    Greedy on the blob's log-likelihood under each component: the box likelihood under the
+    component's constant-velocity prediction plus ``log_appearance`` (the observation model
+    on the blob's own box, so COM's feature weights tell apart nearby targets here too):
+    the best (component, blob) pair is matched, both are removed, and so on, over pairs whose
+    box likelihood is above ``birth_log_likelihood`` (the gate). One blob is evidence for one
+    component, so two components cannot both feed on it (the nearest-blob likelihood alone
+    lets a component whose target vanished latch onto a neighbour's blob).
     """
     measurements = xywh_to_cxcywh(blobs.boxes, jnp)
-    scores = log_likelihood(
+    box = log_likelihood(
         measurements, predictions, params.mixture.measurement_noise_std, state_dependent_std
     )
-    gate = blobs.mask[:, None] & alive[None, :] & (scores > params.mixture.birth_log_likelihood)
-    scores = jax.lax.stop_gradient(jnp.where(gate, scores, -jnp.inf))
+    gate = blobs.mask[:, None] & alive[None, :] & (box > params.mixture.birth_log_likelihood)
+    scores = jax.lax.stop_gradient(jnp.where(gate, box + log_appearance.T, -jnp.inf))
     num_blobs, num_slots = scores.shape
 
     def match(carry, _):

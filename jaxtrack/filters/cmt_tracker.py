@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from typing import Any, ClassVar
 
 import jax.numpy as jnp
@@ -50,8 +51,12 @@ MIN_MIXTURE_WEIGHT = 0.0
 CONFIRM_SCORE = 0.97
 #: IoU of two local decisions above which the younger component is a duplicate.
 DUPLICATE_IOU = 0.5
-#: Box heights from a zone within which a blob may enter (start a component).
-ENTER_DISTANCE = 1.0
+#: Box heights from a zone within which a blob may enter (start a component) under the
+#: contextual proposal: unbounded by default. Gating births to 1 box height of the learned
+#: zones (the paper's enter bonus taken strictly) lost MOTA on the development scenes
+#: (synthetic video seeds 0-2: 0.877 / 0.800 / 0.888 ungated vs 0.850 / 0.788 / 0.870 gated):
+#: a target lost behind others cannot come back away from a zone.
+ENTER_DISTANCE = math.inf
 
 
 @dataclasses.dataclass(frozen=True)

@@ -19,7 +19,7 @@ import jax
 
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import run
+from jaxtrack.filters.base import FrameOutput, run
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence
 from jaxtrack.io.frame_stream import FrameStream
@@ -49,6 +49,9 @@ def track_streamed(
 ) -> MotTable:
     """Tracks a sequence (or span) with a tracker that uses frames, its frames streamed.
 
+    :func:`streamed_outputs` with :func:`~jaxtrack.pipelines.tracking.track_outputs`, turned
+    into result rows.
+
     Args:
         seq: the loaded sequence; its ``seqinfo.ini`` size is the frames' size.
         video: its open frames, frame ``k`` being MOT frame ``k`` (e.g.
@@ -70,6 +73,37 @@ def track_streamed(
         ResourceError: the run would need more memory than the machine has, before it runs.
         FileFormatError: a frame that does not decode.
     """
+    outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames)
+    rows = output_rows(outputs, config, seq.first_frame)
+    warn_if_no_tracks(seq, rows, config)
+    return rows
+
+
+def streamed_outputs(
+    seq: MotSequence,
+    video: VideoReader,
+    config: TrackerConfig,
+    seed: int = 0,
+    params: Any = None,
+    chunk_frames: int = STREAM_CHUNK_FRAMES,
+    frame_output: FrameOutput = track_outputs,
+) -> Any:
+    """Runs a tracker that uses frames on a sequence (or span), its frames streamed, and
+    returns what ``frame_output`` keeps of each frame, stacked over frames.
+
+    Args:
+        seq, video, config, seed, params, chunk_frames: as :func:`track_streamed`.
+        frame_output: the per-frame output (``frame_output`` of
+            :func:`~jaxtrack.filters.base.run`; e.g. one that keeps the particles to draw
+            them); :func:`~jaxtrack.pipelines.tracking.output_rows` reads its ``tracks`` and
+            ``candidates``.
+
+    Returns:
+        The per-frame outputs, stacked over the span's frames.
+
+    Raises:
+        InputError, ResourceError, FileFormatError: as :func:`track_streamed`.
+    """
     if not tracker_entry(config.tracker).uses_frames:
         raise InputError(f"the {config.tracker} tracker reads no frames; use track_sequences")
     if (video.width, video.height) != (seq.info.im_width, seq.info.im_height):
@@ -87,9 +121,7 @@ def track_streamed(
             seq.detections,
             chunk_frames=chunk_frames,
             fit_capacity=True,
-            frame_output=track_outputs,
+            frame_output=frame_output,
             frames=frames,
         )
-    rows = output_rows(info, config, seq.first_frame)
-    warn_if_no_tracks(seq, rows, config)
-    return rows
+    return info

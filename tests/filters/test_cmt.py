@@ -92,6 +92,7 @@ def test_a_blob_far_from_every_zone_enters_only_without_the_contextual_proposal(
     counts = {}
     for variant in ("mtb", "cpd"):
         filt, params = build_cmt(CMTConfig(variant=variant, **SMALL), INFO, zones)
+        params = params._replace(enter_distance=jnp.float32(1.0))  # default: no gate
         _, info = run(filt, jax.random.PRNGKey(1), params, inputs)
         counts[variant] = int(np.asarray(info.candidates.mask)[-1].sum())
     assert counts == {"mtb": 2, "cpd": 1}
