@@ -34,6 +34,7 @@ WITH_PROGRESS = (
     "experiment context-generalisation",
     "experiment sweep-magnitudes",
     "experiment compare-trackers",
+    "experiment cmt-ablation",
     "experiment gradient-tuning",
     "simulate",  # with --video
 )

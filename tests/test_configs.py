@@ -102,8 +102,8 @@ def test_registry_builds_every_tracker_and_shares_filters():
     phd, _ = build_tracker(PHDConfig(birth_rate=3.0), INFO)
     assert phd is build_tracker(PHDConfig(), INFO)[0]  # magnitudes are params, not statics
     assert phd is not build_tracker(PHDConfig(num_particles=64), INFO)[0]
-    with pytest.raises(InputError, match="unknown tracker 'cmt'"):
-        tracker_entry("cmt")
+    with pytest.raises(InputError, match="unknown tracker 'nosuch'"):
+        tracker_entry("nosuch")
     with pytest.raises(InputError, match="takes no context"):
         build_tracker(KalmanConfig(), INFO, context=object())
 

@@ -247,7 +247,9 @@ def run(args) -> int:
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
     if args.benchmark is not None:
-        options = ("frames", "detections", "context", "figure", "figure_frame", "video", "zones")
+        options = ["frames", "detections", "context", "figure", "figure_frame", "video", "zones"]
+        if args.variant not in CMT_VARIANTS:  # a CMT variant picks the tracker, not a context
+            options.append("variant")
         refuse_ignored(args, options, "applies to one sequence, not to --benchmark")
     if args.figure is None:
         refuse_ignored(args, ["figure_frame"], "needs --figure (it is only read for it)")
