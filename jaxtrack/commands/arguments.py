@@ -172,6 +172,32 @@ def add_context_arguments(
 DEFAULT_VARIANT = "GM"
 
 
+def tracker_variant_names() -> list[str]:
+    """Every tracker's own variants (``--variant`` choices beside the context's parts)."""
+    return [name for entry in TRACKERS.values() for name in entry.variants]
+
+
+def apply_tracker_variant(args: argparse.Namespace, config: TrackerConfig) -> TrackerConfig:
+    """The configuration with ``--variant`` when it names one of the tracker's own variants.
+
+    Raises:
+        InputError: another tracker's variant, or a context variant for a tracker with
+            variants of its own.
+    """
+    own = tracker_entry(args.tracker).variants
+    if args.variant in own:
+        return config.replace(variant=args.variant)
+    for name, entry in TRACKERS.items():
+        if args.variant in entry.variants:
+            raise InputError(f"--variant {args.variant} applies to --tracker {name}")
+    if own and args.variant is not None:
+        raise InputError(
+            f"--variant {args.variant} is a PHD context variant; {args.tracker}'s are "
+            f"{', '.join(own)}"
+        )
+    return config
+
+
 def context_variant(args: argparse.Namespace) -> str | None:
     """The variant of ``--context``: ``--variant``, else GM; None without ``--context``.
 

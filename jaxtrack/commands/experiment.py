@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from jaxtrack.commands import cmt_ablation
+from jaxtrack.commands import cmt_ablation, hierarchical_experiment
 from jaxtrack.commands.arguments import (
     SEED_TYPE,
     add_out,
@@ -468,6 +468,16 @@ examples:
         add_extras=cmt_ablation.add_arguments,
         run=cmt_ablation.run,
         files=cmt_ablation.ABLATION_FILES,
+        scene="scenes",
+    ),
+    "hierarchical": Experiment(
+        help=hierarchical_experiment.HELP,
+        description=hierarchical_experiment.DESCRIPTION,
+        quick_help=hierarchical_experiment.QUICK_HELP,
+        sequence=False,
+        add_extras=cmt_ablation.add_arguments,
+        run=hierarchical_experiment.run,
+        files=hierarchical_experiment.FILES,
         scene="scenes",
     ),
 }

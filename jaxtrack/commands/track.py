@@ -80,10 +80,12 @@ from jaxtrack.commands.arguments import (
     add_quiet,
     add_seed,
     add_tracker,
+    apply_tracker_variant,
     context_variant,
     load_config,
     ranged,
     refuse_ignored,
+    tracker_variant_names,
 )
 from jaxtrack.commands.paths import (
     benchmark_inputs,
@@ -97,9 +99,9 @@ from jaxtrack.commands.paths import (
     video_input,
 )
 from jaxtrack.configs import TrackerConfig
+from jaxtrack.detect.pipeline import DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
-from jaxtrack.filters.cmt import VARIANTS as CMT_VARIANTS
 from jaxtrack.filters.kalman import KALMAN_PRESETS
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import (
@@ -109,17 +111,21 @@ from jaxtrack.io import (
     read_seqinfo,
     write_results,
 )
+from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import VideoReader, find_frame_source, open_sequence_frames
 from jaxtrack.limits import FRAME_NUMBER
-from jaxtrack.pipelines.stream import track_streamed
+from jaxtrack.pipelines.frame_context import streamed_params
+from jaxtrack.pipelines.stream import track_streamed_events
 from jaxtrack.pipelines.tracking import (
     load_tracker_context,
     phd_frame_snapshot,
     track_sequences,
     tracker_description,
 )
-from jaxtrack.pipelines.zones import tracker_zones
 from jaxtrack.plot.tracks import phd_frame_figure
+
+#: ``--detections`` keywords: the folder's own ``det/det.txt``, background subtraction.
+DETECTION_KEYWORDS = ("det", "bs")
 
 
 def register(subparsers) -> None:
@@ -136,11 +142,18 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--detections",
         metavar="DET.txt",
-        help="detections to track instead of SEQ_DIR/det/det.txt (e.g. from jaxtrack detect)",
+        help="detections to track instead of SEQ_DIR/det/det.txt (e.g. from jaxtrack detect), "
+        "or 'det' (those, the default) or 'bs' (detect by background subtraction on the "
+        "sequence's frames first; trackers that read frames)",
     )
     add_config(parser)
     add_seed(parser)
-    add_context_arguments(parser, "see above; mtb, cpd, cmt for --tracker cmt", CMT_VARIANTS)
+    add_context_arguments(
+        parser,
+        "see above; mtb, cpd, cmt for --tracker cmt; kalman, managed, full for --tracker "
+        "hierarchical",
+        tuple(tracker_variant_names()),
+    )
     parser.add_argument(
         "--zones",
         metavar="ZONES.json",
@@ -205,42 +218,55 @@ def track_sequence(
     Returns:
         The number of result rows (boxes) and of frames tracked.
     """
-    seq = load_tracked_sequence(sequence_dir, frames, detections)
+    entry = tracker_entry(config.tracker)
     used = {}
-    if tracker_entry(config.tracker).takes_zones:
-        context, used["zones"] = tracker_zones(seq, zones, seed)
-        print(f"{seq.info.name}: {used['zones']}", file=sys.stderr)
-    else:
-        context = load_tracker_context(context_path)
-    _, params = build_tracker(config, seq.info, context, variant)
-    if tracker_entry(config.tracker).uses_frames:
-        with open_sequence_frames(sequence_dir, seq.info, video) as reader:
-            rows = track_streamed(seq, reader, config, seed, params)
-        used["video"] = str(reader.path)
-    else:
+    if not entry.uses_frames:
+        seq = load_tracked_sequence(sequence_dir, frames, detections)
+        _, params = build_tracker(config, seq.info, load_tracker_context(context_path), variant)
         (rows,) = track_sequences([seq], config, seed, [params])
+        events = None
+    else:
+        info = read_seqinfo(Path(sequence_dir) / "seqinfo.ini")
+        with open_sequence_frames(sequence_dir, info, video) as reader:
+            seq = load_tracked_sequence(sequence_dir, frames, detections, reader)
+            params, used = streamed_params(config, seq, reader, seed, zones)
+            for value in used.values():
+                print(f"{seq.info.name}: {value}", file=sys.stderr)
+            rows, events = track_streamed_events(seq, reader, config, seed, params)
+        used["video"] = str(reader.path)
     if detections is not None:
         used["detections"] = str(detections)
-    if not tracker_entry(config.tracker).takes_context:
+    if not entry.takes_context:
         variant = None
-    elif context is None:
+    elif context_path is None:
         variant = "UM"
     _write(out_path, rows, config, seed, seq, context_path, variant, used)
+    if events is not None:
+        print(f"  events: {write_events(events_path(out_path), events)}", file=sys.stderr)
     return len(rows.frames), seq.num_frames
 
 
-def load_tracked_sequence(sequence_dir, frames=None, detections: str | None = None):
-    """A sequence folder (or span) with its ``det/det.txt``, or with ``detections`` instead.
+def load_tracked_sequence(sequence_dir, frames=None, detections: str | None = None, reader=None):
+    """A sequence folder (or span) with its ``det/det.txt``, or with ``detections`` instead:
+    a detections file, ``"det"`` (the folder's own) or ``"bs"`` (background subtraction on
+    the sequence's frames, :func:`~jaxtrack.detect.pipeline.detect_video`, which needs the
+    open ``reader``).
 
     Raises:
         FileFormatError: a missing or malformed ``seqinfo.ini`` or detections file.
-        InputError: a bad frame span.
+        InputError: a bad frame span, or ``"bs"`` for a tracker that reads no frames.
     """
-    if detections is None:
+    if detections is None or detections == "det":
         return load_sequence(sequence_dir, frames=frames)
     info = read_seqinfo(Path(sequence_dir) / "seqinfo.ini")
-    table = read_mot_file(detections, "det", info=info)
-    return video_sequence(sequence_dir, table, parse_frame_span(frames, info.seq_length), info)
+    span = parse_frame_span(frames, info.seq_length)
+    if detections == "bs":
+        if reader is None:
+            raise InputError("--detections bs needs a tracker that reads the frames")
+        table = detect_video(reader, span, DetectorConfig()).table
+    else:
+        table = read_mot_file(detections, "det", info=info)
+    return video_sequence(sequence_dir, table, span, info)
 
 
 def run(args) -> int:
@@ -248,7 +274,7 @@ def run(args) -> int:
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
     if args.benchmark is not None:
         options = ["frames", "detections", "context", "figure", "figure_frame", "video", "zones"]
-        if args.variant not in CMT_VARIANTS:  # a CMT variant picks the tracker, not a context
+        if args.variant not in tracker_variant_names():  # picks the tracker, not a context
             options.append("variant")
         refuse_ignored(args, options, "applies to one sequence, not to --benchmark")
     if args.figure is None:
@@ -268,11 +294,12 @@ def run(args) -> int:
             output_file("--out", args.out),
             side_file("--out", args.out, ".config.json"),
             *([figure_output("--figure", args.figure)] if args.figure else []),
+            *_events_output(config, args.out),
         ],
         [
             *sequence_inputs(args.sequence),
             *file_input(args.config, f"the tracker configuration --config {args.config}"),
-            *file_input(args.detections, f"the detections --detections {args.detections}"),
+            *_detections_input(args.detections),
             *file_input(args.context, f"the context --context {args.context}"),
             *video_input(args.video, f"the frames --video {args.video}"),
             *file_input(args.zones, f"the zones --zones {args.zones}"),
@@ -311,14 +338,7 @@ def _config(args) -> TrackerConfig:
     entry = tracker_entry(args.tracker)
     if not entry.takes_zones:
         refuse_ignored(args, ["zones"], f"applies to --tracker cmt, not to {args.tracker}")
-    if args.variant in CMT_VARIANTS:
-        if args.tracker != "cmt":
-            raise InputError(f"--variant {args.variant} applies to --tracker cmt")
-        config = config.replace(variant=args.variant)
-    elif args.tracker == "cmt" and args.variant is not None:
-        raise InputError(
-            f"--variant {args.variant} is a PHD context variant; CMT's are mtb, cpd, cmt"
-        )
+    config = apply_tracker_variant(args, config)
     if args.preset is not None:
         if args.tracker != "kalman":
             raise InputError("--preset applies to --tracker kalman")
@@ -340,7 +360,10 @@ def _benchmark(args, config: TrackerConfig) -> int:
     if not folders:
         raise InputError(f"{root}: no sequence folders (with seqinfo.ini) found")
     out = Path(args.out)
-    names = [f"{folder.name}{suffix}" for folder in folders for suffix in (".txt", ".config.json")]
+    suffixes = (".txt", ".config.json")
+    if tracker_entry(config.tracker).writes_events:
+        suffixes += (".events.csv",)
+    names = [f"{folder.name}{suffix}" for folder in folders for suffix in suffixes]
     check_outputs(
         output_folder("--out", args.out, names),
         [
@@ -358,6 +381,8 @@ def _benchmark(args, config: TrackerConfig) -> int:
         used = [{} for _ in sequences]
     variant = "UM" if tracker_entry(config.tracker).takes_context else None
     for seq, rows, seq_used in zip(sequences, results, used, strict=True):
+        if "events" in seq_used:
+            write_events(out / f"{seq.path.name}.events.csv", seq_used.pop("events"))
         _write(
             out / f"{seq.path.name}.txt",
             rows,
@@ -382,10 +407,24 @@ def _benchmark(args, config: TrackerConfig) -> int:
     return 0
 
 
+def _events_output(config: TrackerConfig, out: str) -> list:
+    """``RES.events.csv`` beside ``--out`` for a tracker that writes events."""
+    if not tracker_entry(config.tracker).writes_events:
+        return []
+    return [side_file("--out", out, ".events.csv")]
+
+
+def _detections_input(detections: str | None) -> list:
+    """The ``--detections`` file to check (none for the keywords ``det`` and ``bs``)."""
+    if detections in DETECTION_KEYWORDS:
+        return []
+    return file_input(detections, f"the detections --detections {detections}")
+
+
 def _track_streamed_all(sequences, config: TrackerConfig, seed: int, progress: bool):
     """Each sequence with a tracker that uses frames (found in its folder, all checked before
-    the first is tracked; zones learned on the fly for a tracker that takes them); the
-    results and, per sequence, the frames (and zones) used."""
+    the first is tracked; zones learned on the fly for a tracker that takes them, the
+    background image for one that takes it); the results and, per sequence, what was used."""
     readers = []
     try:
         for seq in sequences:
@@ -397,12 +436,12 @@ def _track_streamed_all(sequences, config: TrackerConfig, seed: int, progress: b
             unit="seq",
             disable=not progress,
         ):
-            seq_used = {"video": str(reader.path)}
-            params = None
-            if tracker_entry(config.tracker).takes_zones:
-                zones, seq_used["zones"] = tracker_zones(seq, None, seed)
-                _, params = build_tracker(config, seq.info, zones)
-            results.append(track_streamed(seq, reader, config, seed, params))
+            params, seq_used = streamed_params(config, seq, reader, seed)
+            seq_used["video"] = str(reader.path)
+            rows, events = track_streamed_events(seq, reader, config, seed, params)
+            if events is not None:
+                seq_used["events"] = events
+            results.append(rows)
             used.append(seq_used)
     finally:
         for reader in readers:

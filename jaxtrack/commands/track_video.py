@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import operator
 import sys
 import time
 from pathlib import Path
@@ -23,10 +24,12 @@ from jaxtrack.commands.arguments import (
     add_quiet,
     add_seed,
     add_tracker,
+    apply_tracker_variant,
     context_variant,
     load_config,
     ranged,
     refuse_ignored,
+    tracker_variant_names,
 )
 from jaxtrack.commands.paths import (
     check_outputs,
@@ -41,12 +44,14 @@ from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_info, video_sequence
 from jaxtrack.errors import InputError
-from jaxtrack.filters.cmt import VARIANTS as CMT_VARIANTS
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
+from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
 from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.pipelines.events import event_outputs, event_rows
+from jaxtrack.pipelines.frame_context import streamed_params
 from jaxtrack.pipelines.stream import streamed_outputs
 from jaxtrack.pipelines.tracking import (
     load_tracker_context,
@@ -56,7 +61,6 @@ from jaxtrack.pipelines.tracking import (
     tracker_description,
     warn_if_no_tracks,
 )
-from jaxtrack.pipelines.zones import tracker_zones
 from jaxtrack.plot.cmt_frames import (
     CMTFrame,
     cmt_frame_outputs,
@@ -64,6 +68,7 @@ from jaxtrack.plot.cmt_frames import (
     draw_particles,
 )
 from jaxtrack.plot.context import position_map
+from jaxtrack.plot.hier_frames import HierarchicalFrame, draw_levels, hier_frame_outputs
 
 DESCRIPTION = """\
 Track people in a video end to end: detect them by background subtraction (as `jaxtrack
@@ -104,6 +109,8 @@ examples:
   jaxtrack track-video ../shared/data/video/vtest.avi --frames 1:100 --fps 7 \\
       --tracker cmt --variant cmt --out cmt.txt --annotate cmt.mp4"""
 
+#: Trackers whose --annotate draws more than the tracks: their per-frame drawing outputs.
+FRAME_DRAWINGS = {"cmt": cmt_frame_outputs, "hierarchical": hier_frame_outputs}
 #: Centres of the feet drawn behind each track by --annotate (default).
 DEFAULT_TRAIL = 20
 #: Detector of --method (default).
@@ -139,7 +146,10 @@ def register(subparsers) -> None:
     add_tracker(parser)
     add_config(parser)
     add_context_arguments(
-        parser, "see jaxtrack track --help; mtb, cpd, cmt for --tracker cmt", CMT_VARIANTS
+        parser,
+        "see jaxtrack track --help; mtb, cpd, cmt for --tracker cmt; kalman, managed, full "
+        "for --tracker hierarchical",
+        tuple(tracker_variant_names()),
     )
     parser.add_argument(
         "--zones",
@@ -195,6 +205,8 @@ def run(args: argparse.Namespace) -> int:
     trail = DEFAULT_TRAIL if args.trail is None else args.trail
     method = args.method or DEFAULT_METHOD
     outputs = [output_file("--out", args.out), side_file("--out", args.out, ".config.json")]
+    if tracker_entry(config.tracker).writes_events:
+        outputs.append(side_file("--out", args.out, ".events.csv"))
     if args.save_detections:
         outputs.append(output_file("--save-detections", args.save_detections))
     if args.annotate:
@@ -233,11 +245,13 @@ def run(args: argparse.Namespace) -> int:
             "fps": info.frame_rate,
             "detector": "file" if args.detections else method,
         }
-        rows, particles = track_span(
+        rows, drawn, events = track_span(
             sequence, reader, config, args, context, variant, used, progress=not args.quiet
         )
         elapsed = time.perf_counter() - start
         write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
+        if events is not None:
+            print(f"  events: {write_events(events_path(args.out), events)}")
         if tracker_entry(config.tracker).takes_context:
             used["variant"] = variant or "UM"
         if args.context:
@@ -264,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
                 args.annotate,
                 trail,
                 overlay,
-                particles,
+                drawn,
                 progress=not args.quiet,
             )
             print(f"  annotated: {args.annotate}")
@@ -288,14 +302,8 @@ def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]
             args, ("context", "overlay"), f"applies to the PHD tracker, not to {args.tracker}"
         )
     config = load_config(args.config, args.tracker)
-    if args.variant in CMT_VARIANTS:
-        if args.tracker != "cmt":
-            raise InputError(f"--variant {args.variant} applies to --tracker cmt")
-        return config.replace(variant=args.variant), None
-    if args.tracker == "cmt" and args.variant is not None:
-        raise InputError(
-            f"--variant {args.variant} is a PHD context variant; CMT's are mtb, cpd, cmt"
-        )
+    if entry.variants or args.variant in tracker_variant_names():
+        return apply_tracker_variant(args, config), None
     if not entry.takes_context:
         refuse_ignored(args, ["variant"], f"applies to the PHD tracker, not to {args.tracker}")
     return config, context_variant(args)
@@ -303,7 +311,8 @@ def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]
 
 def track_span(sequence, reader, config, args, context, variant, used, progress: bool):
     """Tracks the span's detections: streamed with its frames for a tracker that uses them
-    (CMT with its zones, recorded in ``used`` and printed), else as ``jaxtrack track`` does.
+    (CMT with its zones, the Hierarchical tracker with the background image, recorded in
+    ``used`` and printed), else as ``jaxtrack track`` does.
 
     Args:
         sequence: the span with its detections (:func:`~jaxtrack.detect.sequence.
@@ -317,27 +326,30 @@ def track_span(sequence, reader, config, args, context, variant, used, progress:
         progress: show progress bars.
 
     Returns:
-        The result rows, and with ``--annotate`` and CMT the per-frame
-        :class:`~jaxtrack.plot.cmt_frames.CMTFrame` stacked over the span (else None).
+        The result rows; with ``--annotate`` and a tracker of :data:`FRAME_DRAWINGS` its
+        per-frame drawing outputs stacked over the span (else None); for a tracker that
+        writes events, the event state of every result row (else None).
     """
     entry = tracker_entry(config.tracker)
     if not entry.uses_frames:
         _, params = build_tracker(config, sequence.info, context, variant or DEFAULT_VARIANT)
         (rows,) = track_sequences([sequence], config, args.seed, [params], progress=progress)
-        return rows, None
-    zones = None
-    if entry.takes_zones:
-        zones, used["zones"] = tracker_zones(sequence, args.zones, args.seed)
-        print(used["zones"], file=sys.stderr)
-    _, params = build_tracker(config, sequence.info, zones)
-    draws_particles = args.annotate is not None and config.tracker == "cmt"
-    frame_output = cmt_frame_outputs if draws_particles else track_outputs
+        return rows, None, None
+    params, scene = streamed_params(config, sequence, reader, args.seed, args.zones)
+    for value in scene.values():
+        print(value, file=sys.stderr)
+    used.update(scene)
+    drawn = args.annotate is not None and config.tracker in FRAME_DRAWINGS
+    frame_output = FRAME_DRAWINGS[config.tracker] if drawn else track_outputs
+    if entry.writes_events and not drawn:
+        frame_output = event_outputs
     outputs = streamed_outputs(
         sequence, reader, config, args.seed, params, frame_output=frame_output
     )
     rows = output_rows(outputs, config, sequence.first_frame)
     warn_if_no_tracks(sequence, rows, config)
-    return rows, outputs if draws_particles else None
+    events = event_rows(outputs, rows, sequence.first_frame) if entry.writes_events else None
+    return rows, outputs if drawn else None, events
 
 
 def print_tracking_scores(gt_path: str, rows, span: tuple[int, int], num_frames: int) -> dict:
@@ -367,17 +379,19 @@ def write_annotated(
     path: str,
     trail: int,
     overlay=None,
-    particles: CMTFrame | None = None,
+    drawn: CMTFrame | HierarchicalFrame | None = None,
     progress: bool = True,
 ) -> None:
     """Writes the span's frames with detections, tracks (id colours), trails and overlay;
-    with ``particles`` (a CMT run's per-frame :class:`~jaxtrack.plot.cmt_frames.CMTFrame`,
-    stacked over the span), the living components' particles coloured by motion condition
-    on top, and their legend."""
+    with ``drawn`` a run's per-frame drawing outputs stacked over the span: a CMT run's
+    :class:`~jaxtrack.plot.cmt_frames.CMTFrame` (the living components' particles coloured
+    by motion condition on top, and their legend) or a Hierarchical run's
+    :class:`~jaxtrack.plot.hier_frames.HierarchicalFrame` (low-level tracks in white,
+    high-level trackers in black, with their event states)."""
 
     feet = np.stack([rows.boxes[:, 0] + rows.boxes[:, 2] / 2, rows.boxes[:, 1] + rows.boxes[:, 3]])
-    if particles is not None:
-        particles = jax.device_get(particles)
+    if drawn is not None:
+        drawn = jax.device_get(drawn)
     with FrameWriter(path, (reader.width, reader.height), reader.fps) as writer:
         frames = range(span[0], span[1] + 1)
         for k in tqdm(frames, desc="annotate", unit="frame", disable=not progress):
@@ -393,10 +407,10 @@ def write_annotated(
             image = annotate_frame(
                 image, rows.boxes[here], rows.ids[here], trails, label=f"frame {k}"
             )
-            if particles is not None:
-                t = k - span[0]
-                image = draw_particles(
-                    image, particles.centres[t], particles.conditions[t], particles.alive[t]
-                )
+            t = k - span[0]
+            if isinstance(drawn, CMTFrame):
+                image = draw_particles(image, drawn.centres[t], drawn.conditions[t], drawn.alive[t])
                 image = draw_condition_legend(image)
+            elif isinstance(drawn, HierarchicalFrame):
+                image = draw_levels(image, jax.tree.map(operator.itemgetter(t), drawn))
             writer.write(image, k)

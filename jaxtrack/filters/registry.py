@@ -18,12 +18,21 @@ from typing import Any, NamedTuple
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
+from jaxtrack.filters.cmt import VARIANTS as CMT_VARIANTS
 from jaxtrack.filters.cmt import CMTParams
 from jaxtrack.filters.cmt_tracker import (
     CMTConfig,
     build_cmt,
     cmt_memory_estimate,
     cmt_properties,
+)
+from jaxtrack.filters.hierarchical import HierarchicalParams
+from jaxtrack.filters.hierarchical_tracker import VARIANTS as HIERARCHICAL_VARIANTS
+from jaxtrack.filters.hierarchical_tracker import (
+    HierarchicalConfig,
+    build_hierarchical,
+    hierarchical_memory_estimate,
+    hierarchical_properties,
 )
 from jaxtrack.filters.kalman import KalmanParams
 from jaxtrack.filters.kalman_tracker import (
@@ -48,7 +57,8 @@ class TrackerEntry(NamedTuple):
 
     Attributes:
         config_type: its configuration dataclass.
-        params_type: its parameter PyTree type.
+        params_type: its parameter PyTree type (a tuple of types for a tracker whose
+            variants have different parameters, as ``isinstance`` takes).
         build: ``(config, info, context=None, variant="GM") -> (Filter, params)``.
         properties: ``params -> properties tree``.
         takes_context: whether it uses a learned context (``--context``).
@@ -59,16 +69,26 @@ class TrackerEntry(NamedTuple):
             (detections and the frame) rather than on detections alone.
         takes_zones: whether it uses the scene's entry/exit zones (``--zones``; given to
             ``build`` as its context, a :class:`~jaxtrack.context.zones.SceneZones`).
+        takes_background: whether it compares targets with the background model's image
+            (given to ``build`` as its context by the pipelines,
+            :func:`~jaxtrack.pipelines.background.median_background`).
+        writes_events: whether its per-frame info has event states to write beside the
+            results (``RES.events.csv``, :mod:`~jaxtrack.io.events`).
+        variants: the values of its configuration's ``variant`` (``--variant`` picks one),
+            empty for a tracker without variants.
     """
 
     config_type: type[TrackerConfig]
-    params_type: type
+    params_type: type | tuple[type, ...]
     build: Callable[..., tuple[Filter, Any]]
     properties: Callable[[Any], Any]
     takes_context: bool
     memory: Callable[[Any, int, int], MemoryEstimate]
     uses_frames: bool = False
     takes_zones: bool = False
+    takes_background: bool = False
+    writes_events: bool = False
+    variants: tuple[str, ...] = ()
 
 
 #: The trackers, by name.
@@ -86,6 +106,19 @@ TRACKERS: dict[str, TrackerEntry] = {
         memory=cmt_memory_estimate,
         uses_frames=True,
         takes_zones=True,
+        variants=CMT_VARIANTS,
+    ),
+    "hierarchical": TrackerEntry(
+        HierarchicalConfig,
+        (HierarchicalParams, KalmanParams),
+        build_hierarchical,
+        hierarchical_properties,
+        takes_context=False,
+        memory=hierarchical_memory_estimate,
+        uses_frames=True,
+        takes_background=True,
+        writes_events=True,
+        variants=HIERARCHICAL_VARIANTS,
     ),
 }
 

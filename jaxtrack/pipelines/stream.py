@@ -24,6 +24,8 @@ from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence
 from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
+from jaxtrack.metrics.events import EventRows
+from jaxtrack.pipelines.events import event_outputs, event_rows
 from jaxtrack.pipelines.tracking import (
     check_tracking_memory,
     output_rows,
@@ -77,6 +79,28 @@ def track_streamed(
     rows = output_rows(outputs, config, seq.first_frame)
     warn_if_no_tracks(seq, rows, config)
     return rows
+
+
+def track_streamed_events(
+    seq: MotSequence,
+    video: VideoReader,
+    config: TrackerConfig,
+    seed: int = 0,
+    params: Any = None,
+    chunk_frames: int = STREAM_CHUNK_FRAMES,
+) -> tuple[MotTable, EventRows | None]:
+    """:func:`track_streamed`, and for a tracker that ``writes_events`` the event state of
+    every result row (:func:`~jaxtrack.pipelines.events.event_rows`; None for the others).
+
+    Raises:
+        InputError, ResourceError, FileFormatError: as :func:`track_streamed`.
+    """
+    if not tracker_entry(config.tracker).writes_events:
+        return track_streamed(seq, video, config, seed, params, chunk_frames), None
+    outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames, event_outputs)
+    rows = output_rows(outputs, config, seq.first_frame)
+    warn_if_no_tracks(seq, rows, config)
+    return rows, event_rows(outputs, rows, seq.first_frame)
 
 
 def streamed_outputs(

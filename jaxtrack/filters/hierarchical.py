@@ -1,0 +1,451 @@
+"""The Hierarchical tracker (Rowe et al.; SPEC section 4): a managed Kalman bank below,
+appearance trackers above, events from a collision map.
+
+One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom):
+
+1. **Low level** (Sec. 4, :mod:`~jaxtrack.filters.hier_low`): the frame's blobs (detections)
+   are measurements of a constant-velocity Kalman bank; each goes to the nearest track whose
+   Mahalanobis gate holds it, orphans start tentative tracks, tracks are confirmed and
+   removed by ``|S_k|^1/2`` (and the MSD of their measurements).
+2. **Tracker matching** (Sec. 5.1): a high-level tracker follows one low-level track. When its
+   track is removed (a long occlusion, a group), the high-level tracker is *lost*: it keeps
+   its appearance model and is propagated by its motion model (constant velocity, the last
+   estimate of its track) for at most ``max_lost`` frames.
+3. **Appearance association** (Sec. 5.4, :mod:`~jaxtrack.filters.hier_appearance`): a
+   low-level track confirmed on this frame is first offered to the lost trackers: gated on
+   the coincident features' Bhattacharyya distances, it goes to the nearest lost tracker
+   within the gate, which keeps its identity. A lost tracker with no candidate in its gate
+   tries again on the next frames.
+4. **New trackers**: a confirmed track no lost tracker takes starts a high-level tracker with
+   a new identity (the low-level track's); it is a *group* tracker when it is born colliding
+   with two or more trackers (Sec. 5.1). Its appearance starts from the frame's histograms.
+5. **Appearance update** (Sec. 5.2-5.3): a tracker whose track is confirmed and measured on
+   the frame, that is single (it collides with no other tracker) and not a group tracker,
+   re-ranks its 49 colour features against the background model and updates its pool and
+   its mean histograms; otherwise its appearance is frozen.
+6. **Events** (Sec. 5.5, :mod:`~jaxtrack.filters.hier_events`): each tracker's state
+   (single, grouping, grouped, splitting, entering) from the collision map of the
+   estimates; exits are labelled offline (:func:`~jaxtrack.filters.hier_events.label_exits`).
+
+The output (:class:`HierarchicalInfo`) is that of the other trackers: ``tracks`` are the
+high-level trackers whose low-level track is confirmed and measured on the frame (posterior
+boxes), under the high-level identity; ``candidates`` are every measured low-level track,
+under its high-level tracker's identity when it has one, else its own. The offline output
+(:func:`~jaxtrack.association.offline.finalise_tracks`) therefore keeps a tracker's tentative
+frames and interpolates over its occlusions (``max_gap``).
+
+Variants (:data:`VARIANTS`): ``"managed"`` is the low level alone (its confirmed tracks,
+their own identities); ``"full"`` is both levels. ``"kalman"``, the Kalman bank of the
+baseline (:mod:`~jaxtrack.filters.kalman`), is built by
+:mod:`~jaxtrack.filters.hierarchical_tracker`.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int, UInt8
+
+from jaxtrack.appearance.variance_ratio import variance_ratio
+from jaxtrack.association.track_table import start_tracks
+from jaxtrack.boxes import xywh_to_cxcywh
+from jaxtrack.filters.base import Filter
+from jaxtrack.filters.hier_appearance import (
+    PATCH_SHAPE,
+    AppearanceParams,
+    AppearanceTable,
+    box_histograms,
+    init_table,
+    reset_slots,
+    update_appearance,
+)
+from jaxtrack.filters.hier_events import (
+    EventParams,
+    collision_map,
+    event_step,
+    is_group_birth,
+)
+from jaxtrack.filters.hier_low import (
+    LowInfo,
+    LowParams,
+    LowState,
+    box_to_ellipse,
+    init_low,
+    low_boxes,
+    low_step,
+    low_velocity,
+)
+from jaxtrack.filters.hier_reassociation import association_distances, reassociate
+from jaxtrack.types import PAD_BOX, FrameInputs, Tracks
+
+#: The variants this module steps (``"kalman"`` is the Kalman baseline's filter).
+STEPPED_VARIANTS = ("managed", "full")
+#: Features in a tracker's pool: the ``M`` best of the frame and the ``N`` best long-run
+#: ones (the paper's ``M = N = 3``).
+NUM_CURRENT, NUM_LONGRUN = 3, 3
+
+
+def measurements_of(boxes: Float[Array, "D 4"], measurement: str) -> Float[Array, "D m"]:
+    """The low level's measurements of detection boxes ``(x, y, w, h)``: ``(cx, cy, w, h)``,
+    or the moment-equivalent ellipse ``(cx, cy, major, minor, angle)``
+    (:func:`~jaxtrack.filters.hier_low.box_to_ellipse`)."""
+    centred = xywh_to_cxcywh(boxes, jnp)
+    return box_to_ellipse(centred) if measurement == "ellipse" else centred
+
+
+def fresh_pool(
+    histograms: Float[Array, "T 49 64"], background: Float[Array, "T 49 64"], delta
+) -> Int[Array, "T P"]:
+    """The pool of a track seen once: its ``M + N`` best features by variance ratio
+    (eq. 2-3; with no history the long-run ranking is the current one)."""
+    ratios = variance_ratio(histograms, background, delta)
+    return jnp.argsort(-ratios, axis=-1)[:, : NUM_CURRENT + NUM_LONGRUN].astype(jnp.int32)
+
+
+class HierarchicalParams(NamedTuple):
+    """The Hierarchical tracker's parameters (a PyTree: vmap over parameter sets).
+
+    Attributes:
+        low: the low level's (:class:`~jaxtrack.filters.hier_low.LowParams`).
+        appearance: the appearance trackers' (ranking, gating).
+        events: the event module's (collision overlap, entering frames).
+        max_lost: frames a lost high-level tracker is propagated and offered new tracks
+            before it is dropped.
+        background: the background model's image, RGB ``uint8`` ``[height, width, 3]``
+            (:func:`~jaxtrack.pipelines.background.median_background`).
+    """
+
+    low: LowParams
+    appearance: AppearanceParams
+    events: EventParams
+    max_lost: Float[Array, ""]
+    background: UInt8[Array, "height width 3"]
+
+
+class HighState(NamedTuple):
+    """The high-level trackers (``S`` slots).
+
+    Attributes:
+        ids: output identity (-1: free slot); the identity of the low-level track that
+            started the tracker.
+        low_slot: the low-level slot it follows (-1 while lost).
+        low_id: that track's identity (a slot re-used by a new track is not followed).
+        boxes: the estimate ``(x, y, w, h)``: its track's, propagated while lost.
+        velocity: the centre's velocity, pixels per frame.
+        lost: frames since it lost its track (0 while it follows one).
+        group: a group tracker (born colliding with two or more trackers).
+        age: frames since it was started.
+        reassociated: it took a new track after being lost (not a new target).
+        event: its event state (:data:`~jaxtrack.filters.hier_events.EVENT_NAMES`).
+    """
+
+    ids: Int[Array, " S"]
+    low_slot: Int[Array, " S"]
+    low_id: Int[Array, " S"]
+    boxes: Float[Array, "S 4"]
+    velocity: Float[Array, "S 2"]
+    lost: Int[Array, " S"]
+    group: Bool[Array, " S"]
+    age: Int[Array, " S"]
+    reassociated: Bool[Array, " S"]
+    event: Int[Array, " S"]
+
+
+class HierarchicalState(NamedTuple):
+    """The low-level bank, the high-level trackers and their appearance."""
+
+    low: LowState
+    high: HighState
+    appearance: AppearanceTable
+
+
+class HierarchicalInfo(NamedTuple):
+    """One frame's output.
+
+    Attributes:
+        tracks: the high-level trackers whose track is confirmed and measured on the frame
+            (``managed``: the confirmed, measured low-level tracks).
+        candidates: every measured low-level track, under its high-level identity when it
+            has one.
+        events: the event state of each high-level slot (``managed``: all single).
+        event_ids: the identity of each high-level slot (-1: free).
+        low_boxes: the low-level estimates ``[T, 4]``; ``low_confirmed``, ``low_alive``.
+        high_boxes: the high-level estimates ``[S, 4]``, ``high_lost`` while lost.
+        pool: each high-level slot's feature pool (feature indices, ``[S, M + N]``).
+        distances: the Bhattacharyya distance of each feature's last update ``[S, 49]``.
+        low: the low level's info (overflow, assignments).
+        overflow: a confirmed track found no free high-level slot.
+    """
+
+    tracks: Tracks
+    candidates: Tracks
+    events: Int[Array, " S"]
+    event_ids: Int[Array, " S"]
+    low_boxes: Float[Array, "T 4"]
+    low_confirmed: Bool[Array, " T"]
+    low_alive: Bool[Array, " T"]
+    high_boxes: Float[Array, "S 4"]
+    high_lost: Bool[Array, " S"]
+    pool: Int[Array, "S P"]
+    distances: Float[Array, "S F"]
+    low: LowInfo
+    overflow: Bool[Array, ""]
+
+
+def init_high(num_slots: int) -> HighState:
+    """``num_slots`` free high-level slots."""
+    minus = jnp.full((num_slots,), -1, jnp.int32)
+    zeros = jnp.zeros((num_slots,), jnp.int32)
+    false = jnp.zeros((num_slots,), bool)
+    return HighState(
+        ids=minus,
+        low_slot=minus,
+        low_id=minus,
+        boxes=jnp.tile(jnp.asarray(PAD_BOX, jnp.float32), (num_slots, 1)),
+        velocity=jnp.zeros((num_slots, 2), jnp.float32),
+        lost=zeros,
+        group=false,
+        age=zeros,
+        reassociated=false,
+        event=zeros,
+    )
+
+
+def init_hierarchical(
+    key: Array, params: HierarchicalParams, *, num_tracks: int, num_trackers: int, measurement: str
+) -> HierarchicalState:
+    """Empty tables: ``num_tracks`` low-level slots, ``num_trackers`` high-level ones."""
+    del key, params
+    return HierarchicalState(
+        low=init_low(num_tracks, measurement),
+        high=init_high(num_trackers),
+        appearance=init_table(num_trackers, NUM_CURRENT, NUM_LONGRUN),
+    )
+
+
+def _tracks(boxes, ids, selected, scores) -> Tracks:
+    """One frame of output boxes of the selected slots."""
+    return Tracks(
+        boxes=jnp.where(selected[:, None], boxes, jnp.asarray(PAD_BOX, boxes.dtype)),
+        ids=jnp.where(selected, ids, -1).astype(jnp.int32),
+        scores=jnp.where(selected, scores, 0.0).astype(boxes.dtype),
+        mask=selected,
+    )
+
+
+def _measured(info: LowInfo, num_tracks: int) -> Bool[Array, " T"]:
+    """The low-level slots that took a measurement on the frame (births included)."""
+    slot = jnp.where(info.assignment >= 0, info.assignment, num_tracks)
+    return jnp.zeros((num_tracks,), bool).at[slot].set(True, mode="drop") | info.born
+
+
+def _follow(high: HighState, low: LowState, boxes, velocity, max_lost) -> HighState:
+    """Tracker matching (Sec. 5.1): a tracker follows its track while the track lives;
+    a lost one is propagated at constant velocity, and dropped after ``max_lost`` frames."""
+    slot = jnp.clip(high.low_slot, 0)
+    alive = high.ids >= 0
+    followed = alive & (high.low_slot >= 0) & low.alive[slot] & (low.ids[slot] == high.low_id)
+    shift = jnp.concatenate([high.velocity, jnp.zeros_like(high.velocity)], axis=-1)
+    lost = jnp.where(followed, 0, high.lost + alive)
+    keep = alive & (followed | (lost <= max_lost))
+    return high._replace(
+        ids=jnp.where(keep, high.ids, -1),
+        low_slot=jnp.where(followed, high.low_slot, -1),
+        low_id=jnp.where(followed, high.low_id, -1),
+        boxes=jnp.where(followed[:, None], boxes[slot], high.boxes + shift),
+        velocity=jnp.where(followed[:, None], velocity[slot], high.velocity),
+        lost=jnp.where(keep, lost, 0),
+        age=jnp.where(keep, high.age + 1, 0),
+    )
+
+
+def _take(high: HighState, match, low: LowState, boxes, velocity) -> HighState:
+    """Lost trackers take the tracks they were re-associated with (``match`` [S])."""
+    took = match >= 0
+    slot = jnp.clip(match, 0)
+    return high._replace(
+        low_slot=jnp.where(took, match, high.low_slot),
+        low_id=jnp.where(took, low.ids[slot], high.low_id),
+        boxes=jnp.where(took[:, None], boxes[slot], high.boxes),
+        velocity=jnp.where(took[:, None], velocity[slot], high.velocity),
+        lost=jnp.where(took, 0, high.lost),
+        reassociated=high.reassociated | took,
+    )
+
+
+def _start(high: HighState, starts, low: LowState, boxes, velocity, group_of):
+    """New high-level trackers on the confirmed tracks ``starts`` [T] no lost tracker took;
+    ``group_of(born)`` marks those born colliding with two or more trackers."""
+    new = start_tracks(high.ids >= 0, starts, jnp.int32(0))
+    source = jnp.clip(new.source, 0, starts.shape[0] - 1)
+    born = new.born
+    high = high._replace(
+        ids=jnp.where(born, low.ids[source] + 1, high.ids),
+        low_slot=jnp.where(born, source, high.low_slot),
+        low_id=jnp.where(born, low.ids[source], high.low_id),
+        boxes=jnp.where(born[:, None], boxes[source], high.boxes),
+        velocity=jnp.where(born[:, None], velocity[source], high.velocity),
+        lost=jnp.where(born, 0, high.lost),
+        age=jnp.where(born, 0, high.age),
+        reassociated=jnp.where(born, False, high.reassociated),
+        event=jnp.where(born, 0, high.event),
+    )
+    return high._replace(group=jnp.where(born, group_of(born, high), high.group)), new
+
+
+def hierarchical_step(
+    key: Array,
+    state: HierarchicalState,
+    params: HierarchicalParams,
+    inputs: FrameInputs,
+    *,
+    variant: str,
+    measurement: str,
+    patch_shape: tuple[int, int],
+) -> tuple[HierarchicalState, HierarchicalInfo]:
+    """One frame of the Hierarchical tracker (the module's steps 1-6)."""
+    del key
+    detections = inputs.detections
+    num_tracks = state.low.alive.shape[0]
+    low, low_info = low_step(
+        state.low,
+        params.low,
+        measurements_of(detections.boxes, measurement),
+        detections.mask,
+        measurement=measurement,
+    )
+    boxes = low_boxes(low, measurement)
+    velocity = low_velocity(low)
+    measured = _measured(low_info, num_tracks) & low.alive
+    ones = jnp.ones((num_tracks,), boxes.dtype)
+    own_ids = low.ids + 1
+    if variant == "managed":
+        state = state._replace(low=low)
+        info = _info(
+            _tracks(boxes, own_ids, measured & low.confirmed, ones),
+            _tracks(boxes, own_ids, measured, ones),
+            state,
+            low_info,
+            jnp.array(False),
+            measurement,
+        )
+        return state, info
+
+    high = _follow(state.high, low, boxes, velocity, params.max_lost)
+    histograms = box_histograms(inputs.frame, boxes, patch_shape)
+    background = box_histograms(params.background, boxes, patch_shape)
+    lost = (high.ids >= 0) & (high.low_slot < 0)
+    confirmed_now = low_info.newly_confirmed & low.alive
+    pools = fresh_pool(histograms, background, params.appearance.delta)
+    distance, gated = association_distances(
+        state.appearance, lost, histograms, pools, confirmed_now, params.appearance
+    )
+    match = reassociate(distance, gated)
+    high = _take(high, match, low, boxes, velocity)
+    taken = (
+        jnp.zeros((num_tracks,), bool)
+        .at[jnp.where(match >= 0, match, num_tracks)]
+        .set(True, mode="drop")
+    )
+
+    def group_of(born, current):
+        collisions = collision_map(current.boxes, current.ids >= 0, params.events.min_overlap)
+        return is_group_birth(collisions, born)
+
+    high, new = _start(high, confirmed_now & ~taken, low, boxes, velocity, group_of)
+    alive = high.ids >= 0
+    following = alive & (high.low_slot >= 0)
+    slot = jnp.clip(high.low_slot, 0)
+    collisions = collision_map(high.boxes, alive, params.events.min_overlap)
+    single = ~jnp.any(collisions, axis=1)
+    table = reset_slots(state.appearance, new.born)
+    update = following & measured[slot] & low.confirmed[slot] & single & ~high.group
+    table = update_appearance(
+        table,
+        histograms[slot],
+        background[slot],
+        update,
+        params.appearance,
+        num_current=NUM_CURRENT,
+    )
+    events = event_step(
+        high.event, collisions, high.group, alive, high.age, high.reassociated, params.events
+    )
+    high = high._replace(event=jnp.where(alive, events, 0))
+    shown = following & measured[slot] & low.confirmed[slot]
+    label = (
+        jnp.full((num_tracks,), -1, jnp.int32)
+        .at[jnp.where(following, slot, num_tracks)]
+        .set(high.ids, mode="drop")
+    )
+    state = HierarchicalState(low, high, table)
+    info = _info(
+        _tracks(high.boxes, high.ids, shown, jnp.ones_like(high.boxes[:, 0])),
+        _tracks(boxes, jnp.where(label >= 0, label, own_ids), measured, ones),
+        state,
+        low_info,
+        new.overflow,
+        measurement,
+    )
+    return state, info
+
+
+def _info(tracks, candidates, state, low_info, overflow, measurement):
+    """The frame's :class:`HierarchicalInfo` (after the frame's ``state``)."""
+    high, low = state.high, state.low
+    return HierarchicalInfo(
+        tracks=tracks,
+        candidates=candidates,
+        events=high.event,
+        event_ids=high.ids,
+        low_boxes=low_boxes(low, measurement),
+        low_confirmed=low.confirmed & low.alive,
+        low_alive=low.alive,
+        high_boxes=high.boxes,
+        high_lost=(high.ids >= 0) & (high.low_slot < 0),
+        pool=state.appearance.features,
+        distances=state.appearance.last_distance,
+        low=low_info,
+        overflow=overflow | (low_info.overflow > 0),
+    )
+
+
+def hierarchical_filter(
+    variant: str,
+    num_tracks: int,
+    num_trackers: int,
+    measurement: str = "box",
+    patch_shape: tuple[int, int] = PATCH_SHAPE,
+) -> Filter:
+    """Builds the Hierarchical tracker; all arguments are static.
+
+    Args:
+        variant: ``"managed"`` (low level alone) or ``"full"`` (:data:`STEPPED_VARIANTS`).
+        num_tracks: low-level slots (> 0).
+        num_trackers: high-level slots (> 0).
+        measurement: ``"box"`` or ``"ellipse"`` (:mod:`~jaxtrack.filters.hier_low`).
+        patch_shape: samples per box of the colour histograms.
+
+    Returns:
+        The :class:`~jaxtrack.filters.base.Filter` (steps on
+        :class:`~jaxtrack.types.FrameInputs`).
+
+    Raises:
+        ValueError: an unknown variant or a non-positive size.
+    """
+    if variant not in STEPPED_VARIANTS:
+        raise ValueError(f"variant must be one of {', '.join(STEPPED_VARIANTS)}, got {variant!r}")
+    if num_tracks <= 0 or num_trackers <= 0:
+        raise ValueError(f"slots must be positive, got {num_tracks} and {num_trackers}")
+    init = functools.partial(
+        init_hierarchical,
+        num_tracks=num_tracks,
+        num_trackers=num_trackers,
+        measurement=measurement,
+    )
+    step = functools.partial(
+        hierarchical_step, variant=variant, measurement=measurement, patch_shape=patch_shape
+    )
+    return Filter(init=init, step=step)

@@ -1,0 +1,187 @@
+"""The Hierarchical tracker's configuration: what ``jaxtrack track --tracker hierarchical`` runs.
+
+* :class:`HierarchicalConfig`: the variant (``"kalman"``: the Kalman bank of the baseline,
+  :mod:`~jaxtrack.filters.kalman`; ``"managed"``: the low level with its ``|S_k|^1/2`` track
+  management; ``"full"``: both levels, the default), the measurement (box or ellipse), the
+  tables' sizes, how long a lost tracker waits, and the output rules;
+* :func:`hierarchical_params`: the :class:`~jaxtrack.filters.hierarchical.HierarchicalParams`
+  of a sequence (its frame rate turns the durations into frames) with its background image;
+* :func:`build_hierarchical`: the registry entry ``(config, info, background, variant) ->
+  (Filter, params)``; the context is the background model's image
+  (:func:`~jaxtrack.pipelines.background.median_background`, computed by the pipelines).
+
+Every variant steps on :class:`~jaxtrack.types.FrameInputs` (the ``"kalman"`` one ignores
+the frame), so the three run through the same streamed pipeline and compare on the same
+detections.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any, ClassVar
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import Filter
+from jaxtrack.filters.hier_appearance import PATCH_SHAPE
+from jaxtrack.filters.hier_appearance import default_params as default_appearance_params
+from jaxtrack.filters.hier_events import default_event_params
+from jaxtrack.filters.hier_low_defaults import default_low_params
+from jaxtrack.filters.hierarchical import HierarchicalParams, hierarchical_filter
+from jaxtrack.filters.kalman import KALMAN_PRESETS, kalman_filter
+from jaxtrack.filters.kalman_tracker import MAX_TRACKS as KALMAN_TRACKS
+from jaxtrack.filters.kalman_tracker import kalman_memory_estimate
+from jaxtrack.parameters import frozen_properties
+from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
+from jaxtrack.types import SequenceInfo
+
+#: The low level's measurements (:mod:`~jaxtrack.filters.hier_low`).
+MEASUREMENTS = ("box", "ellipse")
+#: The variants, in the order of the paper's levels.
+VARIANTS = ("kalman", "managed", "full")
+#: Seconds a new tracker is entering (the event module's default, 25 frames at 25 fps).
+ENTERING_SECONDS = 1.0
+#: Frame rate assumed when ``seqinfo.ini`` gives none.
+DEFAULT_FRAME_RATE = 25.0
+#: Grey level of the background image when no background model is given (direct API use;
+#: every pipeline gives the span's median image).
+FLAT_BACKGROUND = 128
+
+
+@dataclasses.dataclass(frozen=True)
+class HierarchicalConfig(TrackerConfig):
+    """The Hierarchical tracker's configuration (``jaxtrack track --tracker hierarchical``)."""
+
+    tracker: ClassVar[str] = "hierarchical"
+
+    variant: str = setting(
+        "full",
+        Rule(
+            "'kalman' (the Kalman bank alone), 'managed' (+ |S|^1/2 track management) or "
+            "'full' (+ appearance trackers and events)",
+            str,
+            choices=VARIANTS,
+        ),
+    )
+    measurement: str = setting(
+        "box",
+        Rule("the low level's measurement, 'box' or 'ellipse'", str, choices=MEASUREMENTS),
+    )
+    max_tracks: int = setting(32, Rule("low-level track slots", int, 1, 1024))
+    max_trackers: int = setting(32, Rule("high-level tracker slots", int, 1, 1024))
+    lost_seconds: float = setting(
+        4.0,
+        Rule("seconds a lost tracker waits to be re-associated", float, 0.0, 3600.0),
+    )
+    output: str = setting("offline", OUTPUT)
+    max_gap: int = setting(25, MAX_GAP)
+
+
+def frame_rate(info: SequenceInfo) -> float:
+    """The sequence's frame rate (:data:`DEFAULT_FRAME_RATE` when ``seqinfo.ini`` has none)."""
+    return float(info.frame_rate or DEFAULT_FRAME_RATE)
+
+
+def hierarchical_params(
+    config: HierarchicalConfig, info: SequenceInfo, background: np.ndarray | None = None
+) -> HierarchicalParams:
+    """The default parameters for a sequence: durations in frames at its frame rate.
+
+    Raises:
+        InputError: a background image of another size than the sequence's.
+    """
+    shape = (info.im_height, info.im_width, 3)
+    if background is None:
+        background = np.full(shape, FLAT_BACKGROUND, np.uint8)
+    background = np.asarray(background)
+    if background.shape != shape or background.dtype != np.uint8:
+        raise InputError(
+            f"the background image is {background.dtype} {background.shape}; {info.name} needs "
+            f"uint8 {shape}"
+        )
+    fps = frame_rate(info)
+    return HierarchicalParams(
+        low=default_low_params(config.measurement, frame_rate=fps),
+        appearance=default_appearance_params(),
+        events=default_event_params()._replace(
+            entering_frames=jnp.int32(round(ENTERING_SECONDS * fps))
+        ),
+        max_lost=jnp.float32(round(config.lost_seconds * fps)),
+        background=jnp.asarray(background),
+    )
+
+
+def build_hierarchical(
+    config: HierarchicalConfig, info: SequenceInfo, context: Any = None, variant: str = "GM"
+) -> tuple[Filter, Any]:
+    """The Hierarchical tracker of a configuration: ``(filter, params)`` (cached filters).
+
+    Args:
+        config: the configuration.
+        info: the sequence (image size, frame rate).
+        context: the background model's image (RGB ``uint8`` of the sequence's size), or
+            None (a flat grey image: the features are then ranked against no background).
+        variant: the PHD context's variant; only the default is accepted.
+
+    Raises:
+        InputError: a context that is not an image of the sequence's size, or a context
+            variant.
+    """
+    if variant != "GM":
+        raise InputError(f"context variant {variant!r} is for the PHD tracker")
+    if context is not None and not isinstance(context, np.ndarray | jnp.ndarray):
+        raise InputError("the Hierarchical tracker takes a background image, not a context")
+    if config.variant == "kalman":
+        return _kalman_on_frames(), KALMAN_PRESETS["default"].params()
+    filt = _hierarchical_filter(
+        config.variant, config.max_tracks, config.max_trackers, config.measurement
+    )
+    return filt, hierarchical_params(config, info, context)
+
+
+@functools.lru_cache(maxsize=8)
+def _hierarchical_filter(variant, max_tracks, max_trackers, measurement) -> Filter:
+    return hierarchical_filter(variant, max_tracks, max_trackers, measurement, PATCH_SHAPE)
+
+
+@functools.lru_cache(maxsize=1)
+def _kalman_on_frames() -> Filter:
+    """The baseline Kalman bank (default preset), stepping on frame inputs."""
+    preset = KALMAN_PRESETS["default"]
+    inner = kalman_filter(max_tracks=KALMAN_TRACKS, cost=preset.cost)
+
+    def step(key, state, params, inputs):
+        return inner.step(key, state, params, inputs.detections)
+
+    return Filter(init=inner.init, step=step)
+
+
+def hierarchical_memory_estimate(
+    config: HierarchicalConfig, capacity: int, chunk_frames: int
+) -> MemoryEstimate:
+    """The tracker's memory for a detection capacity, from the sizes (frames left out).
+
+    The state holds, per high-level slot, the 49 x 64 mean histograms and their statistics;
+    a step's temporaries are the histograms of every low-level box on the frame and on the
+    background (``2 x T x 49 x 64`` floats) and their patch samples; the per-frame outputs
+    are two track tables and the slots' events, pools and distances.
+    """
+    if config.variant == "kalman":
+        return kalman_memory_estimate(config, capacity, chunk_frames)
+    tracks, trackers = config.max_tracks, config.max_trackers
+    state = 4 * trackers * 49 * (64 + 8) + 4 * tracks * 64 + 64 * trackers
+    temporaries = 4 * tracks * (2 * 49 * 64 + 4 * 256 * 3) + 4 * tracks * capacity * 8
+    frame_output = 25 * (tracks + trackers) + 4 * trackers * (60 + 4 * 4) + 20 * tracks
+    chunk = 2 * state + temporaries
+    chunk += chunk_frames * (DETECTION_SLOT_BYTES * capacity + frame_output)
+    return MemoryEstimate(chunk_bytes=int(chunk + (1 << 16)), frame_output_bytes=frame_output)
+
+
+def hierarchical_properties(params: Any) -> Any:
+    """The parameter-properties tree: every parameter frozen (the tracker is not tuned by
+    gradient: its decisions are thresholds)."""
+    return frozen_properties(params)

@@ -1,0 +1,84 @@
+"""Event states of a tracking run, as written beside its results (``RES.events.csv``).
+
+A tracker whose registry entry ``writes_events`` (the Hierarchical tracker) has, per frame, the
+event state of each of its high-level slots and the slot's identity
+(:class:`~jaxtrack.filters.hierarchical.HierarchicalInfo` ``events``, ``event_ids``).
+:func:`event_outputs` keeps them beside the tracks (``frame_output`` of
+:func:`~jaxtrack.filters.base.run`); :func:`event_rows` turns them into one row per result
+row (identity and frame of the written results: the events of a frame the offline output
+interpolated are those of the tracker while it was lost), and labels the end of each track
+that leaves before the span's end as exiting
+(:func:`~jaxtrack.filters.hier_events.label_exits`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from jaxtyping import Array
+
+from jaxtrack.filters.hier_events import EVENT_NAMES, label_exits
+from jaxtrack.metrics.events import EventRows
+from jaxtrack.types import MotTable, Tracks
+
+
+class EventOutputs(NamedTuple):
+    """Per frame: the tracks and candidates (for the result rows) and the slots' events."""
+
+    tracks: Tracks
+    candidates: Tracks
+    events: Array
+    event_ids: Array
+
+
+def event_outputs(state: Any, info: Any, index: Any) -> EventOutputs:
+    """The per-frame output of a run that writes events (``frame_output`` of
+    :func:`~jaxtrack.filters.base.run`)."""
+    del state, index
+    return EventOutputs(info.tracks, info.candidates, info.events, info.event_ids)
+
+
+def event_rows(outputs: EventOutputs, rows: MotTable, first_frame: int) -> EventRows:
+    """The event state of every result row.
+
+    Args:
+        outputs: the run's :class:`EventOutputs`, stacked over frames.
+        rows: the written results (:func:`~jaxtrack.pipelines.tracking.output_rows`).
+        first_frame: MOT frame number of the run's first frame.
+
+    Returns:
+        One row per result row, sorted by frame then identity; exits labelled.
+    """
+    events = np.asarray(outputs.events)
+    ids = np.asarray(outputs.event_ids)
+    num_frames = events.shape[0]
+    state = {}
+    for t, s in zip(*np.nonzero(ids >= 0), strict=True):
+        state[(first_frame + int(t), int(ids[t, s]))] = int(events[t, s])
+    order = np.lexsort((rows.ids, rows.frames))
+    frames, identities = rows.frames[order], rows.ids[order]
+    codes = np.array(
+        [state.get((int(f), int(i)), -1) for f, i in zip(frames, identities, strict=True)],
+        np.int64,
+    )
+    last_frame = first_frame + num_frames - 1
+    codes = label_exits(frames, identities, _filled(identities, codes), last_frame)
+    names = np.asarray(EVENT_NAMES, dtype=object)[codes] if codes.size else np.array([], object)
+    return EventRows(frames.astype(np.int64), identities.astype(np.int64), names)
+
+
+def _filled(identities: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """Each identity's unknown codes (-1, rows of a track before its tracker started) take
+    the next known code of the identity (rows sorted by frame), else the previous one."""
+    out = codes.copy()
+    for identity in np.unique(identities):
+        rows = np.flatnonzero(identities == identity)
+        known = rows[codes[rows] >= 0]
+        if not known.size:
+            out[rows] = 0
+            continue
+        after = np.searchsorted(known, rows).clip(max=known.size - 1)
+        out[rows] = codes[known[after]]
+        out[rows[codes[rows] >= 0]] = codes[rows[codes[rows] >= 0]]
+    return out
