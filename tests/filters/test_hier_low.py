@@ -16,6 +16,7 @@ from jaxtrack.filters.hier_low_defaults import (
     DEFAULT_NOISE,
     default_low_params,
     low_params,
+    ratio_sequences,
     steady_state,
 )
 from jaxtrack.filters.hier_low_model import box_to_ellipse, ellipse_to_box, wrap_angle
@@ -145,8 +146,10 @@ def reference_step(state, params, measurements, valid, measurement):
 
 
 def _numpy_state(state: LowState) -> dict:
-    return {k: np.array(v, dtype=float if v.dtype == jnp.float32 else v.dtype) for k, v in
-            state._asdict().items()}
+    return {
+        k: np.array(v, dtype=float if v.dtype == jnp.float32 else v.dtype)
+        for k, v in state._asdict().items()
+    }
 
 
 def _random_frames(rng, measurement, num_frames, num_meas):
@@ -159,8 +162,12 @@ def _random_frames(rng, measurement, num_frames, num_meas):
         boxes[:, :2] += k * velocity
         boxes += rng.normal(0, 1.0, boxes.shape)
         clutter = np.column_stack(
-            [rng.uniform(0, 640, 2), rng.uniform(0, 480, 2), rng.uniform(20, 40, 2),
-             rng.uniform(50, 100, 2)]
+            [
+                rng.uniform(0, 640, 2),
+                rng.uniform(0, 480, 2),
+                rng.uniform(20, 40, 2),
+                rng.uniform(50, 100, 2),
+            ]
         )
         rows = np.vstack([boxes, clutter])[:num_meas]
         if measurement == "ellipse":
@@ -196,6 +203,89 @@ def test_step_matches_loop_reference(measurement):
         for key in ("born", "removed", "newly_confirmed"):
             seen[key] += int(expected[key].sum())
         seen["overflow"] += expected["overflow"]
-        seen["updated"] += int(np.sum((expected["assignment"] >= 0) & ~np.isin(
-            expected["assignment"], np.flatnonzero(expected["born"]))))
+        seen["updated"] += int(
+            np.sum(
+                (expected["assignment"] >= 0)
+                & ~np.isin(expected["assignment"], np.flatnonzero(expected["born"]))
+            )
+        )
     assert all(count > 0 for count in seen.values()), seen
+
+
+# --- single tracks: steady state and the derived thresholds --------------------------------
+
+_STEP = {m: jax.jit(functools.partial(low_step, measurement=m)) for m in MODELS}
+
+
+def _walk(measurement, num_frames, scale=1.0):
+    """Exact measurements of one target at constant velocity ``(2, 1)`` pixels per frame."""
+    k = np.arange(num_frames)[:, None]
+    boxes = np.hstack([100 + 2 * k, 200 + k, np.full_like(k, 40), np.full_like(k, 100)]) * scale
+    rows = boxes if measurement == "box" else np.asarray(box_to_ellipse(jnp.asarray(boxes)))
+    return rows.astype(np.float32)[:, None]
+
+
+def _run(measurement, params, rows, valid, capacity=2):
+    """Runs the jitted step over frames; returns the final state and the stacked infos."""
+    state, infos = init_low(capacity, measurement), []
+    for z, mask in zip(rows, valid, strict=True):
+        state, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.asarray(mask))
+        infos.append(info)
+    return state, jax.tree.map(lambda *x: np.stack(x), *infos)
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_steady_state_matches_dare_and_ratio_converges_to_one(measurement):
+    """S0_inf equals SciPy's DARE solution; exact measurements drive r_k to 1 (to 1e-3)."""
+    process_std, measurement_std, _ = DEFAULT_NOISE[measurement]
+    F, G, H, *_ = _reference_model(measurement)
+    Q, R = G @ np.diag(np.square(process_std)) @ G.T, np.diag(np.square(measurement_std))
+    prior = scipy.linalg.solve_discrete_are(F.T, H.T, Q, R)
+    _, innovation_cov = steady_state(measurement, process_std, measurement_std)
+    np.testing.assert_allclose(innovation_cov, H @ prior @ H.T + R, rtol=1e-8, atol=1e-15)
+
+    params = default_low_params(measurement)
+    rows = _walk(measurement, 40)
+    state, info = _run(measurement, params, rows, np.ones((40, 1), bool))
+    assert abs(float(state.ratio[0]) - 1.0) < 1e-3
+    assert np.all(np.diff(info.ratio[1:, 0]) <= 1e-6)  # falls after the birth (float32 plateau)
+    updating, _ = ratio_sequences(measurement, *DEFAULT_NOISE[measurement], count=10)
+    np.testing.assert_allclose(info.ratio[1:11, 0], updating, rtol=1e-4)
+    np.testing.assert_allclose(low_velocity(state)[0], [2.0, 1.0], atol=1e-3)
+    np.testing.assert_allclose(low_boxes(state, measurement)[0], [158, 189, 40, 100], atol=1e-2)
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+@pytest.mark.parametrize(("confirm_updates", "coast_frames"), [(2, 2), (4, 12), (6, 5)])
+def test_confirms_on_the_chosen_update_and_is_removed_after_coasting(
+    measurement, confirm_updates, coast_frames
+):
+    """Born on frame 0, confirmed on update ``U`` (frame U); after 40 updates, kept through
+    ``C`` missed frames and removed on the next."""
+    params = default_low_params(
+        measurement, confirm_updates=confirm_updates, coast_frames=coast_frames
+    )
+    num_frames = 41 + coast_frames + 3
+    valid = (np.arange(num_frames) <= 40)[:, None]
+    _, info = _run(measurement, params, _walk(measurement, num_frames), valid)
+    assert np.flatnonzero(info.newly_confirmed[:, 0]).tolist() == [confirm_updates]
+    assert np.flatnonzero(info.removed[:, 0]).tolist() == [40 + coast_frames + 1]
+    assert info.born[:, 0].sum() == 1
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_ratio_and_decisions_are_scale_free(measurement):
+    """The same scene at twice the size gives the same ratios, MSDs and decisions."""
+    params = default_low_params(measurement, confirm_updates=2, coast_frames=1)
+    frames, masks = _random_frames(np.random.default_rng(1), measurement, 8, 5)
+    doubled = frames.copy()
+    doubled[..., :4] *= 2.0
+    results = [
+        _run(measurement, params, f.astype(np.float32), masks, capacity=4)[1]
+        for f in (frames, doubled)
+    ]
+    np.testing.assert_allclose(results[0].ratio, results[1].ratio, rtol=1e-4)
+    np.testing.assert_allclose(results[0].msd, results[1].msd, rtol=1e-3, atol=1e-5)
+    for key in ("assignment", "born", "removed", "newly_confirmed", "overflow"):
+        np.testing.assert_array_equal(getattr(results[0], key), getattr(results[1], key))
+    assert results[0].newly_confirmed.any() and results[0].removed.any()
