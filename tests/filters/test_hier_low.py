@@ -1,0 +1,291 @@
+"""The Hierarchical low level against a NumPy loop reference, its steady state and known scenes."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.linalg
+
+from jaxtrack.errors import InputError
+from jaxtrack.filters.hier_low import LowState, init_low, low_boxes, low_step, low_velocity
+from jaxtrack.filters.hier_low_defaults import (
+    DEFAULT_NOISE,
+    default_low_params,
+    low_params,
+    ratio_sequences,
+    steady_state,
+)
+from jaxtrack.filters.hier_low_model import box_to_ellipse, ellipse_to_box, wrap_angle
+
+MODELS = ("box", "ellipse")
+
+# --- an independent NumPy reference of one step, one track and one pair at a time ---------
+
+
+def _reference_model(measurement):
+    """``F, G, H``, length flags of the measurement and the state, the size's state index."""
+    if measurement == "box":
+        n, shape, scale_index = 6, 2, 5
+        lengths_m, lengths_n = np.ones(4), np.ones(6)
+    else:
+        n, shape, scale_index = 7, 3, 4
+        lengths_m, lengths_n = np.array([1, 1, 1, 1, 0.0]), np.array([1, 1, 1, 1, 1, 1, 0.0])
+    transition = np.eye(n)
+    transition[0, 1] = transition[2, 3] = 1
+    gain = np.zeros((n, 2 + shape))
+    gain[0, 0], gain[1, 0], gain[2, 1], gain[3, 1] = 0.5, 1, 0.5, 1
+    for i in range(shape):
+        gain[4 + i, 2 + i] = 1
+    selection = np.zeros((2 + shape, n))
+    for row, col in enumerate([0, 2] + list(range(4, n))):
+        selection[row, col] = 1
+    return transition, gain, selection, lengths_m, lengths_n, scale_index
+
+
+def _wrap(residual, measurement):
+    residual = residual.copy()
+    if measurement == "ellipse":
+        while residual[-1] > np.pi / 2:
+            residual[-1] -= np.pi
+        while residual[-1] <= -np.pi / 2:
+            residual[-1] += np.pi
+    return residual
+
+
+def reference_step(state, params, measurements, valid, measurement):
+    """One frame with Python loops in float64; ``state`` is a dict of NumPy arrays."""
+    F, G, H, len_m, len_n, scale_index = _reference_model(measurement)
+    p = {k: np.asarray(v, float) for k, v in params._asdict().items()}
+    num_tracks, num_meas = len(state["alive"]), len(measurements)
+    norm = np.exp(p["log_steady_sqrt_det"])
+    means, covs, noises, innovations, ratios, scales = [], [], [], [], [], []
+    for t in range(num_tracks):
+        s = max(state["mean"][t][scale_index], 1.0)
+        q = p["process_std"] * s**len_m
+        mean = F @ state["mean"][t]
+        cov = F @ state["cov"][t] @ F.T + G @ np.diag(q**2) @ G.T
+        noise = np.diag((p["measurement_std"] * s**len_m) ** 2)
+        innovation_cov = H @ cov @ H.T + noise
+        means.append(mean), covs.append(cov), noises.append(noise), scales.append(s)
+        innovations.append(innovation_cov)
+        ratios.append(np.sqrt(np.linalg.det(innovation_cov)) / (s**4 * norm))
+    msd = np.zeros((num_meas, num_tracks))
+    pairs = []
+    for j in range(num_meas):
+        for t in range(num_tracks):
+            nu = _wrap(measurements[j] - H @ means[t], measurement)
+            msd[j, t] = nu @ np.linalg.solve(innovations[t], nu)
+            if valid[j] and state["alive"][t] and msd[j, t] <= p["gate"]:
+                pairs.append((msd[j, t], j, t))
+    track_of, meas_of = [-1] * num_meas, [-1] * num_tracks
+    for _, j, t in sorted(pairs):
+        if track_of[j] < 0 and meas_of[t] < 0:
+            track_of[j], meas_of[t] = t, j
+    new = {k: np.array(v, copy=True) for k, v in state.items()}
+    info = {
+        "born": np.zeros(num_tracks, bool),
+        "removed": np.zeros(num_tracks, bool),
+        "newly_confirmed": np.zeros(num_tracks, bool),
+    }
+    for t in range(num_tracks):
+        if not state["alive"][t]:
+            continue
+        hit = meas_of[t] >= 0
+        mean, cov = means[t], covs[t]
+        if hit:
+            j = meas_of[t]
+            gain = cov @ H.T @ np.linalg.inv(innovations[t])
+            mean = mean + gain @ _wrap(measurements[j] - H @ mean, measurement)
+            if measurement == "ellipse":
+                mean[-1] = _wrap(np.array([mean[-1]]), measurement)[0]
+            reduction = np.eye(len(mean)) - gain @ H
+            cov = reduction @ cov @ reduction.T + gain @ noises[t] @ gain.T
+            new["hits"][t] += 1
+            new["msd"][t] += (msd[j, t] - state["msd"][t]) / new["hits"][t]
+            if (
+                not state["confirmed"][t]
+                and ratios[t] <= p["confirm_ratio"]
+                and new["msd"][t] <= p["confirm_msd"]
+            ):
+                new["confirmed"][t] = info["newly_confirmed"][t] = True
+            new["misses"][t] = 0
+        else:
+            new["misses"][t] += 1
+            if ratios[t] > p["remove_ratio"]:
+                info["removed"][t] = True
+        new["mean"][t], new["cov"][t], new["ratio"][t] = mean, cov, ratios[t]
+        new["age"][t] += 1
+        if info["removed"][t]:
+            new["alive"][t] = new["confirmed"][t] = False
+            new["ids"][t], new["age"][t], new["misses"][t], new["hits"][t] = -1, 0, 0, 0
+            new["msd"][t] = new["ratio"][t] = 0.0
+            new["mean"][t], new["cov"][t] = np.zeros(len(mean)), np.eye(len(mean))
+    free = [t for t in range(num_tracks) if not state["alive"][t]]
+    orphans = [j for j in range(num_meas) if valid[j] and track_of[j] < 0]
+    assignment = list(track_of)
+    for t, j in zip(free, orphans, strict=False):
+        z = measurements[j]
+        mean = H.T @ z
+        s = max(mean[scale_index], 1.0)
+        cov = np.diag((p["initial_std"] * s**len_n) ** 2)
+        noise = np.diag((p["measurement_std"] * s**len_m) ** 2)
+        new["mean"][t], new["cov"][t], new["alive"][t], new["confirmed"][t] = mean, cov, 1, 0
+        new["ids"][t], new["age"][t], new["misses"][t], new["hits"][t] = new["next_id"], 1, 0, 0
+        new["next_id"] += 1
+        new["msd"][t] = 0.0
+        new["ratio"][t] = np.sqrt(np.linalg.det(H @ cov @ H.T + noise)) / (s**4 * norm)
+        info["born"][t] = True
+        assignment[j] = t
+    info["assignment"] = np.array(assignment)
+    info["overflow"] = max(len(orphans) - len(free), 0)
+    return new, info
+
+
+def _numpy_state(state: LowState) -> dict:
+    return {
+        k: np.array(v, dtype=float if v.dtype == jnp.float32 else v.dtype)
+        for k, v in state._asdict().items()
+    }
+
+
+def _random_frames(rng, measurement, num_frames, num_meas):
+    """Three targets walking at constant velocity, missed at random, plus random clutter."""
+    starts = np.array([[100.0, 120.0, 30.0, 80.0], [300.0, 200.0, 40.0, 100.0], [500, 90, 20, 60]])
+    velocity = np.array([[3.0, 1.0], [-2.0, 0.5], [0.5, 2.5]])
+    frames, masks = [], []
+    for k in range(num_frames):
+        boxes = starts.copy()
+        boxes[:, :2] += k * velocity
+        boxes += rng.normal(0, 1.0, boxes.shape)
+        clutter = np.column_stack(
+            [
+                rng.uniform(0, 640, 2),
+                rng.uniform(0, 480, 2),
+                rng.uniform(20, 40, 2),
+                rng.uniform(50, 100, 2),
+            ]
+        )
+        rows = np.vstack([boxes, clutter])[:num_meas]
+        if measurement == "ellipse":
+            rows = np.asarray(box_to_ellipse(jnp.asarray(rows)), float)
+            rows[:, 4] += rng.normal(0, 0.05, len(rows))
+        frames.append(rows)
+        masks.append(rng.uniform(size=num_meas) < 0.8)
+    return np.array(frames), np.array(masks)
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_step_matches_loop_reference(measurement):
+    """Gating, greedy association, updates, births, overflow, confirmation and removal."""
+    params = default_low_params(measurement, confirm_updates=2, coast_frames=1)
+    rng = np.random.default_rng(0)
+    frames, masks = _random_frames(rng, measurement, num_frames=10, num_meas=5)
+    step = jax.jit(functools.partial(low_step, measurement=measurement))
+    state = init_low(4, measurement)
+    reference = _numpy_state(state)
+    seen = {"born": 0, "removed": 0, "newly_confirmed": 0, "overflow": 0, "updated": 0}
+    for z, valid in zip(frames, masks, strict=True):
+        state, info = step(state, params, jnp.asarray(z, jnp.float32), jnp.asarray(valid))
+        reference, expected = reference_step(reference, params, z, valid, measurement)
+        for key in ("alive", "confirmed", "ids", "next_id", "age", "misses", "hits"):
+            np.testing.assert_array_equal(np.asarray(getattr(state, key)), reference[key], key)
+        for key in ("mean", "cov", "msd", "ratio"):
+            np.testing.assert_allclose(
+                getattr(state, key), reference[key], rtol=2e-3, atol=2e-3, err_msg=key
+            )
+        for key in ("assignment", "born", "removed", "newly_confirmed", "overflow"):
+            np.testing.assert_array_equal(np.asarray(getattr(info, key)), expected[key], key)
+        np.testing.assert_allclose(info.ratio, reference["ratio"], rtol=2e-3, atol=2e-3)
+        for key in ("born", "removed", "newly_confirmed"):
+            seen[key] += int(expected[key].sum())
+        seen["overflow"] += expected["overflow"]
+        seen["updated"] += int(
+            np.sum(
+                (expected["assignment"] >= 0)
+                & ~np.isin(expected["assignment"], np.flatnonzero(expected["born"]))
+            )
+        )
+    assert all(count > 0 for count in seen.values()), seen
+
+
+# --- single tracks: steady state and the derived thresholds --------------------------------
+
+_STEP = {m: jax.jit(functools.partial(low_step, measurement=m)) for m in MODELS}
+
+
+def _walk(measurement, num_frames, scale=1.0):
+    """Exact measurements of one target at constant velocity ``(2, 1)`` pixels per frame."""
+    k = np.arange(num_frames)[:, None]
+    boxes = np.hstack([100 + 2 * k, 200 + k, np.full_like(k, 40), np.full_like(k, 100)]) * scale
+    rows = boxes if measurement == "box" else np.asarray(box_to_ellipse(jnp.asarray(boxes)))
+    return rows.astype(np.float32)[:, None]
+
+
+def _run(measurement, params, rows, valid, capacity=2):
+    """Runs the jitted step over frames; returns the final state and the stacked infos."""
+    state, infos = init_low(capacity, measurement), []
+    for z, mask in zip(rows, valid, strict=True):
+        state, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.asarray(mask))
+        infos.append(info)
+    return state, jax.tree.map(lambda *x: np.stack(x), *infos)
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_steady_state_matches_dare_and_ratio_converges_to_one(measurement):
+    """S0_inf equals SciPy's DARE solution; exact measurements drive r_k to 1 (to 1e-3)."""
+    process_std, measurement_std, _ = DEFAULT_NOISE[measurement]
+    F, G, H, *_ = _reference_model(measurement)
+    Q, R = G @ np.diag(np.square(process_std)) @ G.T, np.diag(np.square(measurement_std))
+    prior = scipy.linalg.solve_discrete_are(F.T, H.T, Q, R)
+    _, innovation_cov = steady_state(measurement, process_std, measurement_std)
+    np.testing.assert_allclose(innovation_cov, H @ prior @ H.T + R, rtol=1e-8, atol=1e-15)
+
+    params = default_low_params(measurement)
+    rows = _walk(measurement, 40)
+    state, info = _run(measurement, params, rows, np.ones((40, 1), bool))
+    assert abs(float(state.ratio[0]) - 1.0) < 1e-3
+    assert np.all(np.diff(info.ratio[1:, 0]) <= 1e-6)  # falls after the birth (float32 plateau)
+    updating, _ = ratio_sequences(measurement, *DEFAULT_NOISE[measurement], count=10)
+    np.testing.assert_allclose(info.ratio[1:11, 0], updating, rtol=1e-4)
+    np.testing.assert_allclose(low_velocity(state)[0], [2.0, 1.0], atol=1e-3)
+    np.testing.assert_allclose(low_boxes(state, measurement)[0], [158, 189, 40, 100], atol=1e-2)
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+@pytest.mark.parametrize(("confirm_updates", "coast_frames"), [(2, 2), (4, 12), (6, 5)])
+def test_confirms_on_the_chosen_update_and_is_removed_after_coasting(
+    measurement, confirm_updates, coast_frames
+):
+    """Born on frame 0, confirmed on update ``U`` (frame U); after 40 updates, kept through
+    ``C`` missed frames and removed on the next."""
+    params = default_low_params(
+        measurement, confirm_updates=confirm_updates, coast_frames=coast_frames
+    )
+    num_frames = 41 + coast_frames + 3
+    valid = (np.arange(num_frames) <= 40)[:, None]
+    _, info = _run(measurement, params, _walk(measurement, num_frames), valid)
+    assert np.flatnonzero(info.newly_confirmed[:, 0]).tolist() == [confirm_updates]
+    assert np.flatnonzero(info.removed[:, 0]).tolist() == [40 + coast_frames + 1]
+    assert info.born[:, 0].sum() == 1
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_ratio_and_decisions_are_scale_free(measurement):
+    """The same scene at twice the size gives the same ratios, MSDs and decisions."""
+    params = default_low_params(measurement, confirm_updates=2, coast_frames=1)
+    frames, masks = _random_frames(np.random.default_rng(1), measurement, 8, 5)
+    doubled = frames.copy()
+    doubled[..., :4] *= 2.0
+    results = [
+        _run(measurement, params, f.astype(np.float32), masks, capacity=4)[1]
+        for f in (frames, doubled)
+    ]
+    np.testing.assert_allclose(results[0].ratio, results[1].ratio, rtol=1e-4)
+    np.testing.assert_allclose(results[0].msd, results[1].msd, rtol=1e-3, atol=1e-5)
+    for key in ("assignment", "born", "removed", "newly_confirmed", "overflow"):
+        np.testing.assert_array_equal(getattr(results[0], key), getattr(results[1], key))
+    assert results[0].newly_confirmed.any() and results[0].removed.any()
