@@ -38,7 +38,9 @@ from jaxtyping import Array, Bool, Float, Int
 #: Event codes (values of the per-tracker state); ``EVENT_NAMES[code]`` is the code's name.
 SINGLE, GROUPING, GROUPED, SPLITTING, ENTERING, EXITING = range(6)
 EVENT_NAMES = ("single", "grouping", "grouped", "splitting", "entering", "exiting")
-#: Default smallest collision overlap (fraction of the smaller box), untuned.
+#: Default smallest collision overlap (fraction of the smaller box). Chosen on the dev video
+#: seeds 0-2 with ground-truth boxes: the scripted group onsets are all found at 0.1, 60% at
+#: 0.3, 40% at 0.7 (people overlap only partly while crossing).
 DEFAULT_MIN_OVERLAP = 0.1
 #: Default frames a new tracker is ``ENTERING`` and a leaving one ``EXITING``: 1 s at 25 fps.
 DEFAULT_ENTERING_FRAMES = 25

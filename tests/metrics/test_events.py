@@ -177,3 +177,13 @@ def test_spurious_onset_lowers_precision_only(scene):
     assert scores["overall"]["precision"] == total / (total + 2)
     for kind in (*KINDS, "overall"):
         assert scores[kind]["recall"] == 1.0
+
+
+def test_no_output_scores_zero(scene):
+    gt = scene.gt_table
+    nothing = MotTable.from_arrays([], [], np.zeros((0, 4)))
+    rows = EventRows(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, "<U9"))
+    scores = score_events(rows, nothing, gt, scene.events)
+    assert scores["overall"]["predicted"] == scores["overall"]["matched"] == 0
+    assert scores["overall"]["scripted"] > 0
+    assert scores["overall"]["precision"] == scores["overall"]["recall"] == 0.0
