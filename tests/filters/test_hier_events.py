@@ -1,0 +1,222 @@
+"""Event management of the Hierarchical tracker: collision map, group births, the state
+machine (every transition on hand-made scenes) and the offline exit labelling."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.filters.hier_events import (
+    ENTERING,
+    EVENT_NAMES,
+    EXITING,
+    GROUPED,
+    GROUPING,
+    SINGLE,
+    SPLITTING,
+    EventParams,
+    collision_map,
+    default_event_params,
+    event_step,
+    is_group_birth,
+    label_exits,
+)
+
+
+def collision_loop(boxes, alive, min_overlap):
+    """Slow NumPy oracle of the collision map."""
+    size = len(boxes)
+    out = np.zeros((size, size), bool)
+    for i in range(size):
+        for j in range(size):
+            if i == j or not (alive[i] and alive[j]):
+                continue
+            xi, yi, wi, hi = boxes[i]
+            xj, yj, wj, hj = boxes[j]
+            w = min(xi + wi, xj + wj) - max(xi, xj)
+            h = min(yi + hi, yj + hj) - max(yi, yj)
+            inter = max(w, 0.0) * max(h, 0.0)
+            out[i, j] = inter > 0 and inter >= min_overlap * min(wi * hi, wj * hj)
+    return out
+
+
+def test_names_match_codes():
+    codes = (SINGLE, GROUPING, GROUPED, SPLITTING, ENTERING, EXITING)
+    assert [EVENT_NAMES[c] for c in codes] == [
+        "single",
+        "grouping",
+        "grouped",
+        "splitting",
+        "entering",
+        "exiting",
+    ]
+
+
+@pytest.mark.parametrize("min_overlap", [0.05, 0.3, 0.6])
+def test_collision_map_matches_loop(min_overlap):
+    rng = np.random.default_rng(0)
+    corners = rng.uniform(0, 40, (16, 2))
+    sides = rng.uniform(4, 30, (16, 2))
+    boxes = np.concatenate([corners, sides], 1).astype(np.float32)
+    alive = rng.random(16) < 0.8
+    expected = collision_loop(boxes.astype(np.float64), alive, min_overlap)
+    got = np.asarray(collision_map(jnp.asarray(boxes), jnp.asarray(alive), min_overlap))
+    assert expected.sum() >= 4 and (~expected).sum() >= 4  # both outcomes exercised
+    np.testing.assert_array_equal(got, expected)
+    jitted = jax.jit(collision_map)(jnp.asarray(boxes), jnp.asarray(alive), min_overlap)
+    np.testing.assert_array_equal(np.asarray(jitted), expected)
+
+
+def test_collision_analytic_cases():
+    boxes = jnp.array(
+        [[0, 0, 10, 10], [10, 0, 10, 10], [5, 5, 10, 10], [0, 0, 2, 2]], jnp.float32
+    )  # 0 and 1 touch (no area); 0 and 2 share 25/100; 3 lies inside 0
+    got = np.asarray(collision_map(boxes, jnp.ones(4, bool), 0.25))
+    assert not got[0, 1] and got[0, 2] and got[2, 0] and got[0, 3]
+    assert not np.asarray(collision_map(boxes, jnp.ones(4, bool), 0.26))[0, 2]
+
+
+def test_group_birth():
+    collisions = jnp.array(
+        [
+            [0, 1, 1, 0],
+            [1, 0, 0, 0],
+            [1, 0, 0, 1],
+            [0, 0, 1, 0],
+        ],
+        bool,
+    )
+    born = jnp.array([True, False, False, True])
+    # slot 0 collides with existing 1 and 2: a group; slot 3 only with 2.
+    np.testing.assert_array_equal(np.asarray(is_group_birth(collisions, born)), [1, 0, 0, 0])
+    # two new-borns colliding count only the existing ones.
+    born = jnp.array([True, True, False, False])
+    np.testing.assert_array_equal(np.asarray(is_group_birth(collisions, born)), [0, 0, 0, 0])
+
+
+def run_machine(boxes_over_time, alive_over_time, group, reassociated, params):
+    """Runs collision_map + event_step over a hand-made scene; returns [T, S] states."""
+    states = []
+    previous = jnp.zeros(boxes_over_time.shape[1], jnp.int32)
+    age = jnp.zeros(boxes_over_time.shape[1], jnp.int32)
+    for boxes, alive in zip(boxes_over_time, alive_over_time, strict=True):
+        collisions = collision_map(jnp.asarray(boxes), jnp.asarray(alive), params.min_overlap)
+        previous = event_step(
+            previous, collisions, jnp.asarray(group), jnp.asarray(alive), age, reassociated, params
+        )
+        states.append(np.asarray(previous))
+        age = age + jnp.asarray(alive, jnp.int32)
+    return np.stack(states)
+
+
+def test_state_machine_every_transition():
+    """Two people (slots 0, 1) approach, overlap, a group tracker (slot 2) appears over
+    them, leaves, and they separate; slot 3 is dead throughout."""
+    params = EventParams(jnp.float32(0.1), jnp.int32(2))
+    # x positions of the two people per frame; the group box spans both on frames 4-5.
+    x0 = [0, 0, 10, 15, 15, 15, 15, 10, 0, 0]
+    x1 = [60, 60, 30, 20, 20, 20, 20, 30, 60, 60]
+    num = len(x0)
+    boxes = np.zeros((num, 4, 4), np.float32)
+    boxes[:, 0] = [[x, 0, 10, 20] for x in x0]
+    boxes[:, 1] = [[x, 0, 10, 20] for x in x1]
+    boxes[:, 2] = [10, 0, 25, 20]
+    boxes[:, 3] = [15, 0, 10, 20]  # dead slot lying over both: must not count
+    alive = np.zeros((num, 4), bool)
+    alive[:, :2] = True
+    alive[4:6, 2] = True
+    group = np.array([False, False, True, False])
+    states = run_machine(boxes, alive, group, jnp.zeros(4, bool), params)
+    expected0 = [
+        ENTERING,  # frame 0: new, alone
+        ENTERING,  # frame 1: still within entering_frames = 2
+        SINGLE,  # apart (x 10 vs 30)
+        GROUPING,  # overlap with another single tracker
+        GROUPED,  # a confirmed group tracker appears over them
+        GROUPED,
+        SPLITTING,  # group tracker gone, still colliding with each other
+        SINGLE,  # apart again
+        SINGLE,
+        SINGLE,
+    ]
+    np.testing.assert_array_equal(states[:, 0], expected0)
+    np.testing.assert_array_equal(states[:, 1], expected0)
+    # the group tracker collides with (non-group) members: grouping; dead slots: single.
+    np.testing.assert_array_equal(states[4:6, 2], [GROUPING, GROUPING])
+    assert (states[:, 3] == SINGLE).all()
+    assert (states[:4, 2] == SINGLE).all() and (states[6:, 2] == SINGLE).all()
+
+
+def test_single_to_grouped_and_splitting_back_to_grouped():
+    params = EventParams(jnp.float32(0.1), jnp.int32(0))
+    collide = jnp.array([[0, 1], [1, 0]], bool)
+    apart = jnp.zeros((2, 2), bool)
+    alive = jnp.ones(2, bool)
+    age = jnp.full(2, 10, jnp.int32)
+    no = jnp.zeros(2, bool)
+    group = jnp.array([False, True])
+    single = jnp.array([SINGLE, SINGLE])
+    state = event_step(single, collide, group, alive, age, no, params)
+    assert int(state[0]) == GROUPED  # single straight to grouped
+    state = event_step(jnp.array([SPLITTING, 0]), collide, group, alive, age, no, params)
+    assert int(state[0]) == GROUPED  # splitting back to grouped
+    state = event_step(jnp.array([SPLITTING, 0]), collide, no, alive, age, no, params)
+    assert int(state[0]) == SPLITTING  # still colliding, no group tracker
+    state = event_step(jnp.array([GROUPED, 0]), apart, group, alive, age, no, params)
+    assert int(state[0]) == SINGLE  # any state, no collision: single
+
+
+def test_reassociated_tracker_is_not_entering():
+    params = default_event_params()
+    zeros = jnp.zeros(2, jnp.int32)
+    apart = jnp.zeros((2, 2), bool)
+    alive = jnp.ones(2, bool)
+    state = event_step(zeros, apart, alive & False, alive, zeros, jnp.array([False, True]), params)
+    np.testing.assert_array_equal(np.asarray(state), [ENTERING, SINGLE])
+
+
+def test_event_step_jit_and_vmap_over_params():
+    rng = np.random.default_rng(3)
+    boxes = jnp.asarray(rng.uniform(0, 40, (6, 4)).astype(np.float32) + np.array([0, 0, 5, 5]))
+    alive = jnp.asarray(rng.random(6) < 0.9)
+    previous = jnp.asarray(rng.integers(0, 6, 6), jnp.int32)
+    group = jnp.asarray(rng.random(6) < 0.3)
+    age = jnp.asarray(rng.integers(0, 5, 6), jnp.int32)
+    reassociated = jnp.asarray(rng.random(6) < 0.3)
+
+    def frame(params):
+        collisions = collision_map(boxes, alive, params.min_overlap)
+        return event_step(previous, collisions, group, alive, age, reassociated, params)
+
+    batch = EventParams(jnp.array([0.05, 0.5, 0.9], jnp.float32), jnp.array([0, 3, 6], jnp.int32))
+    mapped = jax.jit(jax.vmap(frame))(batch)
+    for k in range(3):
+        single = frame(EventParams(batch.min_overlap[k], batch.entering_frames[k]))
+        np.testing.assert_array_equal(np.asarray(mapped[k]), np.asarray(single))
+    assert len({tuple(np.asarray(row)) for row in mapped}) > 1  # the parameters matter
+
+
+def test_label_exits():
+    # id 1 ends at frame 6 alone (exits); id 2 ends in a group (not exiting);
+    # id 3 lasts to the sequence's end (not exiting).
+    frames = np.array([1, 2, 3, 4, 5, 6, 1, 2, 3, 4, 8, 9, 10])
+    ids = np.array([1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3])
+    events = np.array(
+        [
+            *(ENTERING, SINGLE, GROUPING, SINGLE, SINGLE, SINGLE),
+            *(SINGLE, SINGLE, SINGLE, GROUPED),
+            *(ENTERING, SINGLE, SINGLE),
+        ]
+    )
+    out = label_exits(frames, ids, events, last_frame=10, exiting_frames=4)
+    expected = events.copy()
+    expected[3:6] = EXITING  # frames 4-6: the trailing single run inside 3 < f <= 6
+    np.testing.assert_array_equal(out, expected)
+    out = label_exits(frames, ids, events, last_frame=10, exiting_frames=2)
+    expected = events.copy()
+    expected[4:6] = EXITING  # frames 5-6
+    np.testing.assert_array_equal(out, expected)
+    # with the sequence ending on frame 6, id 1 no longer leaves early: nothing changes.
+    np.testing.assert_array_equal(label_exits(frames, ids, events, 6, 4), events)
