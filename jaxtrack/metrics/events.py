@@ -35,8 +35,7 @@ denominator)`` as CLEAR's.
 The default :data:`DEFAULT_TOLERANCE` is 25 frames, 1 s at the synthetic scenes' 25 fps: a
 tracker confirms a new track a few frames after its first detection (M-of-N), an event
 machine sees a collision only once the estimated boxes overlap, and a group tracker is born
-only once confirmed; a second covers these delays without merging two events of one person
-(the scripted events of a person are further apart).
+only once confirmed; a second covers these delays.
 """
 
 from __future__ import annotations
