@@ -13,9 +13,10 @@ exiting the scene, driven by a **collision map** of the current estimates.
 * **State machine** (Sec. 5.5, :func:`event_step`), with ``c_i`` "collides with some tracker"
   and ``g_i`` "collides with a confirmed group tracker":
 
-  - ``not c_i``: ``ENTERING`` during a new tracker's first ``entering_frames`` frames (not a
-    re-associated one), else ``SINGLE`` ("if they stop colliding at any state, they become
-    single again");
+  - ``not c_i``: ``ENTERING`` during a new tracker's first ``entering_frames`` frames while
+    it has been entering since its birth (not a re-associated tracker, nor one that has
+    collided since: a tracker enters once), else ``SINGLE`` ("if they stop colliding at any
+    state, they become single again");
   - ``c_i and g_i``: ``GROUPED`` ("if they also collide with a confirmed group tracker");
   - ``c_i and not g_i``: ``SPLITTING`` when the previous state was ``GROUPED`` or
     ``SPLITTING`` ("once they no longer collide with a confirmed group tracker"), else
@@ -129,7 +130,8 @@ def event_step(
         collisions: this frame's :func:`collision_map`.
         group: True for a confirmed group tracker.
         alive: True for a live tracker.
-        age: frames since the tracker's birth (0 on its birth frame).
+        age: frames since the tracker's birth (0 on its birth frame, where ``previous`` is
+            not read).
         reassociated: True for a tracker re-associated with a lost one (it is not entering).
         params: the machine's parameters.
 
@@ -139,7 +141,8 @@ def event_step(
     colliding = jnp.any(collisions, axis=1)
     with_group = jnp.any(collisions & group[None], axis=1)
     was_grouped = (previous == GROUPED) | (previous == SPLITTING)
-    entering = (age < params.entering_frames) & ~reassociated
+    since_birth = (age == 0) | (previous == ENTERING)
+    entering = (age < params.entering_frames) & since_birth & ~reassociated
     alone = jnp.where(entering, ENTERING, SINGLE)
     together = jnp.where(was_grouped, SPLITTING, GROUPING)
     state = jnp.where(colliding, jnp.where(with_group, GROUPED, together), alone)

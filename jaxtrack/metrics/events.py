@@ -4,14 +4,18 @@ The paper shows its events on examples only; this scores them on scenes whose ev
 known (the synthetic video scenes' scripted events). Four kinds of *onsets* are scored,
 each a ``(frame, identity)``:
 
-* **Scripted** (ground-truth ids): a ``crossing`` with frames ``(first, last)`` (the two
-  people's boxes overlap) gives a ``group`` onset at ``first`` and a ``split`` onset at
+* **Scored truths** (ground-truth ids): a ``crossing`` with frames ``(first, last)`` (the
+  two people's boxes overlap) gives a ``group`` onset at ``first`` and a ``split`` onset at
   ``last`` for each of its two ids; a ``group`` event ``(entry, split)`` gives a ``group``
   onset at ``entry`` and a ``split`` onset at ``split`` for each member; an ``entry`` gives an
-  ``entry`` onset at its frame, except for a member entering with its group on the group's
-  first frame (it collides from its first frame, so it is grouping, not entering); an
-  ``exit`` gives an ``exit`` onset at its frame (the person's last). ``occlusion`` and
-  ``standing`` events are not scored.
+  ``entry`` onset and an ``exit`` an ``exit`` onset at its frame (the person's first / last),
+  unless the person's box overlaps another's there (:func:`gt_collisions`). ``occlusion``
+  and ``standing`` events are not scored.
+* **Unscored truths** ("don't care", like MOTChallenge's ignored boxes): people's boxes also
+  overlap outside the scripted events (a scene puts some twenty people on 640 x 480 pixels,
+  and boxes of people at different depths overlap in the image). Each start (``group``) and
+  end (``split``) of a run of frames in which a person's gt box overlaps another's, and the
+  entries and exits left out above, are true events that the script does not name.
 * **Predicted** (tracker ids), from each identity's rows in frame order (``prev`` its
   previous row's event, none on its first row): ``group`` where the event is ``grouping``
   or ``grouped`` and ``prev`` is neither (or none); ``split`` where the event is neither
@@ -19,19 +23,19 @@ each a ``(frame, identity)``:
   not; ``exit`` at the *last* row of each run of ``exiting`` rows (the frame the tracker
   leaves, compared with the person's last frame).
 
-A predicted onset ``(f, i)`` may match a scripted one ``(f*, g)`` of the same kind when
+A predicted onset ``(f, i)`` may match a truth onset ``(f*, g)`` of the same kind when
 ``|f - f*| <= tolerance`` and tracker ``i`` is matched to ground-truth ``g`` by the CLEAR MOT
 matching (:func:`~jaxtrack.metrics.clear.clear_matching`, IoU >= 0.5) on some frame in
-``f* - tolerance .. f* + tolerance``. Predicted and scripted onsets of a kind are then
-matched one to one, as many as possible (an optimal assignment on ``|f - f*|`` with
-forbidden pairs). ``precision = matched / predicted``, ``recall = matched / scripted``, per
-kind and over the four kinds together; ratios divide by ``max(1, denominator)`` as CLEAR's.
+``f* - tolerance .. f* + tolerance``. Predicted and scored onsets of a kind are matched one
+to one, as many as possible; an unmatched predicted onset that may match an unscored truth
+is *ignored*. ``precision = matched / (predicted - ignored)``, ``recall = matched /
+scored``, per kind and over the four kinds together; ratios divide by ``max(1,
+denominator)`` as CLEAR's.
 
 The default :data:`DEFAULT_TOLERANCE` is 25 frames, 1 s at the synthetic scenes' 25 fps: a
 tracker confirms a new track a few frames after its first detection (M-of-N), an event
 machine sees a collision only once the estimated boxes overlap, and a group tracker is born
-only once confirmed; a second covers these delays without merging two events of one person
-(the scripted events of a person are further apart).
+only once confirmed; a second covers these delays.
 """
 
 from __future__ import annotations
@@ -79,24 +83,52 @@ class Scripted(Protocol):
     frames: tuple[int, int]
 
 
-def scripted_onsets(events: Sequence[Scripted]) -> dict[str, np.ndarray]:
-    """The scripted onsets of each kind (module docstring), ``[n, 2]`` ``(frame, gt id)``."""
-    onsets = {kind: [] for kind in KINDS}
-    group_entries = set()
+def gt_collisions(gt: MotTable) -> np.ndarray:
+    """``[N]`` whether each gt row's box intersects (positive area) another gt box of its
+    frame: the scenes' own definition of two people overlapping."""
+    colliding = np.zeros(len(gt), bool)
+    order = np.argsort(gt.frames, kind="stable")
+    bounds = np.flatnonzero(np.diff(gt.frames[order])) + 1
+    for rows in np.split(order, bounds):
+        low, high = gt.boxes[rows, :2], gt.boxes[rows, :2] + gt.boxes[rows, 2:]
+        sides = np.minimum(high[:, None], high[None]) - np.maximum(low[:, None], low[None])
+        overlap = np.all(sides > 0, axis=-1)
+        np.fill_diagonal(overlap, False)
+        colliding[rows] = overlap.any(axis=1)
+    return colliding
+
+
+def scripted_onsets(
+    events: Sequence[Scripted], gt: MotTable
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The scored and the unscored ("don't care") truth onsets (module docstring).
+
+    Returns:
+        ``(scored, unscored)``: for each kind, ``[n, 2]`` ``(frame, gt id)``.
+    """
+    colliding = gt_collisions(gt)
+    touching = set(zip(gt.frames[colliding].tolist(), gt.ids[colliding].tolist(), strict=True))
+    scored = {kind: [] for kind in KINDS}
+    unscored = {kind: [] for kind in KINDS}
     for event in events:
         if event.kind in ("crossing", "group"):
             first, last = event.frames
-            onsets["group"] += [(first, pid) for pid in event.ids]
-            onsets["split"] += [(last, pid) for pid in event.ids]
-        if event.kind == "group":
-            group_entries |= {(event.frames[0], pid) for pid in event.ids}
-    for event in events:
-        onset = (event.frames[0], event.ids[0])
-        if event.kind == "entry" and onset not in group_entries:
-            onsets["entry"].append(onset)
-        if event.kind == "exit":
-            onsets["exit"].append(onset)
-    return {kind: np.array(rows, np.int64).reshape(-1, 2) for kind, rows in onsets.items()}
+            scored["group"] += [(first, pid) for pid in event.ids]
+            scored["split"] += [(last, pid) for pid in event.ids]
+        if event.kind in ("entry", "exit"):
+            onset = (event.frames[0], event.ids[0])
+            (unscored if onset in touching else scored)[event.kind].append(onset)
+    order = np.lexsort((gt.frames, gt.ids))
+    ids, frames, together = gt.ids[order], gt.frames[order], colliding[order]
+    first = np.ones(len(ids), bool)
+    first[1:] = ids[1:] != ids[:-1]
+    before = ~first & np.roll(together, 1)
+    for kind, keep in (("group", together & ~before), ("split", ~together & before)):
+        unscored[kind] += list(zip(frames[keep].tolist(), ids[keep].tolist(), strict=True))
+    return tuple(
+        {kind: np.array(rows, np.int64).reshape(-1, 2) for kind, rows in onsets.items()}
+        for onsets in (scored, unscored)
+    )
 
 
 def predicted_onsets(rows: EventRows) -> dict[str, np.ndarray]:
@@ -138,32 +170,39 @@ def matched_identities(results: MotTable, gt: MotTable) -> np.ndarray:
     ).astype(np.int64)
 
 
-def match_onsets(
-    predicted: np.ndarray, scripted: np.ndarray, matches: np.ndarray, tolerance: int
-) -> int:
-    """How many predicted and scripted onsets of one kind match one to one (module docstring).
+def compatible(
+    predicted: np.ndarray, truth: np.ndarray, matches: np.ndarray, tolerance: int
+) -> np.ndarray:
+    """``[n, m]`` whether predicted onset ``i`` may match truth onset ``j`` (module docstring).
 
     Args:
         predicted: ``[n, 2]`` ``(frame, tracker id)``.
-        scripted: ``[m, 2]`` ``(frame, gt id)``.
+        truth: ``[m, 2]`` ``(frame, gt id)``.
         matches: ``[k, 3]`` ``(frame, gt id, tracker id)`` from :func:`matched_identities`.
         tolerance: frames, >= 0.
+    """
+    allowed = np.abs(predicted[:, None, 0] - truth[None, :, 0]) <= tolerance
+    for j, (frame, gt_id) in enumerate(truth):
+        window = (np.abs(matches[:, 0] - frame) <= tolerance) & (matches[:, 1] == gt_id)
+        allowed[:, j] &= np.isin(predicted[:, 1], matches[window, 2])
+    return allowed
+
+
+def match_onsets(allowed: np.ndarray) -> np.ndarray:
+    """Matches predicted and truth onsets one to one, as many as possible (an optimal
+    assignment in which a forbidden pair costs 1, an allowed one 0).
+
+    Args:
+        allowed: ``[n, m]`` from :func:`compatible`.
 
     Returns:
-        The number of matched pairs.
+        ``[n]`` True for each matched predicted onset.
     """
-    if not len(predicted) or not len(scripted):
-        return 0
-    near = np.abs(predicted[:, None, 0] - scripted[None, :, 0]) <= tolerance
-    allowed = np.zeros_like(near)
-    for j, (frame, gt_id) in enumerate(scripted):
-        window = (np.abs(matches[:, 0] - frame) <= tolerance) & (matches[:, 1] == gt_id)
-        allowed[:, j] = np.isin(predicted[:, 1], matches[window, 2])
-    allowed &= near
-    gaps = np.abs(predicted[:, None, 0] - scripted[None, :, 0]).astype(np.float64)
-    forbidden = (tolerance + 1.0) * (min(near.shape) + 1)  # above any sum of allowed gaps
-    rows, cols = linear_sum_assignment(np.where(allowed, gaps, forbidden))
-    return int(allowed[rows, cols].sum())
+    matched = np.zeros(allowed.shape[0], bool)
+    if allowed.size:
+        rows, cols = linear_sum_assignment(np.where(allowed, 0.0, 1.0))
+        matched[rows[allowed[rows, cols]]] = True
+    return matched
 
 
 def score_events(
@@ -183,7 +222,8 @@ def score_events(
         tolerance: largest onset frame difference of a match, frames (>= 0).
 
     Returns:
-        ``{kind: {"predicted", "scripted", "matched", "precision", "recall"}}`` for each of
+        ``{kind: {"predicted", "ignored", "scripted", "matched", "precision", "recall"}}``
+        (counts of onsets, ``scripted`` the scored truths) for each of
         :data:`KINDS` and ``"overall"``, and ``"tolerance"``.
 
     Raises:
@@ -191,26 +231,26 @@ def score_events(
     """
     if tolerance < 0:
         raise InputError(f"event tolerance must be >= 0 frames, got {tolerance}")
-    predicted, truth = predicted_onsets(rows), scripted_onsets(scripted)
+    predicted = predicted_onsets(rows)
+    scored, unscored = scripted_onsets(scripted, gt)
     matches = matched_identities(results, gt)
-    counts = {
-        kind: (
-            len(predicted[kind]),
-            len(truth[kind]),
-            match_onsets(predicted[kind], truth[kind], matches, tolerance),
-        )
-        for kind in KINDS
-    }
+    counts = {}
+    for kind in KINDS:
+        onsets = predicted[kind]
+        matched = match_onsets(compatible(onsets, scored[kind], matches, tolerance))
+        ignored = compatible(onsets, unscored[kind], matches, tolerance).any(axis=1) & ~matched
+        counts[kind] = (len(onsets), int(ignored.sum()), len(scored[kind]), int(matched.sum()))
     counts["overall"] = tuple(sum(column) for column in zip(*counts.values(), strict=True))
     scores = {kind: _ratios(*count) for kind, count in counts.items()}
     return {**scores, "tolerance": tolerance}
 
 
-def _ratios(predicted: int, scripted: int, matched: int) -> dict:
+def _ratios(predicted: int, ignored: int, scripted: int, matched: int) -> dict:
     return {
         "predicted": predicted,
+        "ignored": ignored,
         "scripted": scripted,
         "matched": matched,
-        "precision": matched / max(1, predicted),
+        "precision": matched / max(1, predicted - ignored),
         "recall": matched / max(1, scripted),
     }

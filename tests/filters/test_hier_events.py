@@ -177,6 +177,22 @@ def test_reassociated_tracker_is_not_entering():
     np.testing.assert_array_equal(np.asarray(state), [ENTERING, SINGLE])
 
 
+def test_a_tracker_enters_once():
+    """Born colliding (grouping), alone a frame later: single, not entering."""
+    params = EventParams(jnp.float32(0.1), jnp.int32(10))
+    collide = jnp.array([[0, 1], [1, 0]], bool)
+    apart = jnp.zeros((2, 2), bool)
+    alive, no = jnp.ones(2, bool), jnp.zeros(2, bool)
+    born = event_step(
+        jnp.zeros(2, jnp.int32), collide, no, alive, jnp.zeros(2, jnp.int32), no, params
+    )
+    np.testing.assert_array_equal(np.asarray(born), [GROUPING, GROUPING])
+    later = event_step(born, apart, no, alive, jnp.ones(2, jnp.int32), no, params)
+    np.testing.assert_array_equal(np.asarray(later), [SINGLE, SINGLE])
+    still = event_step(jnp.array([ENTERING, SINGLE]), apart, no, alive, jnp.full(2, 9), no, params)
+    np.testing.assert_array_equal(np.asarray(still), [ENTERING, SINGLE])
+
+
 def test_event_step_jit_and_vmap_over_params():
     rng = np.random.default_rng(3)
     boxes = jnp.asarray(rng.uniform(0, 40, (6, 4)).astype(np.float32) + np.array([0, 0, 5, 5]))

@@ -14,6 +14,7 @@ from jaxtrack.metrics.events import (
     GROUP_STATES,
     KINDS,
     EventRows,
+    gt_collisions,
     matched_identities,
     predicted_onsets,
     score_events,
@@ -48,21 +49,70 @@ def test_predicted_onsets_by_hand():
     np.testing.assert_array_equal(onsets["exit"], [[20, 7]])
 
 
+def collisions_loop(gt: MotTable) -> np.ndarray:
+    """Slow oracle of gt_collisions."""
+    out = np.zeros(len(gt), bool)
+    by_frame = {}
+    for row, frame in enumerate(gt.frames.tolist()):
+        by_frame.setdefault(frame, []).append(row)
+    for rows in by_frame.values():
+        for a in rows:
+            for b in rows:
+                (xa, ya, wa, ha), (xb, yb, wb, hb) = gt.boxes[a], gt.boxes[b]
+                w = min(xa + wa, xb + wb) - max(xa, xb)
+                h = min(ya + ha, yb + hb) - max(ya, yb)
+                out[a] |= a != b and w > 0 and h > 0
+    return out
+
+
+def test_gt_collisions_match_loop():
+    rng = np.random.default_rng(1)
+    frames = rng.integers(1, 6, 40)
+    boxes = np.concatenate([rng.uniform(0, 50, (40, 2)), rng.uniform(3, 15, (40, 2))], 1)
+    boxes[0] = boxes[1] + [boxes[1, 2], 0, 0, 0]  # touching (no area): not a collision
+    frames[0] = frames[1]
+    gt = MotTable.from_arrays(frames, np.arange(40), boxes)
+    expected = collisions_loop(gt)
+    assert 5 < expected.sum() < 35
+    np.testing.assert_array_equal(gt_collisions(gt), expected)
+
+
+def hand_scene() -> MotTable:
+    """People 1 and 2 enter together on frame 5 and overlap until 40; 3 enters alone on 5,
+    crosses 4 on frames 20-30 and leaves on 70; 4 stays from 10 to the end (80)."""
+    rows = []
+    for f in range(5, 46):
+        rows += [(f, 1, 0), (f, 2, 5 if f <= 40 else 50)]
+    for f in range(5, 71):
+        rows.append((f, 3, 300 if 20 <= f <= 30 else 200))
+    for f in range(10, 81):
+        rows.append((f, 4, 305))
+    frames, ids, x = map(np.array, zip(*rows, strict=True))
+    boxes = np.stack([x, np.zeros_like(x), np.full_like(x, 10), np.full_like(x, 20)], 1)
+    return MotTable.from_arrays(frames, ids, boxes.astype(float))
+
+
 def test_scripted_onsets_by_hand():
     events = [
         ScriptedEvent("entry", (1,), (5, 5), "west"),
         ScriptedEvent("entry", (2,), (5, 5), "west"),
         ScriptedEvent("entry", (3,), (5, 5), "east"),
         ScriptedEvent("group", (1, 2), (5, 40)),
+        ScriptedEvent("entry", (4,), (10, 10), "east"),
         ScriptedEvent("crossing", (3, 4), (20, 30)),
         ScriptedEvent("occlusion", (4,), (50, 60)),
         ScriptedEvent("exit", (3,), (70, 70), "south"),
     ]
-    onsets = scripted_onsets(events)
-    np.testing.assert_array_equal(onsets["group"], [[5, 1], [5, 2], [20, 3], [20, 4]])
-    np.testing.assert_array_equal(onsets["split"], [[40, 1], [40, 2], [30, 3], [30, 4]])
-    np.testing.assert_array_equal(onsets["entry"], [[5, 3]])  # 1, 2 enter as a group
-    np.testing.assert_array_equal(onsets["exit"], [[70, 3]])
+    scored, unscored = scripted_onsets(events, hand_scene())
+    np.testing.assert_array_equal(scored["group"], [[5, 1], [5, 2], [20, 3], [20, 4]])
+    np.testing.assert_array_equal(scored["split"], [[40, 1], [40, 2], [30, 3], [30, 4]])
+    np.testing.assert_array_equal(scored["entry"], [[5, 3], [10, 4]])  # 1, 2 enter together
+    np.testing.assert_array_equal(scored["exit"], [[70, 3]])
+    # every start and end of an overlap run, and the entries of 1 and 2, are unscored truths
+    np.testing.assert_array_equal(unscored["group"], [[5, 1], [5, 2], [20, 3], [20, 4]])
+    np.testing.assert_array_equal(unscored["split"], [[41, 1], [41, 2], [31, 3], [31, 4]])
+    np.testing.assert_array_equal(unscored["entry"], [[5, 1], [5, 2]])
+    assert unscored["exit"].shape == (0, 2)
 
 
 def two_people(tracker_ids=(1, 2)) -> tuple[MotTable, MotTable]:
@@ -87,7 +137,7 @@ def test_identity_tolerance_and_one_to_one():
     gt, results = two_people((11, 5))
     scripted = [ScriptedEvent("crossing", (1, 2), (20, 30))]
     # tracker 11 (gt 1) groups at 22, tracker 5 (gt 2) at 20 and again at 26 (a duplicate);
-    # tracker 11 splits 3 frames late, tracker 5 splits 6 frames late.
+    # tracker 11 splits 4 frames late, tracker 5 splits 7 frames early and 7 late.
     names = {11: ["single"] * 60, 5: ["single"] * 60}
     names[11][21:33] = ["grouping"] * 12
     names[5][19:22] = ["grouping"] * 3
@@ -96,6 +146,7 @@ def test_identity_tolerance_and_one_to_one():
     scores = score_events(rows, results, gt, scripted, tolerance=5)
     assert scores["group"] == {
         "predicted": 3,
+        "ignored": 0,
         "scripted": 2,
         "matched": 2,
         "precision": 2 / 3,
@@ -114,6 +165,26 @@ def test_identity_tolerance_and_one_to_one():
     assert score_events(lone_rows, crossed, gt, alone, 5)["group"]["matched"] == 0
     with pytest.raises(InputError, match="tolerance"):
         score_events(rows, results, gt, scripted, tolerance=-1)
+
+
+def test_onsets_of_unscripted_overlaps_are_ignored():
+    gt, results = two_people((11, 5))
+    # gt 2 moves onto gt 1 on frames 40-44: an overlap the script does not name.
+    moved = (gt.ids == 2) & (gt.frames >= 40) & (gt.frames <= 44)
+    boxes = np.where(moved[:, None], gt.boxes - [95, 0, 0, 0], gt.boxes)
+    gt = MotTable.from_arrays(gt.frames, gt.ids, boxes)
+    results = MotTable.from_arrays(results.frames, results.ids, boxes + 0.5)
+    # tracker 11 groups on 41-44 (the overlap: ignored) and on 10-12 (spurious).
+    names = np.full(len(results), "single", "<U9")
+    frames = results.frames
+    span = ((frames >= 41) & (frames <= 44)) | ((frames >= 10) & (frames <= 12))
+    names[(results.ids == 11) & span] = "grouping"
+    rows = EventRows(results.frames, results.ids, names)
+    scores = score_events(rows, results, gt, [ScriptedEvent("exit", (2,), (60, 60))], 5)
+    for kind in ("group", "split"):
+        assert (scores[kind]["predicted"], scores[kind]["ignored"]) == (2, 1)
+        assert scores[kind]["precision"] == 0.0  # 0 matched of 2 - 1
+    assert scores["overall"]["ignored"] == 2 and scores["overall"]["recall"] == 0.0
 
 
 @pytest.fixture(scope="module")
@@ -149,7 +220,13 @@ def test_perfect_predictions_score_one(scene):
     for kind in (*KINDS, "overall"):
         assert scores[kind]["precision"] == scores[kind]["recall"] == 1.0, kind
     assert scores["group"]["scripted"] == 5  # a group of 3 and a crossing of 2
-    assert scores["entry"]["scripted"] == sum(e.kind == "entry" for e in scene.events) - 3
+    gt = scene.gt_table
+    colliding = collisions_loop(gt)
+    touching = set(zip(gt.frames[colliding].tolist(), gt.ids[colliding].tolist(), strict=True))
+    entries = [e for e in scene.events if e.kind == "entry"]
+    alone = [e for e in entries if (e.frames[0], e.ids[0]) not in touching]
+    assert 0 < len(alone) < len(entries)
+    assert scores["entry"]["scripted"] == len(alone)
     assert scores["tolerance"] == DEFAULT_TOLERANCE
 
 
@@ -167,14 +244,23 @@ def test_spurious_onset_lowers_precision_only(scene):
     rows = perfect_rows(scene)
     gt = scene.gt_table
     clean = score_events(rows, gt, gt, scene.events)
-    # person 1 (a lone walker, frames 17-187) "groups" on frames 100-102: one spurious group
-    # onset (100) and one spurious split onset (103).
+    # a person who overlaps nobody on frames f - 30 .. f + 33 "groups" on frames f .. f + 2:
+    # one spurious group onset (f) and one spurious split onset (f + 3), neither ignored.
+    colliding = collisions_loop(gt)
+    pid, f = next(
+        (pid, f)
+        for pid in range(1, scene.num_people + 1)
+        for f in range(50, 450, 10)
+        if np.sum((gt.ids == pid) & (abs(gt.frames - f - 1) <= 32)) == 65
+        and not colliding[(gt.ids == pid) & (abs(gt.frames - f - 1) <= 32)].any()
+    )
     names = rows.names.copy()
-    names[(rows.ids == 1) & (rows.frames >= 100) & (rows.frames <= 102)] = "grouping"
+    names[(rows.ids == pid) & (rows.frames >= f) & (rows.frames <= f + 2)] = "grouping"
     scores = score_events(rows._replace(names=names), gt, gt, scene.events)
     assert scores["group"]["precision"] == 5 / 6 and scores["split"]["precision"] == 5 / 6
-    total = clean["overall"]["predicted"]
-    assert scores["overall"]["precision"] == total / (total + 2)
+    matched = clean["overall"]["matched"]  # all predicted onsets not ignored (precision 1)
+    assert clean["overall"]["precision"] == 1.0 and matched > 30
+    assert scores["overall"]["precision"] == matched / (matched + 2)
     for kind in (*KINDS, "overall"):
         assert scores[kind]["recall"] == 1.0
 
