@@ -103,7 +103,7 @@ from jaxtrack.detect.pipeline import DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
 from jaxtrack.filters.kalman import KALMAN_PRESETS
-from jaxtrack.filters.registry import build_tracker, tracker_entry
+from jaxtrack.filters.registry import build_tracker, tracker_entry, writes_events
 from jaxtrack.io import (
     load_sequence,
     parse_frame_span,
@@ -361,7 +361,7 @@ def _benchmark(args, config: TrackerConfig) -> int:
         raise InputError(f"{root}: no sequence folders (with seqinfo.ini) found")
     out = Path(args.out)
     suffixes = (".txt", ".config.json")
-    if tracker_entry(config.tracker).writes_events:
+    if writes_events(config):
         suffixes += (".events.csv",)
     names = [f"{folder.name}{suffix}" for folder in folders for suffix in suffixes]
     check_outputs(
@@ -409,7 +409,7 @@ def _benchmark(args, config: TrackerConfig) -> int:
 
 def _events_output(config: TrackerConfig, out: str) -> list:
     """``RES.events.csv`` beside ``--out`` for a tracker that writes events."""
-    if not tracker_entry(config.tracker).writes_events:
+    if not writes_events(config):
         return []
     return [side_file("--out", out, ".events.csv")]
 

@@ -44,7 +44,7 @@ from jaxtrack.context.learn import BIRTH_POSITION_DIMS, CLUTTER_POSITION_DIMS
 from jaxtrack.detect.pipeline import METHODS, DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_info, video_sequence
 from jaxtrack.errors import InputError
-from jaxtrack.filters.registry import build_tracker, tracker_entry
+from jaxtrack.filters.registry import build_tracker, tracker_entry, writes_events
 from jaxtrack.io import parse_frame_span, read_mot_file, write_mot_file, write_results
 from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
@@ -205,7 +205,7 @@ def run(args: argparse.Namespace) -> int:
     trail = DEFAULT_TRAIL if args.trail is None else args.trail
     method = args.method or DEFAULT_METHOD
     outputs = [output_file("--out", args.out), side_file("--out", args.out, ".config.json")]
-    if tracker_entry(config.tracker).writes_events:
+    if writes_events(config):
         outputs.append(side_file("--out", args.out, ".events.csv"))
     if args.save_detections:
         outputs.append(output_file("--save-detections", args.save_detections))
@@ -341,14 +341,14 @@ def track_span(sequence, reader, config, args, context, variant, used, progress:
     used.update(scene)
     drawn = args.annotate is not None and config.tracker in FRAME_DRAWINGS
     frame_output = FRAME_DRAWINGS[config.tracker] if drawn else track_outputs
-    if entry.writes_events and not drawn:
+    if writes_events(config) and not drawn:
         frame_output = event_outputs
     outputs = streamed_outputs(
         sequence, reader, config, args.seed, params, frame_output=frame_output
     )
     rows = output_rows(outputs, config, sequence.first_frame)
     warn_if_no_tracks(sequence, rows, config)
-    events = event_rows(outputs, rows, sequence.first_frame) if entry.writes_events else None
+    events = event_rows(outputs, rows, sequence.first_frame) if writes_events(config) else None
     return rows, outputs if drawn else None, events
 
 

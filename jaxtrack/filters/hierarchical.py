@@ -71,12 +71,12 @@ from jaxtrack.filters.hier_low import (
     LowInfo,
     LowParams,
     LowState,
-    box_to_ellipse,
     init_low,
     low_boxes,
     low_step,
     low_velocity,
 )
+from jaxtrack.filters.hier_low_model import box_to_ellipse
 from jaxtrack.filters.hier_reassociation import association_distances, reassociate
 from jaxtrack.types import PAD_BOX, FrameInputs, Tracks
 

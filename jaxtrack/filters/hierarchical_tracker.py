@@ -43,6 +43,9 @@ from jaxtrack.types import SequenceInfo
 MEASUREMENTS = ("box", "ellipse")
 #: The variants, in the order of the paper's levels.
 VARIANTS = ("kalman", "managed", "full")
+#: Seconds a low-level track coasts without measurement before ``|S_k|^1/2`` removes it (the
+#: low level's default, 12 frames at 25 fps: a person walks about a body width).
+COAST_SECONDS = 0.48
 #: Seconds a new tracker is entering (the event module's default, 25 frames at 25 fps).
 ENTERING_SECONDS = 1.0
 #: Frame rate assumed when ``seqinfo.ini`` gives none.
@@ -81,6 +84,11 @@ class HierarchicalConfig(TrackerConfig):
     max_gap: int = setting(25, MAX_GAP)
 
 
+def writes_events(config: HierarchicalConfig) -> bool:
+    """Only the full tracker has events (its high-level trackers')."""
+    return config.variant == "full"
+
+
 def frame_rate(info: SequenceInfo) -> float:
     """The sequence's frame rate (:data:`DEFAULT_FRAME_RATE` when ``seqinfo.ini`` has none)."""
     return float(info.frame_rate or DEFAULT_FRAME_RATE)
@@ -105,7 +113,9 @@ def hierarchical_params(
         )
     fps = frame_rate(info)
     return HierarchicalParams(
-        low=default_low_params(config.measurement, frame_rate=fps),
+        low=default_low_params(
+            config.measurement, coast_frames=max(round(COAST_SECONDS * fps), 1)
+        ),
         appearance=default_appearance_params(),
         events=default_event_params()._replace(
             entering_frames=jnp.int32(round(ENTERING_SECONDS * fps))

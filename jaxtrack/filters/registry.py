@@ -34,6 +34,7 @@ from jaxtrack.filters.hierarchical_tracker import (
     hierarchical_memory_estimate,
     hierarchical_properties,
 )
+from jaxtrack.filters.hierarchical_tracker import writes_events as hierarchical_events
 from jaxtrack.filters.kalman import KalmanParams
 from jaxtrack.filters.kalman_tracker import (
     KalmanConfig,
@@ -72,8 +73,9 @@ class TrackerEntry(NamedTuple):
         takes_background: whether it compares targets with the background model's image
             (given to ``build`` as its context by the pipelines,
             :func:`~jaxtrack.pipelines.background.median_background`).
-        writes_events: whether its per-frame info has event states to write beside the
-            results (``RES.events.csv``, :mod:`~jaxtrack.io.events`).
+        writes_events: ``config -> bool``, whether a run of that configuration has event
+            states to write beside the results (``RES.events.csv``,
+            :mod:`~jaxtrack.io.events`; its info has ``events`` and ``event_ids``).
         variants: the values of its configuration's ``variant`` (``--variant`` picks one),
             empty for a tracker without variants.
     """
@@ -87,7 +89,7 @@ class TrackerEntry(NamedTuple):
     uses_frames: bool = False
     takes_zones: bool = False
     takes_background: bool = False
-    writes_events: bool = False
+    writes_events: Callable[[Any], bool] = lambda config: False
     variants: tuple[str, ...] = ()
 
 
@@ -117,10 +119,15 @@ TRACKERS: dict[str, TrackerEntry] = {
         memory=hierarchical_memory_estimate,
         uses_frames=True,
         takes_background=True,
-        writes_events=True,
+        writes_events=hierarchical_events,
         variants=HIERARCHICAL_VARIANTS,
     ),
 }
+
+
+def writes_events(config: TrackerConfig) -> bool:
+    """Whether a run of ``config`` writes event states (``RES.events.csv``)."""
+    return tracker_entry(config.tracker).writes_events(config)
 
 
 def tracker_entry(name: str) -> TrackerEntry:

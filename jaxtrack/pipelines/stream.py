@@ -20,7 +20,7 @@ import jax
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import FrameOutput, run
-from jaxtrack.filters.registry import build_tracker, tracker_entry
+from jaxtrack.filters.registry import build_tracker, tracker_entry, writes_events
 from jaxtrack.io import MotSequence
 from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
@@ -95,7 +95,7 @@ def track_streamed_events(
     Raises:
         InputError, ResourceError, FileFormatError: as :func:`track_streamed`.
     """
-    if not tracker_entry(config.tracker).writes_events:
+    if not writes_events(config):
         return track_streamed(seq, video, config, seed, params, chunk_frames), None
     outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames, event_outputs)
     rows = output_rows(outputs, config, seq.first_frame)
