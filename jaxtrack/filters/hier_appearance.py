@@ -42,7 +42,7 @@ from jaxtrack.appearance.variance_ratio import (
 )
 from jaxtrack.errors import InputError
 
-#: Collins' linear RGB combinations (:data:`~jaxtrack.appearance.colour.LINEAR_COMBINATION_WEIGHTS`).
+#: Collins' linear RGB features (:data:`~jaxtrack.appearance.LINEAR_COMBINATION_WEIGHTS`).
 NUM_FEATURES = 49
 
 #: Histogram bins per feature (Sec. 5.2: 64 bins, quantisation step 4).
@@ -79,7 +79,10 @@ class AppearanceParams(NamedTuple):
 
 
 def default_params(patch_shape: tuple[int, int] = PATCH_SHAPE) -> AppearanceParams:
-    """The defaults: ``epsilon = 1 / (ph pw)``, ``k = 3``, ``sigma_min = 0.05``, 3 updates, ``beta = 0``."""
+    """Defaults: ``epsilon = 1 / (ph pw)``, ``k = 3``, ``sigma_min = 0.05``, 3 updates, beta 0.
+
+    Not tuned yet (the tracker tunes on synthetic video seeds 0-2 only).
+    """
     samples = patch_shape[0] * patch_shape[1]
     return AppearanceParams(*(jnp.float32(v) for v in (1.0 / samples, 3.0, 0.05, 3.0, 0.0)))
 
