@@ -45,7 +45,8 @@ def association_distances(
 
     Candidates are typically the new-born slots of the same table: ``table.models.histogram``
     (or this frame's :func:`~jaxtrack.filters.hier_appearance.box_histograms`) and
-    ``table.features``, with ``candidate`` marking the new-born slots.
+    ``table.features``, with ``candidate`` marking the new-born slots (disjoint from ``lost``:
+    a slot in both would be its own candidate).
 
     Args:
         table: the trackers' appearance (lost trackers' models, frozen since they were lost).
