@@ -173,7 +173,16 @@ def update_appearance(
 
     Returns:
         The updated table.
+
+    Raises:
+        InputError: the histograms are not ``[S, 49, 64]`` for the table's ``S`` slots, or
+            ``M`` does not fit the table's pool.
     """
+    for name, hist in (("target", target_hist), ("background", background_hist)):
+        if hist.shape != table.models.histogram.shape:
+            raise InputError(
+                f"{name} histograms must be {table.models.histogram.shape}, got {hist.shape}"
+            )
     num_longrun = table.features.shape[1] - num_current
     _check_pool(num_current, num_longrun)
     observed = update & (jnp.sum(target_hist[:, 0], axis=-1) > 0)

@@ -238,6 +238,11 @@ def test_bad_pool_sizes_are_input_errors():
     hist = jnp.zeros((2, NUM_FEATURES, NUM_BINS))
     with pytest.raises(InputError, match="N = -1"):
         update_appearance(table, hist, hist, jnp.ones(2, bool), PARAMS, num_current=M + N + 1)
+    with pytest.raises(InputError, match="background histograms"):
+        update_appearance(table, hist, hist[:1], jnp.ones(2, bool), PARAMS, num_current=M)
+    lost = jnp.ones(2, bool)
+    with pytest.raises(InputError, match="pools"):
+        association_distances(table, lost, hist, table.features[:, :2], lost, PARAMS)
 
 
 # --- re-association ------------------------------------------------------------------------
