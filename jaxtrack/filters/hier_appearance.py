@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int, UInt8
 
+from jaxtrack.appearance.colour import LINEAR_COMBINATION_WEIGHTS
 from jaxtrack.appearance.features import linear_combination_histograms
 from jaxtrack.appearance.model import AppearanceModel, init_model, update_model
 from jaxtrack.appearance.similarity import bhattacharyya_distance
@@ -42,17 +43,18 @@ from jaxtrack.appearance.variance_ratio import (
 )
 from jaxtrack.errors import InputError
 
-#: Collins' linear RGB combinations (:data:`~jaxtrack.appearance.colour.LINEAR_COMBINATION_WEIGHTS`).
-NUM_FEATURES = 49
+#: Collins' linear RGB features (49).
+NUM_FEATURES = len(LINEAR_COMBINATION_WEIGHTS)
 
-#: Histogram bins per feature (Sec. 5.2: 64 bins, quantisation step 4).
+#: Histogram bins per feature (Sec. 5.2: 64 bins, the histograms' default quantisation step 4).
 NUM_BINS = 64
 
-#: ``(ph, pw)`` samples per box. On PETS09-S2L1 ground-truth people (frames 1, 201, 401) the
-#: 49 histograms lie at a median mean Bhattacharyya distance 0.12 from full-resolution ones
-#: (16 x 8: 0.19; 32 x 16: 0.08), against 0.47 between two people; 10 boxes on a 768 x 576
-#: frame and on the background image take about 2.4 ms on 2 shared CPU cores (16 x 8: 0.7 ms,
-#: 32 x 16: 3.4 ms), inside the 3 ms budget of a 25 frames/s tracker.
+#: ``(ph, pw)`` samples per box. ``benchmarks/hier_appearance.py`` on PETS09-S2L1: the 49
+#: histograms of ground-truth people (frames 1, 201, 401) lie at a median mean Bhattacharyya
+#: distance 0.12 from full-resolution ones (16 x 8: 0.19; 32 x 16: 0.08), against 0.47 between
+#: two people; 10 boxes on a 768 x 576 frame and on the background image take 1.4 ms (16 x 8:
+#: 0.6 ms; 32 x 16: 2.5 ms; 32 boxes: 4.6 ms) on 2 shared CPU cores, inside the 3 ms budget of
+#: a 25 frames/s tracker.
 PATCH_SHAPE = (24, 12)
 
 
@@ -79,7 +81,10 @@ class AppearanceParams(NamedTuple):
 
 
 def default_params(patch_shape: tuple[int, int] = PATCH_SHAPE) -> AppearanceParams:
-    """The defaults: ``epsilon = 1 / (ph pw)``, ``k = 3``, ``sigma_min = 0.05``, 3 updates, ``beta = 0``."""
+    """Defaults: ``epsilon = 1 / (ph pw)``, ``k = 3``, ``sigma_min = 0.05``, 3 updates, beta 0.
+
+    Not tuned yet (the tracker tunes on synthetic video seeds 0-2 only).
+    """
     samples = patch_shape[0] * patch_shape[1]
     return AppearanceParams(*(jnp.float32(v) for v in (1.0 / samples, 3.0, 0.05, 3.0, 0.0)))
 
@@ -168,7 +173,16 @@ def update_appearance(
 
     Returns:
         The updated table.
+
+    Raises:
+        InputError: the histograms are not ``[S, 49, 64]`` for the table's ``S`` slots, or
+            ``M`` does not fit the table's pool.
     """
+    for name, hist in (("target", target_hist), ("background", background_hist)):
+        if hist.shape != table.models.histogram.shape:
+            raise InputError(
+                f"{name} histograms must be {table.models.histogram.shape}, got {hist.shape}"
+            )
     num_longrun = table.features.shape[1] - num_current
     _check_pool(num_current, num_longrun)
     observed = update & (jnp.sum(target_hist[:, 0], axis=-1) > 0)

@@ -30,7 +30,13 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.appearance.similarity import bhattacharyya_distance
-from jaxtrack.filters.hier_appearance import NUM_FEATURES, AppearanceParams, AppearanceTable
+from jaxtrack.errors import InputError
+from jaxtrack.filters.hier_appearance import (
+    NUM_BINS,
+    NUM_FEATURES,
+    AppearanceParams,
+    AppearanceTable,
+)
 
 
 def association_distances(
@@ -45,7 +51,8 @@ def association_distances(
 
     Candidates are typically the new-born slots of the same table: ``table.models.histogram``
     (or this frame's :func:`~jaxtrack.filters.hier_appearance.box_histograms`) and
-    ``table.features``, with ``candidate`` marking the new-born slots.
+    ``table.features``, with ``candidate`` marking the new-born slots (disjoint from ``lost``:
+    a slot in both would be its own candidate).
 
     Args:
         table: the trackers' appearance (lost trackers' models, frozen since they were lost).
@@ -58,7 +65,19 @@ def association_distances(
     Returns:
         ``D_sc`` (``inf`` where not gated) and the gate (lost tracker, valid candidate, at
         least one coincident feature in the gate).
+
+    Raises:
+        InputError: the candidates' histograms, pools and mask do not agree in shape.
     """
+    num_candidates = candidate.shape[0]
+    if candidate_hist.shape != (num_candidates, NUM_FEATURES, NUM_BINS) or (
+        candidate_features.shape != (num_candidates, table.features.shape[1])
+    ):
+        raise InputError(
+            f"{num_candidates} candidates need histograms [C, {NUM_FEATURES}, {NUM_BINS}] and "
+            f"pools [C, {table.features.shape[1]}], got {candidate_hist.shape} and "
+            f"{candidate_features.shape}"
+        )
     features = table.features
     safe = jnp.maximum(features, 0)
     take = jax.vmap(lambda leaf, index: leaf[index])
