@@ -113,6 +113,9 @@ class HierarchicalParams(NamedTuple):
         events: the event module's (collision overlap, entering frames).
         max_lost: frames a lost high-level tracker is propagated and offered new tracks
             before it is dropped.
+        search_rate: growth per frame lost of the radius, in box heights, within which a
+            new track may be a lost tracker's target (the radius is ``h (1 + search_rate *
+            lost)``).
         background: the background model's image, RGB ``uint8`` ``[height, width, 3]``
             (:func:`~jaxtrack.pipelines.background.median_background`).
     """
@@ -121,6 +124,7 @@ class HierarchicalParams(NamedTuple):
     appearance: AppearanceParams
     events: EventParams
     max_lost: Float[Array, ""]
+    search_rate: Float[Array, ""]
     background: UInt8[Array, "height width 3"]
 
 
@@ -241,24 +245,40 @@ def _measured(info: LowInfo, num_tracks: int) -> Bool[Array, " T"]:
     return jnp.zeros((num_tracks,), bool).at[slot].set(True, mode="drop") | info.born
 
 
-def _follow(high: HighState, low: LowState, boxes, velocity, max_lost) -> HighState:
+def _follow(high: HighState, low: LowState, boxes, velocity, max_lost, size) -> HighState:
     """Tracker matching (Sec. 5.1): a tracker follows its track while the track lives;
-    a lost one is propagated at constant velocity, and dropped after ``max_lost`` frames."""
+    a lost one is propagated at constant velocity, and dropped after ``max_lost`` frames or
+    when its centre leaves the image (``size`` = ``(width, height)``: it has exited)."""
     slot = jnp.clip(high.low_slot, 0)
     alive = high.ids >= 0
     followed = alive & (high.low_slot >= 0) & low.alive[slot] & (low.ids[slot] == high.low_id)
     shift = jnp.concatenate([high.velocity, jnp.zeros_like(high.velocity)], axis=-1)
+    moved = jnp.where(followed[:, None], boxes[slot], high.boxes + shift)
+    centre = moved[:, :2] + moved[:, 2:] / 2
+    inside = jnp.all((centre >= 0) & (centre < jnp.asarray(size, centre.dtype)), axis=-1)
     lost = jnp.where(followed, 0, high.lost + alive)
-    keep = alive & (followed | (lost <= max_lost))
+    keep = alive & (followed | ((lost <= max_lost) & inside))
     return high._replace(
         ids=jnp.where(keep, high.ids, -1),
         low_slot=jnp.where(followed, high.low_slot, -1),
         low_id=jnp.where(followed, high.low_id, -1),
-        boxes=jnp.where(followed[:, None], boxes[slot], high.boxes + shift),
+        boxes=moved,
         velocity=jnp.where(followed[:, None], velocity[slot], high.velocity),
         lost=jnp.where(keep, lost, 0),
         age=jnp.where(keep, high.age + 1, 0),
     )
+
+
+def _within_reach(high: HighState, boxes, search_rate) -> Bool[Array, "S T"]:
+    """Lost trackers and tracks close enough to be the same target: the track's centre within
+    ``h (1 + search_rate * lost)`` of the tracker's propagated centre (``h`` its box height,
+    ``lost`` the frames it has been lost: the uncertainty of the constant-velocity
+    propagation grows with the time lost)."""
+    centre = high.boxes[:, :2] + high.boxes[:, 2:] / 2
+    track_centre = boxes[:, :2] + boxes[:, 2:] / 2
+    distance = jnp.linalg.norm(centre[:, None] - track_centre[None], axis=-1)
+    reach = high.boxes[:, 3] * (1.0 + search_rate * high.lost)
+    return distance <= reach[:, None]
 
 
 def _take(high: HighState, match, low: LowState, boxes, velocity) -> HighState:
@@ -333,7 +353,8 @@ def hierarchical_step(
         )
         return state, info
 
-    high = _follow(state.high, low, boxes, velocity, params.max_lost)
+    height, width = params.background.shape[:2]
+    high = _follow(state.high, low, boxes, velocity, params.max_lost, (width, height))
     histograms = box_histograms(inputs.frame, boxes, patch_shape)
     background = box_histograms(params.background, boxes, patch_shape)
     lost = (high.ids >= 0) & (high.low_slot < 0)
@@ -342,7 +363,7 @@ def hierarchical_step(
     distance, gated = association_distances(
         state.appearance, lost, histograms, pools, confirmed_now, params.appearance
     )
-    match = reassociate(distance, gated)
+    match = reassociate(distance, gated & _within_reach(high, boxes, params.search_rate))
     high = _take(high, match, low, boxes, velocity)
     taken = (
         jnp.zeros((num_tracks,), bool)

@@ -46,6 +46,10 @@ VARIANTS = ("kalman", "managed", "full")
 #: Seconds a low-level track coasts without measurement before ``|S_k|^1/2`` removes it (the
 #: low level's default, 12 frames at 25 fps: a person walks about a body width).
 COAST_SECONDS = 0.48
+#: How fast the radius within which a lost tracker looks for its target grows: box heights
+#: per second lost (a walker covers about one body height in 2 s; the constant-velocity
+#: propagation's error grows at a fraction of that).
+SEARCH_HEIGHTS_PER_SECOND = 0.5
 #: Seconds a new tracker is entering (the event module's default, 25 frames at 25 fps).
 ENTERING_SECONDS = 1.0
 #: Frame rate assumed when ``seqinfo.ini`` gives none.
@@ -121,6 +125,7 @@ def hierarchical_params(
             entering_frames=jnp.int32(round(ENTERING_SECONDS * fps))
         ),
         max_lost=jnp.float32(round(config.lost_seconds * fps)),
+        search_rate=jnp.float32(SEARCH_HEIGHTS_PER_SECOND / fps),
         background=jnp.asarray(background),
     )
 
