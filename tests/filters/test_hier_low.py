@@ -41,7 +41,7 @@ def _reference_model(measurement):
     for i in range(shape):
         gain[4 + i, 2 + i] = 1
     selection = np.zeros((2 + shape, n))
-    for row, col in enumerate([0, 2] + list(range(4, n))):
+    for row, col in enumerate([0, 2, *range(4, n)]):
         selection[row, col] = 1
     return transition, gain, selection, lengths_m, lengths_n, scale_index
 
@@ -289,3 +289,134 @@ def test_ratio_and_decisions_are_scale_free(measurement):
     for key in ("assignment", "born", "removed", "newly_confirmed", "overflow"):
         np.testing.assert_array_equal(getattr(results[0], key), getattr(results[1], key))
     assert results[0].newly_confirmed.any() and results[0].removed.any()
+
+
+# --- association ------------------------------------------------------------------------------
+
+
+def _settled(measurement, params, centres, frames=12):
+    """Tracks settled on static targets at the given x centres (y 200, 40 x 100 boxes)."""
+    boxes = np.array([[x, 200.0, 40.0, 100.0] for x in centres], np.float32)
+    rows = boxes if measurement == "box" else np.asarray(box_to_ellipse(jnp.asarray(boxes)))
+    rows = np.repeat(rows[None], frames, axis=0)
+    state, _ = _run(measurement, params, rows, np.ones(rows.shape[:2], bool), capacity=4)
+    return state, rows[0]
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_a_measurement_in_two_gates_goes_to_the_nearer_track(measurement):
+    params = default_low_params(measurement)
+    state, rows = _settled(measurement, params, [100.0, 110.0])
+    z = rows[:1].copy()
+    z[0, 0] = 106.0  # 6 px from track 0, 4 px from track 1
+    new, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.ones(1, bool))
+    assert info.assignment.tolist() == [1]
+    assert new.misses[:2].tolist() == [1, 0] and not info.born.any()
+    # Without the nearer track the measurement falls in the other track's gate.
+    alone = state._replace(alive=state.alive.at[1].set(False))
+    _, info = _STEP[measurement](alone, params, jnp.asarray(z), jnp.ones(1, bool))
+    assert info.assignment.tolist() == [0]
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_two_measurements_in_one_gate_the_other_starts_a_tentative_track(measurement):
+    params = default_low_params(measurement)
+    state, rows = _settled(measurement, params, [100.0])
+    z = np.repeat(rows[:1], 2, axis=0)
+    z[:, 0] = [105.0, 101.0]  # both in the gate; the second is nearer
+    new, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.ones(2, bool))
+    assert info.assignment.tolist() == [1, 0]
+    assert info.born.tolist() == [False, True, False, False]
+    assert new.alive.tolist() == [True, True, False, False]
+    assert new.confirmed.tolist() == [True, False, False, False]
+    assert new.ids[:2].tolist() == [0, 1] and int(new.next_id) == 2
+    np.testing.assert_allclose(new.mean[1, 0], 105.0)
+
+
+def test_orphans_beyond_capacity_are_counted():
+    params = default_low_params("box")
+    z = jnp.array([[100.0 * i, 50.0, 20.0, 50.0] for i in range(1, 6)])
+    valid = jnp.array([True, False, True, True, True])
+    state, info = _STEP["box"](init_low(2, "box"), params, z, valid)
+    assert info.assignment.tolist() == [0, -1, 1, -1, -1]
+    assert int(info.overflow) == 2 and state.ids.tolist() == [0, 1]
+
+
+def test_ellipse_angle_innovation_wraps_at_half_turn():
+    """An orientation just below pi/2 and a measurement just above -pi/2 are 0.04 rad apart."""
+    params = default_low_params("ellipse")
+    rows = np.repeat(np.array([[[100.0, 200.0, 115.0, 46.0, 1.55]]], np.float32), 12, axis=0)
+    state, _ = _run("ellipse", params, rows, np.ones((12, 1), bool))
+    z = jnp.array([[100.0, 200.0, 115.0, 46.0, -1.55]])
+    new, info = _STEP["ellipse"](state, params, z, jnp.ones(1, bool))
+    assert info.assignment.tolist() == [0] and float(info.msd[0]) < 1.0
+    angle = float(new.mean[0, 6])
+    assert -np.pi / 2 < angle <= np.pi / 2 and abs(abs(angle) - np.pi / 2) < 0.03
+
+
+# --- jit, vmap, conversions, errors --------------------------------------------------------
+
+
+def test_jit_matches_eager_and_vmap_over_params_matches_loop():
+    frames, masks = _random_frames(np.random.default_rng(2), "box", 3, 5)
+    params = default_low_params("box", confirm_updates=2)
+    eager_state = jit_state = init_low(4, "box")
+    for z, valid in zip(frames.astype(np.float32), masks, strict=True):
+        eager_state, eager_info = low_step(eager_state, params, z, valid, measurement="box")
+        jit_state, jit_info = _STEP["box"](jit_state, params, jnp.asarray(z), jnp.asarray(valid))
+        jax.tree.map(
+            functools.partial(np.testing.assert_allclose, rtol=1e-5, atol=1e-4),
+            (eager_state, eager_info),
+            (jit_state, jit_info),
+        )
+    sets = [params, default_low_params("box", gate_confidence=0.5)]
+    stacked = jax.tree.map(lambda *x: jnp.stack(x), *sets)
+    z, valid = jnp.asarray(frames[0], jnp.float32), jnp.asarray(masks[0])
+    batched = jax.vmap(_STEP["box"], in_axes=(None, 0, None, None))(jit_state, stacked, z, valid)
+    for i, one in enumerate(sets):
+        looped = _STEP["box"](jit_state, one, z, valid)
+        jax.tree.map(
+            functools.partial(np.testing.assert_allclose, rtol=1e-5, atol=1e-4),
+            jax.tree.map(lambda x, i=i: x[i], batched),
+            looped,
+        )
+
+
+def test_box_ellipse_round_trip_and_moments():
+    rng = np.random.default_rng(3)
+    boxes = np.column_stack([rng.uniform(0, 500, (20, 2)), rng.uniform(5, 150, (20, 2))])
+    np.testing.assert_allclose(ellipse_to_box(box_to_ellipse(jnp.asarray(boxes))), boxes, rtol=1e-5)
+    # Full axes are 4 standard deviations of points drawn uniformly in the box (2e5 samples).
+    points = rng.uniform([-15, -40], [15, 40], (200_000, 2))
+    axes = 4 * np.sqrt(np.sort(np.linalg.eigvalsh(np.cov(points.T)))[::-1])
+    ellipse = np.asarray(box_to_ellipse(jnp.array([0.0, 0.0, 30.0, 80.0])))
+    np.testing.assert_allclose(ellipse[2:4], axes, rtol=5e-3)
+    assert ellipse[4] == pytest.approx(np.pi / 2) and box_to_ellipse(jnp.ones(4) * 9)[4] == 0
+    # A rotated ellipse: the bounding box of the rotated equivalent rectangle's corners.
+    theta, sides = 0.6, np.array([60.0, 20.0])
+    corners = np.array([[sx, sy] for sx in (-1, 1) for sy in (-1, 1)]) * sides / 2
+    rotation = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    extent = np.ptp(corners @ rotation.T, axis=0)
+    ellipse = jnp.array([5.0, 7.0, *(sides * 2 / np.sqrt(3)), theta])
+    np.testing.assert_allclose(ellipse_to_box(ellipse), [5.0, 7.0, *extent], rtol=1e-5)
+    angles = jnp.array([np.pi / 2, -np.pi / 2, np.pi, 0.75 * np.pi, -0.75 * np.pi, 0.1])
+    expected = [np.pi / 2, np.pi / 2, 0.0, -np.pi / 4, np.pi / 4, 0.1]
+    np.testing.assert_allclose(wrap_angle(angles), expected, atol=1e-6)
+
+
+def test_bad_arguments_raise_input_errors():
+    box_noise = DEFAULT_NOISE["box"]
+    with pytest.raises(InputError, match="measurement must be one of"):
+        default_low_params("circle")
+    with pytest.raises(InputError, match="capacity"):
+        init_low(0, "box")
+    with pytest.raises(InputError, match="confirm_updates"):
+        default_low_params("box", confirm_updates=1)
+    with pytest.raises(InputError, match="coast_frames"):
+        default_low_params("box", coast_frames=0)
+    with pytest.raises(InputError, match="gate_confidence"):
+        default_low_params("box", gate_confidence=1.0)
+    with pytest.raises(InputError, match="measurement_std must hold 4"):
+        low_params("box", box_noise[0], (0.1, 0.1, 0.1), box_noise[2])
+    with pytest.raises(InputError, match="do not fall"):
+        low_params("box", box_noise[0], box_noise[1], np.full(6, 1e-4))
