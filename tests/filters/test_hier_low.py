@@ -214,7 +214,20 @@ def test_step_matches_loop_reference(measurement):
 
 # --- single tracks: steady state and the derived thresholds --------------------------------
 
-_STEP = {m: jax.jit(functools.partial(low_step, measurement=m)) for m in MODELS}
+_JITTED = {m: jax.jit(functools.partial(low_step, measurement=m)) for m in MODELS}
+#: Every test but the reference one runs 4 slots and 5 measurement rows: one compile per model.
+CAPACITY, ROWS = 4, 5
+
+
+def _step(measurement, state, params, z, valid):
+    """The jitted step on ``z`` padded to :data:`ROWS` rows; the assignment trimmed back."""
+    z, valid = np.asarray(z, np.float32), np.asarray(valid, bool)
+    padded = np.zeros((ROWS, z.shape[1]), np.float32)
+    padded[: len(z)] = z
+    state, info = _JITTED[measurement](
+        state, params, jnp.asarray(padded), jnp.asarray(np.pad(valid, (0, ROWS - len(z))))
+    )
+    return state, info._replace(assignment=info.assignment[: len(z)])
 
 
 def _walk(measurement, num_frames, scale=1.0):
@@ -225,11 +238,11 @@ def _walk(measurement, num_frames, scale=1.0):
     return rows.astype(np.float32)[:, None]
 
 
-def _run(measurement, params, rows, valid, capacity=2):
+def _run(measurement, params, rows, valid):
     """Runs the jitted step over frames; returns the final state and the stacked infos."""
-    state, infos = init_low(capacity, measurement), []
+    state, infos = init_low(CAPACITY, measurement), []
     for z, mask in zip(rows, valid, strict=True):
-        state, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.asarray(mask))
+        state, info = _step(measurement, state, params, z, mask)
         infos.append(info)
     return state, jax.tree.map(lambda *x: np.stack(x), *infos)
 
@@ -280,10 +293,7 @@ def test_ratio_and_decisions_are_scale_free(measurement):
     frames, masks = _random_frames(np.random.default_rng(1), measurement, 8, 5)
     doubled = frames.copy()
     doubled[..., :4] *= 2.0
-    results = [
-        _run(measurement, params, f.astype(np.float32), masks, capacity=4)[1]
-        for f in (frames, doubled)
-    ]
+    results = [_run(measurement, params, f.astype(np.float32), masks)[1] for f in (frames, doubled)]
     np.testing.assert_allclose(results[0].ratio, results[1].ratio, rtol=1e-4)
     np.testing.assert_allclose(results[0].msd, results[1].msd, rtol=1e-3, atol=1e-5)
     for key in ("assignment", "born", "removed", "newly_confirmed", "overflow"):
@@ -299,7 +309,7 @@ def _settled(measurement, params, centres, frames=12):
     boxes = np.array([[x, 200.0, 40.0, 100.0] for x in centres], np.float32)
     rows = boxes if measurement == "box" else np.asarray(box_to_ellipse(jnp.asarray(boxes)))
     rows = np.repeat(rows[None], frames, axis=0)
-    state, _ = _run(measurement, params, rows, np.ones(rows.shape[:2], bool), capacity=4)
+    state, _ = _run(measurement, params, rows, np.ones(rows.shape[:2], bool))
     return state, rows[0]
 
 
@@ -309,12 +319,12 @@ def test_a_measurement_in_two_gates_goes_to_the_nearer_track(measurement):
     state, rows = _settled(measurement, params, [100.0, 110.0])
     z = rows[:1].copy()
     z[0, 0] = 106.0  # 6 px from track 0, 4 px from track 1
-    new, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.ones(1, bool))
+    new, info = _step(measurement, state, params, z, [True])
     assert info.assignment.tolist() == [1]
     assert new.misses[:2].tolist() == [1, 0] and not info.born.any()
     # Without the nearer track the measurement falls in the other track's gate.
     alone = state._replace(alive=state.alive.at[1].set(False))
-    _, info = _STEP[measurement](alone, params, jnp.asarray(z), jnp.ones(1, bool))
+    _, info = _step(measurement, alone, params, z, [True])
     assert info.assignment.tolist() == [0]
 
 
@@ -324,7 +334,7 @@ def test_two_measurements_in_one_gate_the_other_starts_a_tentative_track(measure
     state, rows = _settled(measurement, params, [100.0])
     z = np.repeat(rows[:1], 2, axis=0)
     z[:, 0] = [105.0, 101.0]  # both in the gate; the second is nearer
-    new, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.ones(2, bool))
+    new, info = _step(measurement, state, params, z, [True, True])
     assert info.assignment.tolist() == [1, 0]
     assert info.born.tolist() == [False, True, False, False]
     assert new.alive.tolist() == [True, True, False, False]
@@ -335,11 +345,12 @@ def test_two_measurements_in_one_gate_the_other_starts_a_tentative_track(measure
 
 def test_orphans_beyond_capacity_are_counted():
     params = default_low_params("box")
-    z = jnp.array([[100.0 * i, 50.0, 20.0, 50.0] for i in range(1, 6)])
-    valid = jnp.array([True, False, True, True, True])
-    state, info = _STEP["box"](init_low(2, "box"), params, z, valid)
-    assert info.assignment.tolist() == [0, -1, 1, -1, -1]
-    assert int(info.overflow) == 2 and state.ids.tolist() == [0, 1]
+    z = np.array([[100.0 * i, 50.0, 20.0, 50.0] for i in range(1, 6)])
+    valid = [True, False, True, True, True]  # 4 orphans, 2 free slots (1 and 3)
+    full = init_low(CAPACITY, "box")._replace(alive=jnp.array([True, False, True, False]))
+    state, info = _step("box", full, params, z, valid)
+    assert info.assignment.tolist() == [1, -1, 3, -1, -1]
+    assert int(info.overflow) == 2 and state.ids.tolist() == [-1, 0, -1, 1]
 
 
 def test_ellipse_angle_innovation_wraps_at_half_turn():
@@ -347,8 +358,8 @@ def test_ellipse_angle_innovation_wraps_at_half_turn():
     params = default_low_params("ellipse")
     rows = np.repeat(np.array([[[100.0, 200.0, 115.0, 46.0, 1.55]]], np.float32), 12, axis=0)
     state, _ = _run("ellipse", params, rows, np.ones((12, 1), bool))
-    z = jnp.array([[100.0, 200.0, 115.0, 46.0, -1.55]])
-    new, info = _STEP["ellipse"](state, params, z, jnp.ones(1, bool))
+    z = np.array([[100.0, 200.0, 115.0, 46.0, -1.55]])
+    new, info = _step("ellipse", state, params, z, [True])
     assert info.assignment.tolist() == [0] and float(info.msd[0]) < 1.0
     angle = float(new.mean[0, 6])
     assert -np.pi / 2 < angle <= np.pi / 2 and abs(abs(angle) - np.pi / 2) < 0.03
@@ -358,28 +369,27 @@ def test_ellipse_angle_innovation_wraps_at_half_turn():
 
 
 def test_jit_matches_eager_and_vmap_over_params_matches_loop():
-    frames, masks = _random_frames(np.random.default_rng(2), "box", 3, 5)
+    frames, masks = _random_frames(np.random.default_rng(2), "box", 3, ROWS)
+    frames = frames.astype(np.float32)
     params = default_low_params("box", confirm_updates=2)
-    eager_state = jit_state = init_low(4, "box")
-    for z, valid in zip(frames.astype(np.float32), masks, strict=True):
-        eager_state, eager_info = low_step(eager_state, params, z, valid, measurement="box")
-        jit_state, jit_info = _STEP["box"](jit_state, params, jnp.asarray(z), jnp.asarray(valid))
-        jax.tree.map(
-            functools.partial(np.testing.assert_allclose, rtol=1e-5, atol=1e-4),
-            (eager_state, eager_info),
-            (jit_state, jit_info),
-        )
-    sets = [params, default_low_params("box", gate_confidence=0.5)]
+    state = _run("box", params, frames[:2], masks[:2])[0]
+    eager = low_step(state, params, frames[2], masks[2], measurement="box")
+    jitted = _JITTED["box"](state, params, jnp.asarray(frames[2]), jnp.asarray(masks[2]))
+    close = functools.partial(np.testing.assert_allclose, rtol=1e-5, atol=1e-4)
+    jax.tree.map(close, eager, jitted)
+    process_std, measurement_std, initial_std = DEFAULT_NOISE["box"]
+    noisier = low_params(
+        "box", process_std, 2 * np.array(measurement_std), 2 * np.array(initial_std)
+    )
+    sets = [params, noisier._replace(confirm_ratio=params.confirm_ratio)]
     stacked = jax.tree.map(lambda *x: jnp.stack(x), *sets)
-    z, valid = jnp.asarray(frames[0], jnp.float32), jnp.asarray(masks[0])
-    batched = jax.vmap(_STEP["box"], in_axes=(None, 0, None, None))(jit_state, stacked, z, valid)
+    z, valid = jnp.asarray(frames[2]), jnp.asarray(masks[2])
+    batched = jax.vmap(_JITTED["box"], in_axes=(None, 0, None, None))(state, stacked, z, valid)
     for i, one in enumerate(sets):
-        looped = _STEP["box"](jit_state, one, z, valid)
         jax.tree.map(
-            functools.partial(np.testing.assert_allclose, rtol=1e-5, atol=1e-4),
-            jax.tree.map(lambda x, i=i: x[i], batched),
-            looped,
+            close, jax.tree.map(lambda x, i=i: x[i], batched), _JITTED["box"](state, one, z, valid)
         )
+    assert not np.allclose(batched[1].msd[0], batched[1].msd[1])  # the sets differ
 
 
 def test_box_ellipse_round_trip_and_moments():
