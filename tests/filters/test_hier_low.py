@@ -153,7 +153,8 @@ def _numpy_state(state: LowState) -> dict:
 
 
 def _random_frames(rng, measurement, num_frames, num_meas):
-    """Three targets walking at constant velocity, missed at random, plus random clutter."""
+    """Three targets walking at constant velocity and ``num_meas - 3`` clutter rows, each row
+    missing at random (probability 0.2)."""
     starts = np.array([[100.0, 120.0, 30.0, 80.0], [300.0, 200.0, 40.0, 100.0], [500, 90, 20, 60]])
     velocity = np.array([[3.0, 1.0], [-2.0, 0.5], [0.5, 2.5]])
     frames, masks = [], []
@@ -161,15 +162,8 @@ def _random_frames(rng, measurement, num_frames, num_meas):
         boxes = starts.copy()
         boxes[:, :2] += k * velocity
         boxes += rng.normal(0, 1.0, boxes.shape)
-        clutter = np.column_stack(
-            [
-                rng.uniform(0, 640, 2),
-                rng.uniform(0, 480, 2),
-                rng.uniform(20, 40, 2),
-                rng.uniform(50, 100, 2),
-            ]
-        )
-        rows = np.vstack([boxes, clutter])[:num_meas]
+        clutter = rng.uniform([0, 0, 20, 50], [640, 480, 40, 100], (num_meas - 3, 4))
+        rows = np.vstack([boxes, clutter])
         if measurement == "ellipse":
             rows = np.asarray(box_to_ellipse(jnp.asarray(rows)), float)
             rows[:, 4] += rng.normal(0, 0.05, len(rows))
@@ -215,8 +209,8 @@ def test_step_matches_loop_reference(measurement):
 # --- single tracks: steady state and the derived thresholds --------------------------------
 
 _JITTED = {m: jax.jit(functools.partial(low_step, measurement=m)) for m in MODELS}
-#: Every test but the reference one runs 4 slots and 5 measurement rows: one compile per model.
-CAPACITY, ROWS = 4, 5
+#: Every test but the reference one runs 16 slots and 8 measurement rows: one compile per model.
+CAPACITY, ROWS = 16, 8
 
 
 def _step(measurement, state, params, z, valid):
@@ -336,9 +330,9 @@ def test_two_measurements_in_one_gate_the_other_starts_a_tentative_track(measure
     z[:, 0] = [105.0, 101.0]  # both in the gate; the second is nearer
     new, info = _step(measurement, state, params, z, [True, True])
     assert info.assignment.tolist() == [1, 0]
-    assert info.born.tolist() == [False, True, False, False]
-    assert new.alive.tolist() == [True, True, False, False]
-    assert new.confirmed.tolist() == [True, False, False, False]
+    assert np.flatnonzero(info.born).tolist() == [1]
+    assert np.flatnonzero(new.alive).tolist() == [0, 1]
+    assert np.flatnonzero(new.confirmed).tolist() == [0]
     assert new.ids[:2].tolist() == [0, 1] and int(new.next_id) == 2
     np.testing.assert_allclose(new.mean[1, 0], 105.0)
 
@@ -346,11 +340,11 @@ def test_two_measurements_in_one_gate_the_other_starts_a_tentative_track(measure
 def test_orphans_beyond_capacity_are_counted():
     params = default_low_params("box")
     z = np.array([[100.0 * i, 50.0, 20.0, 50.0] for i in range(1, 6)])
-    valid = [True, False, True, True, True]  # 4 orphans, 2 free slots (1 and 3)
-    full = init_low(CAPACITY, "box")._replace(alive=jnp.array([True, False, True, False]))
+    valid = [True, False, True, True, True]  # 4 orphans, 2 free slots (3 and 11)
+    full = init_low(CAPACITY, "box")._replace(alive=jnp.arange(CAPACITY) % 8 != 3)
     state, info = _step("box", full, params, z, valid)
-    assert info.assignment.tolist() == [1, -1, 3, -1, -1]
-    assert int(info.overflow) == 2 and state.ids.tolist() == [-1, 0, -1, 1]
+    assert info.assignment.tolist() == [3, -1, 11, -1, -1]
+    assert int(info.overflow) == 2 and state.ids[jnp.array([3, 11])].tolist() == [0, 1]
 
 
 def test_ellipse_angle_innovation_wraps_at_half_turn():
@@ -430,3 +424,56 @@ def test_bad_arguments_raise_input_errors():
         low_params("box", box_noise[0], (0.1, 0.1, 0.1), box_noise[2])
     with pytest.raises(InputError, match="do not fall"):
         low_params("box", box_noise[0], box_noise[1], np.full(6, 1e-4))
+
+
+# --- a synthetic scene with known truth ----------------------------------------------------
+
+
+def _scene(seed, measurement, num_frames=40, clutter_rate=2.0, max_clutter=5):
+    """Three constant-velocity targets (rows 0-2, always detected, model noise) and Poisson
+    clutter (mean ``clutter_rate`` per frame, uniform over 640 x 480) in rows 3 on."""
+    rng = np.random.default_rng(seed)
+    starts = np.array([[100.0, 150, 30, 80], [500, 300, 40, 110], [300, 400, 25, 60]])
+    velocity = np.array([[3.0, 1.0], [-2.5, -1.0], [1.0, -2.0]])
+    measurement_std = np.array(DEFAULT_NOISE["box"][1])
+    frames, masks = [], []
+    for k in range(num_frames):
+        truth = starts.copy()
+        truth[:, :2] += k * velocity
+        boxes = truth + rng.normal(size=truth.shape) * measurement_std * truth[:, 3:]
+        clutter = rng.uniform([0, 0, 20, 50], [640, 480, 40, 110], (max_clutter, 4))
+        rows = np.vstack([boxes, clutter])
+        if measurement == "ellipse":
+            rows = np.asarray(box_to_ellipse(jnp.asarray(rows)), float)
+            rows[:, 4] += rng.normal(0, DEFAULT_NOISE["ellipse"][1][4], len(rows))
+        frames.append(rows)
+        num_clutter = min(rng.poisson(clutter_rate), max_clutter)
+        masks.append(np.r_[np.ones(3, bool), np.arange(max_clutter) < num_clutter])
+    return np.array(frames, np.float32), np.array(masks)
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_scene_targets_confirmed_and_clutter_not(measurement):
+    """Seeds 0-2: each target's first track is confirmed by frame ``U + 2`` and keeps >= 90 %
+    of its target's measurements; no track born on clutter is confirmed unless it took
+    measurements of a target (such duplicates: at most 1 per scene)."""
+    params = default_low_params(measurement)  # confirm_updates U = 4
+    for seed in range(3):
+        frames, masks = _scene(seed, measurement)
+        state = init_low(CAPACITY, measurement)
+        confirmed_ids, clutter_ids, target_ids = set(), set(), [[] for _ in range(3)]
+        for k, (z, valid) in enumerate(zip(frames, masks, strict=True)):
+            state, info = _JITTED[measurement](state, params, jnp.asarray(z), jnp.asarray(valid))
+            ids, slots = np.asarray(state.ids), np.asarray(info.assignment)
+            for j in range(3):
+                target_ids[j].append(int(ids[slots[j]]) if slots[j] >= 0 else -1)
+            born = np.asarray(info.born)
+            clutter_ids |= {int(ids[s]) for s in slots[3:][masks[k][3:]] if s >= 0 and born[s]}
+            confirmed_ids |= set(ids[np.asarray(state.confirmed)].tolist())
+            if k == 4 + 2:
+                assert {t[0] for t in target_ids} <= confirmed_ids
+        for j in range(3):
+            assert np.mean(np.array(target_ids[j]) == target_ids[j][0]) >= 0.9
+        assert target_ids[0][0] == 0 and len(clutter_ids) > 40  # clutter kept coming
+        duplicates = clutter_ids & confirmed_ids
+        assert duplicates <= {i for track in target_ids for i in track} and len(duplicates) <= 1
