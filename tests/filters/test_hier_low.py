@@ -322,6 +322,17 @@ def test_a_measurement_in_two_gates_goes_to_the_nearer_track(measurement):
     assert info.assignment.tolist() == [0]
 
 
+def test_association_takes_the_globally_nearest_pair_first():
+    """Measurement 1 is nearest to track 1 (1 px), so measurement 0 goes to track 0 (7 px)
+    although track 1 is nearer to it (3 px); taking measurements in order would swap them."""
+    params = default_low_params("box")
+    state, rows = _settled("box", params, [100.0, 110.0])
+    z = np.repeat(rows[:1], 2, axis=0)
+    z[:, 0] = [107.0, 111.0]
+    _, info = _step("box", state, params, z, [True, True])
+    assert info.assignment.tolist() == [0, 1]
+
+
 @pytest.mark.parametrize("measurement", MODELS)
 def test_two_measurements_in_one_gate_the_other_starts_a_tentative_track(measurement):
     params = default_low_params(measurement)
