@@ -244,7 +244,8 @@ def low_step(
         params: see :class:`LowParams`.
         measurements: ``[D, m]`` in the model's measurement space.
         valid: ``[D]`` which rows are measurements (the rest is padding).
-        measurement: static, ``"box"`` or ``"ellipse"``.
+        measurement: static, ``"box"`` or ``"ellipse"``
+            (``jax.jit(functools.partial(low_step, measurement="box"))``).
 
     Returns:
         The new table and the frame's :class:`LowInfo`.
@@ -260,11 +261,11 @@ def low_step(
     ratio = jax.vmap(normalised_ratio, in_axes=(0, 0, None, None))(
         innovation_covs, scale, params.log_steady_sqrt_det, measurement
     )
-    msd = jax.vmap(mahalanobis_square_distances, in_axes=(0, 0, None, None), out_axes=1)(
+    distances = jax.vmap(mahalanobis_square_distances, in_axes=(0, 0, None, None), out_axes=1)(
         means, innovation_covs, measurements, measurement
     )
-    gated = valid[:, None] & state.alive[None] & (msd <= params.gate)
-    track_of, measurement_of = nearest_gated_pairs(msd, gated)
+    gated = valid[:, None] & state.alive[None] & (distances <= params.gate)
+    track_of, measurement_of = nearest_gated_pairs(distances, gated)
 
     hit = measurement_of >= 0
     pair = jnp.maximum(measurement_of, 0)
@@ -274,7 +275,7 @@ def low_step(
     means = jnp.where(hit[:, None], updated_means, means)
     covs = jnp.where(hit[:, None, None], updated_covs, covs)
     hits = state.hits + hit
-    pair_msd = msd[pair, jnp.arange(msd.shape[1])]
+    pair_msd = distances[pair, jnp.arange(distances.shape[1])]
     mean_msd = jnp.where(hit, state.msd + (pair_msd - state.msd) / jnp.maximum(hits, 1), state.msd)
 
     removed = state.alive & ~hit & (ratio > params.remove_ratio)
@@ -293,13 +294,12 @@ def low_step(
     )
     born_rank = jnp.cumsum(born, dtype=jnp.int32) - 1
     free_mean, free_cov = _free_slot(means.shape[1])
-    new_alive = alive | born
     new_state = LowState(
         mean=jnp.where(born[:, None], birth_means, jnp.where(alive[:, None], means, free_mean)),
         cov=jnp.where(
             born[:, None, None], birth_covs, jnp.where(alive[:, None, None], covs, free_cov)
         ),
-        alive=new_alive,
+        alive=alive | born,
         confirmed=(state.confirmed | newly_confirmed) & alive,
         ids=jnp.where(born, state.next_id + born_rank, jnp.where(alive, state.ids, -1)),
         next_id=state.next_id + jnp.sum(born, dtype=jnp.int32),
@@ -319,7 +319,7 @@ def low_step(
         assignment=jnp.where(track_of >= 0, track_of, born_slot),
         born=born,
         removed=removed,
-        newly_confirmed=newly_confirmed & alive,
+        newly_confirmed=newly_confirmed,
         overflow=overflow,
         ratio=new_state.ratio,
         msd=new_state.msd,

@@ -41,7 +41,7 @@ def _reference_model(measurement):
     for i in range(shape):
         gain[4 + i, 2 + i] = 1
     selection = np.zeros((2 + shape, n))
-    for row, col in enumerate([0, 2] + list(range(4, n))):
+    for row, col in enumerate([0, 2, *range(4, n)]):
         selection[row, col] = 1
     return transition, gain, selection, lengths_m, lengths_n, scale_index
 
@@ -153,7 +153,8 @@ def _numpy_state(state: LowState) -> dict:
 
 
 def _random_frames(rng, measurement, num_frames, num_meas):
-    """Three targets walking at constant velocity, missed at random, plus random clutter."""
+    """Three targets walking at constant velocity and ``num_meas - 3`` clutter rows, each row
+    missing at random (probability 0.2)."""
     starts = np.array([[100.0, 120.0, 30.0, 80.0], [300.0, 200.0, 40.0, 100.0], [500, 90, 20, 60]])
     velocity = np.array([[3.0, 1.0], [-2.0, 0.5], [0.5, 2.5]])
     frames, masks = [], []
@@ -161,15 +162,8 @@ def _random_frames(rng, measurement, num_frames, num_meas):
         boxes = starts.copy()
         boxes[:, :2] += k * velocity
         boxes += rng.normal(0, 1.0, boxes.shape)
-        clutter = np.column_stack(
-            [
-                rng.uniform(0, 640, 2),
-                rng.uniform(0, 480, 2),
-                rng.uniform(20, 40, 2),
-                rng.uniform(50, 100, 2),
-            ]
-        )
-        rows = np.vstack([boxes, clutter])[:num_meas]
+        clutter = rng.uniform([0, 0, 20, 50], [640, 480, 40, 100], (num_meas - 3, 4))
+        rows = np.vstack([boxes, clutter])
         if measurement == "ellipse":
             rows = np.asarray(box_to_ellipse(jnp.asarray(rows)), float)
             rows[:, 4] += rng.normal(0, 0.05, len(rows))
@@ -214,7 +208,20 @@ def test_step_matches_loop_reference(measurement):
 
 # --- single tracks: steady state and the derived thresholds --------------------------------
 
-_STEP = {m: jax.jit(functools.partial(low_step, measurement=m)) for m in MODELS}
+_JITTED = {m: jax.jit(functools.partial(low_step, measurement=m)) for m in MODELS}
+#: Every test but the reference one runs 16 slots and 8 measurement rows: one compile per model.
+CAPACITY, ROWS = 16, 8
+
+
+def _step(measurement, state, params, z, valid):
+    """The jitted step on ``z`` padded to :data:`ROWS` rows; the assignment trimmed back."""
+    z, valid = np.asarray(z, np.float32), np.asarray(valid, bool)
+    padded = np.zeros((ROWS, z.shape[1]), np.float32)
+    padded[: len(z)] = z
+    state, info = _JITTED[measurement](
+        state, params, jnp.asarray(padded), jnp.asarray(np.pad(valid, (0, ROWS - len(z))))
+    )
+    return state, info._replace(assignment=info.assignment[: len(z)])
 
 
 def _walk(measurement, num_frames, scale=1.0):
@@ -225,11 +232,11 @@ def _walk(measurement, num_frames, scale=1.0):
     return rows.astype(np.float32)[:, None]
 
 
-def _run(measurement, params, rows, valid, capacity=2):
+def _run(measurement, params, rows, valid):
     """Runs the jitted step over frames; returns the final state and the stacked infos."""
-    state, infos = init_low(capacity, measurement), []
+    state, infos = init_low(CAPACITY, measurement), []
     for z, mask in zip(rows, valid, strict=True):
-        state, info = _STEP[measurement](state, params, jnp.asarray(z), jnp.asarray(mask))
+        state, info = _step(measurement, state, params, z, mask)
         infos.append(info)
     return state, jax.tree.map(lambda *x: np.stack(x), *infos)
 
@@ -280,12 +287,204 @@ def test_ratio_and_decisions_are_scale_free(measurement):
     frames, masks = _random_frames(np.random.default_rng(1), measurement, 8, 5)
     doubled = frames.copy()
     doubled[..., :4] *= 2.0
-    results = [
-        _run(measurement, params, f.astype(np.float32), masks, capacity=4)[1]
-        for f in (frames, doubled)
-    ]
+    results = [_run(measurement, params, f.astype(np.float32), masks)[1] for f in (frames, doubled)]
     np.testing.assert_allclose(results[0].ratio, results[1].ratio, rtol=1e-4)
     np.testing.assert_allclose(results[0].msd, results[1].msd, rtol=1e-3, atol=1e-5)
     for key in ("assignment", "born", "removed", "newly_confirmed", "overflow"):
         np.testing.assert_array_equal(getattr(results[0], key), getattr(results[1], key))
     assert results[0].newly_confirmed.any() and results[0].removed.any()
+
+
+# --- association ------------------------------------------------------------------------------
+
+
+def _settled(measurement, params, centres, frames=12):
+    """Tracks settled on static targets at the given x centres (y 200, 40 x 100 boxes)."""
+    boxes = np.array([[x, 200.0, 40.0, 100.0] for x in centres], np.float32)
+    rows = boxes if measurement == "box" else np.asarray(box_to_ellipse(jnp.asarray(boxes)))
+    rows = np.repeat(rows[None], frames, axis=0)
+    state, _ = _run(measurement, params, rows, np.ones(rows.shape[:2], bool))
+    return state, rows[0]
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_a_measurement_in_two_gates_goes_to_the_nearer_track(measurement):
+    params = default_low_params(measurement)
+    state, rows = _settled(measurement, params, [100.0, 110.0])
+    z = rows[:1].copy()
+    z[0, 0] = 106.0  # 6 px from track 0, 4 px from track 1
+    new, info = _step(measurement, state, params, z, [True])
+    assert info.assignment.tolist() == [1]
+    assert new.misses[:2].tolist() == [1, 0] and not info.born.any()
+    # Without the nearer track the measurement falls in the other track's gate.
+    alone = state._replace(alive=state.alive.at[1].set(False))
+    _, info = _step(measurement, alone, params, z, [True])
+    assert info.assignment.tolist() == [0]
+
+
+def test_association_takes_the_globally_nearest_pair_first():
+    """Measurement 1 is nearest to track 1 (1 px), so measurement 0 goes to track 0 (7 px)
+    although track 1 is nearer to it (3 px); taking measurements in order would swap them."""
+    params = default_low_params("box")
+    state, rows = _settled("box", params, [100.0, 110.0])
+    z = np.repeat(rows[:1], 2, axis=0)
+    z[:, 0] = [107.0, 111.0]
+    _, info = _step("box", state, params, z, [True, True])
+    assert info.assignment.tolist() == [0, 1]
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_two_measurements_in_one_gate_the_other_starts_a_tentative_track(measurement):
+    params = default_low_params(measurement)
+    state, rows = _settled(measurement, params, [100.0])
+    z = np.repeat(rows[:1], 2, axis=0)
+    z[:, 0] = [105.0, 101.0]  # both in the gate; the second is nearer
+    new, info = _step(measurement, state, params, z, [True, True])
+    assert info.assignment.tolist() == [1, 0]
+    assert np.flatnonzero(info.born).tolist() == [1]
+    assert np.flatnonzero(new.alive).tolist() == [0, 1]
+    assert np.flatnonzero(new.confirmed).tolist() == [0]
+    assert new.ids[:2].tolist() == [0, 1] and int(new.next_id) == 2
+    np.testing.assert_allclose(new.mean[1, 0], 105.0)
+
+
+def test_orphans_beyond_capacity_are_counted():
+    params = default_low_params("box")
+    z = np.array([[100.0 * i, 50.0, 20.0, 50.0] for i in range(1, 6)])
+    valid = [True, False, True, True, True]  # 4 orphans, 2 free slots (3 and 11)
+    full = init_low(CAPACITY, "box")._replace(alive=jnp.arange(CAPACITY) % 8 != 3)
+    state, info = _step("box", full, params, z, valid)
+    assert info.assignment.tolist() == [3, -1, 11, -1, -1]
+    assert int(info.overflow) == 2 and state.ids[jnp.array([3, 11])].tolist() == [0, 1]
+
+
+def test_ellipse_angle_innovation_wraps_at_half_turn():
+    """An orientation just below pi/2 and a measurement just above -pi/2 are 0.04 rad apart."""
+    params = default_low_params("ellipse")
+    rows = np.repeat(np.array([[[100.0, 200.0, 115.0, 46.0, 1.55]]], np.float32), 12, axis=0)
+    state, _ = _run("ellipse", params, rows, np.ones((12, 1), bool))
+    z = np.array([[100.0, 200.0, 115.0, 46.0, -1.55]])
+    new, info = _step("ellipse", state, params, z, [True])
+    assert info.assignment.tolist() == [0] and float(info.msd[0]) < 1.0
+    angle = float(new.mean[0, 6])
+    assert -np.pi / 2 < angle <= np.pi / 2 and abs(abs(angle) - np.pi / 2) < 0.03
+
+
+# --- jit, vmap, conversions, errors --------------------------------------------------------
+
+
+def test_jit_matches_eager_and_vmap_over_params_matches_loop():
+    frames, masks = _random_frames(np.random.default_rng(2), "box", 3, ROWS)
+    frames = frames.astype(np.float32)
+    params = default_low_params("box", confirm_updates=2)
+    state = _run("box", params, frames[:2], masks[:2])[0]
+    eager = low_step(state, params, frames[2], masks[2], measurement="box")
+    jitted = _JITTED["box"](state, params, jnp.asarray(frames[2]), jnp.asarray(masks[2]))
+    close = functools.partial(np.testing.assert_allclose, rtol=1e-5, atol=1e-4)
+    jax.tree.map(close, eager, jitted)
+    process_std, measurement_std, initial_std = DEFAULT_NOISE["box"]
+    noisier = low_params(
+        "box", process_std, 2 * np.array(measurement_std), 2 * np.array(initial_std)
+    )
+    sets = [params, noisier._replace(confirm_ratio=params.confirm_ratio)]
+    stacked = jax.tree.map(lambda *x: jnp.stack(x), *sets)
+    z, valid = jnp.asarray(frames[2]), jnp.asarray(masks[2])
+    batched = jax.vmap(_JITTED["box"], in_axes=(None, 0, None, None))(state, stacked, z, valid)
+    for i, one in enumerate(sets):
+        jax.tree.map(
+            close, jax.tree.map(lambda x, i=i: x[i], batched), _JITTED["box"](state, one, z, valid)
+        )
+    assert not np.allclose(batched[1].msd[0], batched[1].msd[1])  # the sets differ
+
+
+def test_box_ellipse_round_trip_and_moments():
+    rng = np.random.default_rng(3)
+    boxes = np.column_stack([rng.uniform(0, 500, (20, 2)), rng.uniform(5, 150, (20, 2))])
+    np.testing.assert_allclose(ellipse_to_box(box_to_ellipse(jnp.asarray(boxes))), boxes, rtol=1e-5)
+    # Full axes are 4 standard deviations of points drawn uniformly in the box (2e5 samples).
+    points = rng.uniform([-15, -40], [15, 40], (200_000, 2))
+    axes = 4 * np.sqrt(np.sort(np.linalg.eigvalsh(np.cov(points.T)))[::-1])
+    ellipse = np.asarray(box_to_ellipse(jnp.array([0.0, 0.0, 30.0, 80.0])))
+    np.testing.assert_allclose(ellipse[2:4], axes, rtol=5e-3)
+    assert ellipse[4] == pytest.approx(np.pi / 2) and box_to_ellipse(jnp.ones(4) * 9)[4] == 0
+    # A rotated ellipse: the bounding box of the rotated equivalent rectangle's corners.
+    theta, sides = 0.6, np.array([60.0, 20.0])
+    corners = np.array([[sx, sy] for sx in (-1, 1) for sy in (-1, 1)]) * sides / 2
+    rotation = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    extent = np.ptp(corners @ rotation.T, axis=0)
+    ellipse = jnp.array([5.0, 7.0, *(sides * 2 / np.sqrt(3)), theta])
+    np.testing.assert_allclose(ellipse_to_box(ellipse), [5.0, 7.0, *extent], rtol=1e-5)
+    angles = jnp.array([np.pi / 2, -np.pi / 2, np.pi, 0.75 * np.pi, -0.75 * np.pi, 0.1])
+    expected = [np.pi / 2, np.pi / 2, 0.0, -np.pi / 4, np.pi / 4, 0.1]
+    np.testing.assert_allclose(wrap_angle(angles), expected, atol=1e-6)
+
+
+def test_bad_arguments_raise_input_errors():
+    box_noise = DEFAULT_NOISE["box"]
+    with pytest.raises(InputError, match="measurement must be one of"):
+        default_low_params("circle")
+    with pytest.raises(InputError, match="capacity"):
+        init_low(0, "box")
+    with pytest.raises(InputError, match="confirm_updates"):
+        default_low_params("box", confirm_updates=1)
+    with pytest.raises(InputError, match="coast_frames"):
+        default_low_params("box", coast_frames=0)
+    with pytest.raises(InputError, match="gate_confidence"):
+        default_low_params("box", gate_confidence=1.0)
+    with pytest.raises(InputError, match="measurement_std must hold 4"):
+        low_params("box", box_noise[0], (0.1, 0.1, 0.1), box_noise[2])
+    with pytest.raises(InputError, match="do not fall"):
+        low_params("box", box_noise[0], box_noise[1], np.full(6, 1e-4))
+
+
+# --- a synthetic scene with known truth ----------------------------------------------------
+
+
+def _scene(seed, measurement, num_frames=40, clutter_rate=2.0, max_clutter=5):
+    """Three constant-velocity targets (rows 0-2, always detected, model noise) and Poisson
+    clutter (mean ``clutter_rate`` per frame, uniform over 640 x 480) in rows 3 on."""
+    rng = np.random.default_rng(seed)
+    starts = np.array([[100.0, 150, 30, 80], [500, 300, 40, 110], [300, 400, 25, 60]])
+    velocity = np.array([[3.0, 1.0], [-2.5, -1.0], [1.0, -2.0]])
+    measurement_std = np.array(DEFAULT_NOISE["box"][1])
+    frames, masks = [], []
+    for k in range(num_frames):
+        truth = starts.copy()
+        truth[:, :2] += k * velocity
+        boxes = truth + rng.normal(size=truth.shape) * measurement_std * truth[:, 3:]
+        clutter = rng.uniform([0, 0, 20, 50], [640, 480, 40, 110], (max_clutter, 4))
+        rows = np.vstack([boxes, clutter])
+        if measurement == "ellipse":
+            rows = np.asarray(box_to_ellipse(jnp.asarray(rows)), float)
+            rows[:, 4] += rng.normal(0, DEFAULT_NOISE["ellipse"][1][4], len(rows))
+        frames.append(rows)
+        num_clutter = min(rng.poisson(clutter_rate), max_clutter)
+        masks.append(np.r_[np.ones(3, bool), np.arange(max_clutter) < num_clutter])
+    return np.array(frames, np.float32), np.array(masks)
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_scene_targets_confirmed_and_clutter_not(measurement):
+    """Seeds 0-2: each target's first track is confirmed by frame ``U + 2`` and keeps >= 90 %
+    of its target's measurements; no track born on clutter is confirmed unless it took
+    measurements of a target (such duplicates: at most 1 per scene)."""
+    params = default_low_params(measurement)  # confirm_updates U = 4
+    for seed in range(3):
+        frames, masks = _scene(seed, measurement)
+        state = init_low(CAPACITY, measurement)
+        confirmed_ids, clutter_ids, target_ids = set(), set(), [[] for _ in range(3)]
+        for k, (z, valid) in enumerate(zip(frames, masks, strict=True)):
+            state, info = _JITTED[measurement](state, params, jnp.asarray(z), jnp.asarray(valid))
+            ids, slots = np.asarray(state.ids), np.asarray(info.assignment)
+            for j in range(3):
+                target_ids[j].append(int(ids[slots[j]]) if slots[j] >= 0 else -1)
+            born = np.asarray(info.born)
+            clutter_ids |= {int(ids[s]) for s in slots[3:][masks[k][3:]] if s >= 0 and born[s]}
+            confirmed_ids |= set(ids[np.asarray(state.confirmed)].tolist())
+            if k == 4 + 2:
+                assert {t[0] for t in target_ids} <= confirmed_ids
+        for j in range(3):
+            assert np.mean(np.array(target_ids[j]) == target_ids[j][0]) >= 0.9
+        assert target_ids[0][0] == 0 and len(clutter_ids) > 40  # clutter kept coming
+        duplicates = clutter_ids & confirmed_ids
+        assert duplicates <= {i for track in target_ids for i in track} and len(duplicates) <= 1
