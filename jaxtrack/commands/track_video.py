@@ -50,7 +50,7 @@ from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
 from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.evaluate import evaluate_sequence
-from jaxtrack.pipelines.events import event_outputs, event_rows
+from jaxtrack.pipelines.events import event_outputs, event_rows, merge_identities
 from jaxtrack.pipelines.frame_context import streamed_params
 from jaxtrack.pipelines.stream import streamed_outputs
 from jaxtrack.pipelines.tracking import (
@@ -346,6 +346,8 @@ def track_span(sequence, reader, config, args, context, variant, used, progress:
     outputs = streamed_outputs(
         sequence, reader, config, args.seed, params, frame_output=frame_output
     )
+    if writes_events(config):
+        outputs = merge_identities(jax.device_get(outputs))
     rows = output_rows(outputs, config, sequence.first_frame)
     warn_if_no_tracks(sequence, rows, config)
     events = event_rows(outputs, rows, sequence.first_frame) if writes_events(config) else None

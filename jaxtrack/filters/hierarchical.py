@@ -113,6 +113,8 @@ class HierarchicalParams(NamedTuple):
         events: the event module's (collision overlap, entering frames).
         max_lost: frames a lost high-level tracker is propagated and offered new tracks
             before it is dropped.
+        max_newborn: frames after its start during which a tracker is new-born: a lost
+            tracker may still take its track (and merge its identity).
         search_rate: growth per frame lost of the radius, in box heights, within which a
             new track may be a lost tracker's target (the radius is ``h (1 + search_rate *
             lost)``).
@@ -124,6 +126,7 @@ class HierarchicalParams(NamedTuple):
     appearance: AppearanceParams
     events: EventParams
     max_lost: Float[Array, ""]
+    max_newborn: Float[Array, ""]
     search_rate: Float[Array, ""]
     background: UInt8[Array, "height width 3"]
 
@@ -181,6 +184,9 @@ class HierarchicalInfo(NamedTuple):
         distances: the Bhattacharyya distance of each feature's last update ``[S, 49]``.
         low: the low level's info (overflow, assignments).
         overflow: a confirmed track found no free high-level slot.
+        merged: per high-level slot, the identity merged into it on the frame by a
+            re-association (-1: none): the rows of that identity, before and after, are the
+            tracker's (:func:`~jaxtrack.pipelines.events.merge_identities`).
     """
 
     tracks: Tracks
@@ -196,6 +202,7 @@ class HierarchicalInfo(NamedTuple):
     distances: Float[Array, "S F"]
     low: LowInfo
     overflow: Bool[Array, ""]
+    merged: Int[Array, " S"]
 
 
 def init_high(num_slots: int) -> HighState:
@@ -281,18 +288,52 @@ def _within_reach(high: HighState, boxes, search_rate) -> Bool[Array, "S T"]:
     return distance <= reach[:, None]
 
 
-def _take(high: HighState, match, low: LowState, boxes, velocity) -> HighState:
-    """Lost trackers take the tracks they were re-associated with (``match`` [S])."""
+def _owners(high: HighState, num_tracks: int) -> Int[Array, " T"]:
+    """The high-level slot following each low-level slot (-1: none)."""
+    following = (high.ids >= 0) & (high.low_slot >= 0)
+    slots = jnp.arange(high.ids.shape[0], dtype=jnp.int32)
+    return (
+        jnp.full((num_tracks,), -1, jnp.int32)
+        .at[jnp.where(following, high.low_slot, num_tracks)]
+        .set(slots, mode="drop")
+    )
+
+
+def _newborn(high: HighState, max_newborn) -> Bool[Array, " S"]:
+    """Trackers still new-born: started on a track confirmed less than ``max_newborn``
+    frames ago, not by a re-association. A lost tracker may yet take a new-born tracker's
+    track (Sec. 5.4: the new-born trackers are its candidates); the new-born identity is
+    then merged into the lost one's."""
+    following = (high.ids >= 0) & (high.low_slot >= 0)
+    return following & (high.age < max_newborn) & ~high.reassociated
+
+
+def _take(high: HighState, match, owner, low: LowState, boxes, velocity):
+    """Lost trackers take the tracks they were re-associated with (``match`` [S]); a
+    new-born tracker whose track is taken is merged into the taker (freed). Returns the
+    trackers and, per slot, the identity merged into it on this frame (-1: none): the
+    new-born tracker's, or the taken track's own (``low id + 1``) for a track confirmed on
+    this frame, so that the output rows of the track before it was taken can be relabelled."""
     took = match >= 0
     slot = jnp.clip(match, 0)
-    return high._replace(
-        low_slot=jnp.where(took, match, high.low_slot),
-        low_id=jnp.where(took, low.ids[slot], high.low_id),
+    absorbed_slot = owner[slot]
+    has_owner = took & (absorbed_slot >= 0)
+    absorbed_id = jnp.where(has_owner, high.ids[jnp.clip(absorbed_slot, 0)], low.ids[slot] + 1)
+    freed = (
+        jnp.zeros_like(took)
+        .at[jnp.where(has_owner, absorbed_slot, took.shape[0])]
+        .set(True, mode="drop")
+    )
+    high = high._replace(
+        ids=jnp.where(freed, -1, high.ids),
+        low_slot=jnp.where(took, match, jnp.where(freed, -1, high.low_slot)),
+        low_id=jnp.where(took, low.ids[slot], jnp.where(freed, -1, high.low_id)),
         boxes=jnp.where(took[:, None], boxes[slot], high.boxes),
         velocity=jnp.where(took[:, None], velocity[slot], high.velocity),
         lost=jnp.where(took, 0, high.lost),
         reassociated=high.reassociated | took,
     )
+    return high, jnp.where(took, absorbed_id, -1).astype(jnp.int32)
 
 
 def _start(high: HighState, starts, low: LowState, boxes, velocity, group_of):
@@ -350,6 +391,7 @@ def hierarchical_step(
             low_info,
             jnp.array(False),
             measurement,
+            jnp.full_like(state.high.ids, -1),
         )
         return state, info
 
@@ -359,12 +401,20 @@ def hierarchical_step(
     background = box_histograms(params.background, boxes, patch_shape)
     lost = (high.ids >= 0) & (high.low_slot < 0)
     confirmed_now = low_info.newly_confirmed & low.alive
-    pools = fresh_pool(histograms, background, params.appearance.delta)
+    owner = _owners(high, num_tracks)
+    newborn = _newborn(high, params.max_newborn)
+    owned = owner >= 0
+    candidate = confirmed_now | (owned & newborn[jnp.clip(owner, 0)])
+    pools = jnp.where(
+        owned[:, None],
+        state.appearance.features[jnp.clip(owner, 0)],
+        fresh_pool(histograms, background, params.appearance.delta),
+    )
     distance, gated = association_distances(
-        state.appearance, lost, histograms, pools, confirmed_now, params.appearance
+        state.appearance, lost, histograms, pools, candidate, params.appearance
     )
     match = reassociate(distance, gated & _within_reach(high, boxes, params.search_rate))
-    high = _take(high, match, low, boxes, velocity)
+    high, merged = _take(high, match, owner, low, boxes, velocity)
     taken = (
         jnp.zeros((num_tracks,), bool)
         .at[jnp.where(match >= 0, match, num_tracks)]
@@ -409,11 +459,12 @@ def hierarchical_step(
         low_info,
         new.overflow,
         measurement,
+        merged,
     )
     return state, info
 
 
-def _info(tracks, candidates, state, low_info, overflow, measurement):
+def _info(tracks, candidates, state, low_info, overflow, measurement, merged):
     """The frame's :class:`HierarchicalInfo` (after the frame's ``state``)."""
     high, low = state.high, state.low
     return HierarchicalInfo(
@@ -430,6 +481,7 @@ def _info(tracks, candidates, state, low_info, overflow, measurement):
         distances=state.appearance.last_distance,
         low=low_info,
         overflow=overflow | (low_info.overflow > 0),
+        merged=merged,
     )
 
 

@@ -50,6 +50,8 @@ COAST_SECONDS = 0.48
 #: per second lost (a walker covers about one body height in 2 s; the constant-velocity
 #: propagation's error grows at a fraction of that).
 SEARCH_HEIGHTS_PER_SECOND = 0.5
+#: Seconds a new tracker is new-born: a lost tracker may take its track (and identity).
+NEWBORN_SECONDS = 0.0
 #: Seconds a new tracker is entering (the event module's default, 25 frames at 25 fps).
 ENTERING_SECONDS = 1.0
 #: Frame rate assumed when ``seqinfo.ini`` gives none.
@@ -117,14 +119,13 @@ def hierarchical_params(
         )
     fps = frame_rate(info)
     return HierarchicalParams(
-        low=default_low_params(
-            config.measurement, coast_frames=max(round(COAST_SECONDS * fps), 1)
-        ),
+        low=default_low_params(config.measurement, coast_frames=max(round(COAST_SECONDS * fps), 1)),
         appearance=default_appearance_params(),
         events=default_event_params()._replace(
             entering_frames=jnp.int32(round(ENTERING_SECONDS * fps))
         ),
         max_lost=jnp.float32(round(config.lost_seconds * fps)),
+        max_newborn=jnp.float32(round(NEWBORN_SECONDS * fps)),
         search_rate=jnp.float32(SEARCH_HEIGHTS_PER_SECOND / fps),
         background=jnp.asarray(background),
     )

@@ -24,19 +24,72 @@ from jaxtrack.types import MotTable, Tracks
 
 
 class EventOutputs(NamedTuple):
-    """Per frame: the tracks and candidates (for the result rows) and the slots' events."""
+    """Per frame: the tracks and candidates (for the result rows), the slots' events and
+    identities, and the identities merged into them by re-associations."""
 
     tracks: Tracks
     candidates: Tracks
     events: Array
     event_ids: Array
+    merged: Array
 
 
 def event_outputs(state: Any, info: Any, index: Any) -> EventOutputs:
     """The per-frame output of a run that writes events (``frame_output`` of
     :func:`~jaxtrack.filters.base.run`)."""
     del state, index
-    return EventOutputs(info.tracks, info.candidates, info.events, info.event_ids)
+    return EventOutputs(info.tracks, info.candidates, info.events, info.event_ids, info.merged)
+
+
+def identity_merges(merged: np.ndarray, event_ids: np.ndarray) -> dict[int, int]:
+    """Which identity each merged identity became: ``{merged: tracker}``, chains resolved.
+
+    Args:
+        merged: per frame and slot, the identity merged into the slot's tracker on the
+            frame (-1: none), ``[num_frames, S]``.
+        event_ids: per frame and slot, the tracker's identity, ``[num_frames, S]``.
+    """
+    merged, event_ids = np.asarray(merged), np.asarray(event_ids)
+    pairs = merged >= 0
+    mapping = dict(zip(merged[pairs].tolist(), event_ids[pairs].tolist(), strict=True))
+    for source in list(mapping):
+        target, seen = mapping[source], {source}
+        while target in mapping and target not in seen:
+            seen.add(target)
+            target = mapping[target]
+        mapping[source] = target
+    return mapping
+
+
+def merge_identities(outputs: Any) -> Any:
+    """The per-frame outputs (with ``tracks``, ``candidates``, ``event_ids`` and
+    ``merged``, NumPy or JAX leaves) with every merged identity replaced by its tracker's
+    (:func:`identity_merges`): the rows of a target before a lost tracker took it back are
+    the tracker's."""
+    mapping = identity_merges(outputs.merged, outputs.event_ids)
+    if not mapping:
+        return outputs
+    keys = np.array(sorted(mapping), np.int64)
+    values = np.array([mapping[key] for key in keys.tolist()], np.int64)
+
+    def relabel(tracks: Tracks) -> Tracks:
+        ids = np.array(tracks.ids, copy=True)
+        found = np.isin(ids, keys)
+        ids[found] = values[np.searchsorted(keys, ids[found])]
+        # A relabelled row on a frame where the tracker has a row of its own (the two
+        # tracks overlapped in time) is dropped: the tracker's own row stays.
+        own = np.where(found, -2, ids)
+        clash = found & np.any(ids[..., :, None] == own[..., None, :], axis=-1)
+        return tracks._replace(ids=np.where(clash, -1, ids), mask=np.asarray(tracks.mask) & ~clash)
+
+    event_ids = np.array(outputs.event_ids, copy=True)
+    changed = np.isin(event_ids, keys)
+    event_ids[changed] = values[np.searchsorted(keys, event_ids[changed])]
+    return outputs._replace(
+        tracks=relabel(outputs.tracks),
+        candidates=relabel(outputs.candidates),
+        event_ids=event_ids,
+    )
 
 
 def event_rows(outputs: EventOutputs, rows: MotTable, first_frame: int) -> EventRows:

@@ -25,7 +25,7 @@ from jaxtrack.io import MotSequence
 from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
 from jaxtrack.metrics.events import EventRows
-from jaxtrack.pipelines.events import event_outputs, event_rows
+from jaxtrack.pipelines.events import event_outputs, event_rows, merge_identities
 from jaxtrack.pipelines.tracking import (
     check_tracking_memory,
     output_rows,
@@ -98,6 +98,7 @@ def track_streamed_events(
     if not writes_events(config):
         return track_streamed(seq, video, config, seed, params, chunk_frames), None
     outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames, event_outputs)
+    outputs = merge_identities(jax.device_get(outputs))
     rows = output_rows(outputs, config, seq.first_frame)
     warn_if_no_tracks(seq, rows, config)
     return rows, event_rows(outputs, rows, seq.first_frame)

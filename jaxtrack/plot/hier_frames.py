@@ -34,6 +34,7 @@ class HierarchicalFrame(NamedTuple):
         events, event_ids: each high-level slot's event state and identity (-1: free).
         low_boxes: ``[T, 4]`` the low-level estimates; ``low_alive``, ``low_confirmed``.
         high_boxes: ``[S, 4]`` the high-level estimates; ``high_lost`` while lost.
+        merged: the identities merged into each slot's tracker on the frame (-1: none).
     """
 
     tracks: Tracks
@@ -45,6 +46,7 @@ class HierarchicalFrame(NamedTuple):
     low_confirmed: Bool[Array, " T"]
     high_boxes: Float[Array, "S 4"]
     high_lost: Bool[Array, " S"]
+    merged: Int[Array, " S"]
 
 
 def hier_frame_outputs(state: Any, info: Any, index: Array) -> HierarchicalFrame:
@@ -61,6 +63,7 @@ def hier_frame_outputs(state: Any, info: Any, index: Array) -> HierarchicalFrame
         info.low_confirmed,
         info.high_boxes,
         info.high_lost,
+        info.merged,
     )
 
 
