@@ -80,7 +80,7 @@ def reference_step(state, params, measurements, valid, measurement):
             nu = _wrap(measurements[j] - H @ means[t], measurement)
             msd[j, t] = nu @ np.linalg.solve(innovations[t], nu)
             if valid[j] and state["alive"][t] and msd[j, t] <= p["gate"]:
-                pairs.append((msd[j, t], j, t))
+                pairs.append((msd[j, t] + 2 * np.log(ratios[t]), j, t))
     track_of, meas_of = [-1] * num_meas, [-1] * num_tracks
     for _, j, t in sorted(pairs):
         if track_of[j] < 0 and meas_of[t] < 0:
@@ -488,3 +488,19 @@ def test_scene_targets_confirmed_and_clutter_not(measurement):
         assert target_ids[0][0] == 0 and len(clutter_ids) > 40  # clutter kept coming
         duplicates = clutter_ids & confirmed_ids
         assert duplicates <= {i for track in target_ids for i in track} and len(duplicates) <= 1
+
+
+def test_an_uncertain_new_track_does_not_take_a_settled_tracks_measurement():
+    """A measurement 8 px from a settled track and 6 px from a tentative one (larger S, so a
+    smaller MSD) goes to the settled track: the cost is MSD + 2 log r_k, not the MSD alone."""
+    params = default_low_params("box")
+    state, rows = _settled("box", params, [100.0])
+    birth = rows[:1].copy()
+    birth[0, 0] = 114.0
+    state, _ = _step("box", state, params, np.concatenate([rows[:1], birth]), [True, True])
+    assert int(state.alive.sum()) == 2
+    z = rows[:1].copy()
+    z[0, 0] = 108.0
+    _, info = _step("box", state, params, z, [True])
+    settled = int(np.flatnonzero(np.asarray(state.confirmed))[0])
+    assert info.assignment.tolist() == [settled]
