@@ -81,7 +81,10 @@ def state_runs(frames: np.ndarray, codes: np.ndarray, names) -> list[tuple[int, 
     cut = np.flatnonzero((np.diff(codes) != 0) | (np.diff(frames) != 1)) + 1
     starts = np.concatenate([[0], cut])
     ends = np.concatenate([cut - 1, [len(frames) - 1]])
-    return [(int(frames[a]), int(frames[b]), names[int(codes[a])]) for a, b in zip(starts, ends)]
+    return [
+        (int(frames[a]), int(frames[b]), names[int(codes[a])])
+        for a, b in zip(starts, ends, strict=True)
+    ]
 
 
 def pool_figure(frames: np.ndarray, pool: np.ndarray, num_current: int, span, title: str):
