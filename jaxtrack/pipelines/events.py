@@ -66,20 +66,31 @@ def merge_identities(outputs: Any) -> Any:
     ``merged``, NumPy or JAX leaves) with every merged identity replaced by its tracker's
     (:func:`identity_merges`): the rows of a target before a lost tracker took it back are
     the tracker's."""
-    mapping = identity_merges(outputs.merged, outputs.event_ids)
+    merged, event_ids = np.asarray(outputs.merged), np.asarray(outputs.event_ids)
+    mapping = identity_merges(merged, event_ids)
     if not mapping:
         return outputs
+    direct = dict(zip(merged[merged >= 0].tolist(), event_ids[merged >= 0].tolist(), strict=True))
     keys = np.array(sorted(mapping), np.int64)
     values = np.array([mapping[key] for key in keys.tolist()], np.int64)
+    depths = np.array([_depth(key, direct) for key in keys.tolist()], np.int64)
 
     def relabel(tracks: Tracks) -> Tracks:
         ids = np.array(tracks.ids, copy=True)
         found = np.isin(ids, keys)
-        ids[found] = values[np.searchsorted(keys, ids[found])]
-        # A relabelled row on a frame where the tracker has a row of its own (the two
-        # tracks overlapped in time) is dropped: the tracker's own row stays.
-        own = np.where(found, -2, ids)
-        clash = found & np.any(ids[..., :, None] == own[..., None, :], axis=-1)
+        index = np.searchsorted(keys, ids[found])
+        depth = np.zeros(ids.shape, np.int64)
+        depth[found] = depths[index]
+        ids[found] = values[index]
+        # Rows that become one identity on one frame (tracks that overlapped in time): the
+        # row nearest the tracker in the merge chain stays (its own row first; ties: the
+        # first slot), the others are dropped.
+        same = (ids[..., :, None] == ids[..., None, :]) & (ids[..., None, :] >= 0)
+        slots = np.arange(ids.shape[-1])
+        before = (depth[..., None, :] < depth[..., :, None]) | (
+            (depth[..., None, :] == depth[..., :, None]) & (slots[None, :] < slots[:, None])
+        )
+        clash = np.any(same & before, axis=-1)
         return tracks._replace(ids=np.where(clash, -1, ids), mask=np.asarray(tracks.mask) & ~clash)
 
     event_ids = np.array(outputs.event_ids, copy=True)
@@ -90,6 +101,15 @@ def merge_identities(outputs: Any) -> Any:
         candidates=relabel(outputs.candidates),
         event_ids=event_ids,
     )
+
+
+def _depth(identity: int, direct: dict[int, int]) -> int:
+    """Merges between ``identity`` and its final tracker (``direct``: one merge each)."""
+    depth, seen = 0, set()
+    while identity in direct and identity not in seen:
+        seen.add(identity)
+        identity, depth = direct[identity], depth + 1
+    return depth
 
 
 def event_rows(outputs: EventOutputs, rows: MotTable, first_frame: int) -> EventRows:
