@@ -1,7 +1,7 @@
 """``jaxtrack track``: run the particle PHD tracker on MOTChallenge sequences.
 
 One sequence:  ``jaxtrack track SEQ_DIR --out RES.txt [--frames A:B] [--config FILE]
-[--detections DET.txt] [--context CTX.npz [--variant GM|A1..A6]] [--figure PNG
+[--detections DET.txt|det|bs] [--context CTX.npz [--variant GM|A1..A6]] [--figure PNG
 [--figure-frame N]]``
 All sequences: ``jaxtrack track --benchmark MOT_ROOT --out RES_DIR`` (one ``<SEQ>.txt`` each,
 one compile per detection capacity; each sequence's result is the one it gets alone)
@@ -45,6 +45,20 @@ are learned on the fly from the PHD tracker's trajectories on the tracked span (
 which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
 ``variant``, ``max_components``, ``particles_per_component``,
 ``max_misses``, ``appearance_weight``, ``output``, ``max_gap``.
+
+``--tracker hierarchical`` runs the Hierarchical tracker (SPEC section 4,
+``jaxtrack.filters.hierarchical``): a bank of constant-velocity Kalman filters whose tracks
+are confirmed and removed by ``|S_k|^1/2`` (the low level), appearance trackers on the
+confirmed tracks (Collins' 49 colour features ranked against the background model, mean
+histograms, Bhattacharyya gates) that survive occlusions and take their target back when it
+is seen again (re-association), and the event states (single, grouping, grouped, splitting,
+entering, exiting) written beside the results as ``<RES>.events.csv`` (``frame,id,event``).
+``--variant kalman|managed|full`` picks the Kalman bank alone, the low level, or both levels
+(default). Its background model is the per-pixel median of 25 frames of the tracked span.
+``--detections bs`` detects by background subtraction on the frames first (the paper's
+blobs; ``jaxtrack detect``'s defaults), ``--detections det`` (default) uses ``det/det.txt``.
+Its configuration (``HierarchicalConfig``) takes ``variant``, ``measurement`` ("box" or
+"ellipse"), ``max_tracks``, ``max_trackers``, ``lost_seconds``, ``output``, ``max_gap``.
 
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance
 trackers) gets each frame beside its detections, streamed from the sequence's frames:
@@ -285,7 +299,7 @@ def run(args) -> int:
             )
     config = _config(args)
     variant = DEFAULT_VARIANT
-    if not tracker_entry(config.tracker).takes_zones:
+    if not tracker_entry(config.tracker).variants:  # --variant is the context's
         variant = context_variant(args) or DEFAULT_VARIANT
     if args.sequence is None:
         return _benchmark(args, config)

@@ -89,16 +89,24 @@ ZONES.json its entry/exit zones (`jaxtrack learn-zones`; default: learned on the
 PHD tracker's trajectories on the span; the run says which). --context, --overlay are for
 the PHD tracker, --zones for CMT: given to another tracker they are errors.
 
+--tracker hierarchical runs the Hierarchical tracker (see `jaxtrack track --help`):
+--variant kalman|managed|full (default full); its background model is the median of 25
+frames of the span; the event states are written beside the results (RES.events.csv).
+
 --annotate writes the frames with the tracks (box and id in the id's colour, a trail of the
 last --trail centres of the feet) and the detections (thin white boxes) to a video (.mp4 or
 .avi) or, for any other path, a folder of PNGs; --overlay birth|clutter blends in the
 context's birth or clutter intensity over the image (heat map). With --tracker cmt it also
 draws each living component's particles (box centres) as outlined dots coloured by the motion
 condition they were proposed under: normal cyan, split yellow, merge magenta, exit
-orange-red (legend in the top-right corner). --gt GT.txt prints MOTA, MOTP, MODA, MODP and
+orange-red (legend in the top-right corner). With --tracker hierarchical it draws the
+low-level tracks as white ellipses (thin while tentative) and the high-level trackers as
+black ones (thin while lost), each labelled with its identity and event state, as the
+paper's Fig. 3. --gt GT.txt prints MOTA, MOTP, MODA, MODP and
 IDF1 against that ground truth.
 
-Writes RES.txt, RES.config.json (settings used) and, with --save-detections, the detections."""
+Writes RES.txt, RES.config.json (settings used), RES.events.csv (--tracker hierarchical)
+and, with --save-detections, the detections."""
 
 EPILOG = """\
 examples:
@@ -107,7 +115,9 @@ examples:
   jaxtrack track-video ../shared/data/video/vtest.avi --frames 401:795 --fps 7 \\
       --context ctx.npz --out gm.txt --gt ../shared/data/mot15/PETS09-S2L1/gt/gt.txt
   jaxtrack track-video ../shared/data/video/vtest.avi --frames 1:100 --fps 7 \\
-      --tracker cmt --variant cmt --out cmt.txt --annotate cmt.mp4"""
+      --tracker cmt --variant cmt --out cmt.txt --annotate cmt.mp4
+  jaxtrack track-video ../shared/data/video/vtest.avi --tracker hierarchical \\
+      --out h.txt --annotate h.mp4"""
 
 #: Trackers whose --annotate draws more than the tracks: their per-frame drawing outputs.
 FRAME_DRAWINGS = {"cmt": cmt_frame_outputs, "hierarchical": hier_frame_outputs}
