@@ -26,12 +26,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from timing import timed
 
 from jaxtrack.filters.base import fit_detections, run
 from jaxtrack.filters.cmt_tracker import CMTConfig
@@ -46,12 +46,6 @@ from jaxtrack.types import FrameInputs
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 SWEEP_SIZE = (8, 8)
-
-
-def timed(function) -> tuple[float, object]:
-    start = time.perf_counter()
-    value = function()
-    return time.perf_counter() - start, value
 
 
 def main() -> None:

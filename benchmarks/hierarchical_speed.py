@@ -27,8 +27,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import time
 from pathlib import Path
+
+from timing import timed
 
 from jaxtrack.detect.pipeline import DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_info, video_sequence
@@ -38,12 +39,6 @@ from jaxtrack.pipelines.frame_context import streamed_params
 from jaxtrack.pipelines.stream import track_streamed_events
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-
-
-def timed(function) -> tuple[float, object]:
-    start = time.perf_counter()
-    value = function()
-    return time.perf_counter() - start, value
 
 
 def main() -> None:

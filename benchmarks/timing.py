@@ -14,3 +14,10 @@ def best_time(function, repeats: int) -> float:
         function()
         times.append(time.perf_counter() - start)
     return min(times)
+
+
+def timed(function) -> tuple[float, object]:
+    """One call's wall-clock time (seconds) and its value."""
+    start = time.perf_counter()
+    value = function()
+    return time.perf_counter() - start, value
