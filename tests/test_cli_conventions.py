@@ -35,6 +35,7 @@ WITH_PROGRESS = (
     "experiment sweep-magnitudes",
     "experiment compare-trackers",
     "experiment cmt-ablation",
+    "experiment hierarchical",
     "experiment gradient-tuning",
     "simulate",  # with --video
 )
