@@ -22,8 +22,10 @@ from jaxtrack.types import Tracks
 #: Colours of the low-level and high-level ellipses (the paper's Fig. 3: white, black).
 LOW_COLOUR = (255, 255, 255)
 HIGH_COLOUR = (0, 0, 0)
-#: Line widths: confirmed / tentative low-level tracks, followed / lost high-level trackers.
-THICK, THIN = 2, 1
+#: Line widths: confirmed low-level tracks (wider than the high level's, so that the white
+#: shows on both sides of a black ellipse drawn over the same box), followed high-level
+#: trackers, and tentative tracks / lost trackers.
+LOW_THICK, HIGH_THICK, THIN = 6, 2, 1
 
 
 class HierarchicalFrame(NamedTuple):
@@ -89,7 +91,7 @@ def draw_levels(image: np.ndarray, frame: HierarchicalFrame) -> np.ndarray:
     for box, confirmed in zip(
         frame.low_boxes[frame.low_alive], frame.low_confirmed[frame.low_alive], strict=True
     ):
-        _ellipse(out, box, LOW_COLOUR, THICK if confirmed else THIN)
+        _ellipse(out, box, LOW_COLOUR, LOW_THICK if confirmed else THIN)
     alive = frame.event_ids >= 0
     for box, lost, identity, event in zip(
         frame.high_boxes[alive],
@@ -98,7 +100,7 @@ def draw_levels(image: np.ndarray, frame: HierarchicalFrame) -> np.ndarray:
         frame.events[alive],
         strict=True,
     ):
-        _ellipse(out, box, HIGH_COLOUR, THIN if lost else THICK)
+        _ellipse(out, box, HIGH_COLOUR, THIN if lost else HIGH_THICK)
         text = f"{int(identity)} {EVENT_NAMES[int(event)]}" + (" (lost)" if lost else "")
         origin = (round(float(box[0])), max(round(float(box[1])) - 4, 10))
         cv2.putText(out, text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 3)
