@@ -1,0 +1,61 @@
+"""``jaxtrack experiment hierarchical``: its goals and table on a hand-made record (the runs
+themselves are covered by tests/test_cli_hierarchical.py and tests/filters)."""
+
+from __future__ import annotations
+
+from jaxtrack.experiments.cmt_ablation import MOT15_COMBINED
+from jaxtrack.experiments.hierarchical import goal_checks, table_markdown
+
+
+def row(sequence, source, tracker, idf1, idsw):
+    return {
+        "sequence": sequence, "detections": source, "tracker": tracker, "synthetic": False,
+        "MOTA": 50.0, "IDF1": idf1, "HOTA": 40.0, "IDSW": idsw, "Frag": 1, "MT": 1, "ML": 0,
+    }  # fmt: skip
+
+
+def record(full_idsw, full_idf1, kept, matched):
+    rows = []
+    for source in ("det", "bs"):
+        for name in ("A", "B", MOT15_COMBINED):
+            rows.append(row(name, source, "Managed low level", 50.0, 10))
+            rows.append(row(name, source, "Hierarchical", full_idf1, full_idsw))
+    overall = {"predicted": 10, "scripted": 10, "matched": matched}
+    counts = {"cases": 10, "kept": kept, "unscored": 0, "rate": kept / 10}
+    return {
+        "rows": rows,
+        "events": {"s det": {"overall": overall}},
+        "event_tolerance_frames": 25,
+        "identity_kept": {
+            "s det Hierarchical": {"overall": counts},
+            "s det Managed low level": {"overall": {**counts, "kept": 10}},
+        },
+    }
+
+
+def test_goals_pass_and_fail_at_their_thresholds():
+    goals = goal_checks(record(full_idsw=5, full_idf1=60.0, kept=9, matched=8), ["A", "B"])
+    assert [g["pass"] for g in goals] == [True] * 5  # IDF1 60 > the best peer's 58.6
+    goals = goal_checks(record(full_idsw=6, full_idf1=50.0, kept=8, matched=7), ["A", "B"])
+    assert [g["pass"] for g in goals] == [False, False, False, False, False]
+    # only the full tracker's identities count (the managed one kept 10 of 10)
+    assert goals[2]["measured"].startswith("8/10 cases")
+
+
+def test_goal_on_peers_uses_the_combined_mot15_row():
+    goals = goal_checks(record(full_idsw=5, full_idf1=60.0, kept=9, matched=8), ["A", "B"])
+    assert goals[-1]["measured"] == "60.0"
+
+
+def test_table_markdown_lists_goals():
+    data = record(full_idsw=5, full_idf1=60.0, kept=9, matched=8)
+    data.update(synthetic_seeds_held_out=[101], seed=0, seconds=1.0)
+    data["events"] = {"s det": {k: {"precision": 1.0, "recall": 0.5} for k in
+                                ("group", "split", "entry", "exit", "overall")}}  # fmt: skip
+    data["events"]["s det"]["overall"].update(predicted=2, scripted=4, matched=2)
+    kinds = ("occlusion", "crossing", "group", "overall")
+    data["identity_kept"] = {"s det Hierarchical": {k: {"kept": 1, "cases": 2} for k in kinds}}
+    data["goals"] = goal_checks(data, ["A", "B"])
+    text = table_markdown(data)
+    assert "| s det | 1.00 / 0.50 |" in text and "| s det Hierarchical | 1/2 |" in text
+    assert text.count("FAIL") + text.count("PASS") == len(data["goals"])
