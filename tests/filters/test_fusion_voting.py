@@ -1,0 +1,219 @@
+"""Fusion voting: calibration on hand-made det/gt pairs, regions, the vote's state machine."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.context.zones import SceneZones
+from jaxtrack.errors import InputError
+from jaxtrack.filters.fusion_voting import (
+    ACTIVE,
+    EMPTY,
+    ENDED,
+    INACTIVE,
+    TARGET,
+    TENTATIVE,
+    ZONE,
+    Runs,
+    calibrate_init,
+    calibrate_term,
+    detection_gaps,
+    false_positive_runs,
+    point_regions,
+    region_thresholds,
+    voting_init,
+    voting_step,
+)
+from jaxtrack.types import MotTable
+
+PERSON = (100.0, 100.0, 50.0, 100.0)
+
+
+def _table(rows):
+    rows = np.asarray(rows, np.float64)
+    return MotTable.from_arrays(rows[:, 0], rows[:, 1], rows[:, 2:6], confs=rows[:, 6])
+
+
+def _scene_pair():
+    """One target (frames 1-10) missed in frames 4, 5 and 8; known false-positive runs.
+
+    Runs: a still box in frames 1-3 (3); a box drifting 2 px a frame in frames 2-8 (7); a box
+    moving 1 px in frames 1-2 (2) then jumping away (IoU 0 with it: a new run of 3 in frames
+    3-5); two lone boxes in frame 9 (1 and 1). The boxes on an ignored gt person
+    (``conf = 0``) are matched, hence no run.
+    """
+    gt = [[f, 1, *PERSON, 1] for f in range(1, 11)] + [[f, 2, 300, 300, 40, 80, 0] for f in (1, 2)]
+    det = [[f, -1, *PERSON, 1] for f in range(1, 11) if f not in (4, 5, 8)]
+    det += [[f, -1, 400, 50, 40, 80, 1] for f in (1, 2, 3)]
+    det += [[f, -1, 600 + 2 * f, 300, 30, 60, 1] for f in range(2, 9)]
+    det += [[1, -1, 10, 400, 30, 60, 1], [2, -1, 11, 400, 30, 60, 1]]
+    det += [[f, -1, 200, 400, 30, 60, 1] for f in (3, 4, 5)]
+    det += [[9, -1, 700, 10, 20, 40, 1], [9, -1, 10, 10, 20, 40, 1]]
+    det += [[f, -1, 301, 300, 40, 80, 1] for f in (1, 2)]  # the ignored person: matched
+    rng = np.random.default_rng(0)
+    det = np.asarray(det, np.float64)[rng.permutation(len(det))]  # file order is no help
+    return _table(det), _table(gt)
+
+
+def test_false_positive_runs_match_the_hand_made_scene():
+    det, gt = _scene_pair()
+    runs = false_positive_runs(det, gt)
+    assert sorted(runs.lengths.tolist()) == [1, 1, 2, 3, 3, 7]
+    # each run is placed at the foot point of its first box
+    found = {tuple(p): int(n) for p, n in zip(runs.points.tolist(), runs.lengths, strict=True)}
+    assert found[(420.0, 130.0)] == 3
+    assert found[(619.0, 360.0)] == 7
+    assert found[(25.0, 460.0)] == 2
+    assert found[(215.0, 460.0)] == 3
+
+
+def test_linking_threshold_splits_a_drifting_run():
+    det, gt = _scene_pair()
+    # the drifting box moves 2 px a frame: IoU (28 / 32) ~ 0.875 links it at 0.3, not at 0.9
+    runs = false_positive_runs(det, gt, link_iou=0.9)
+    assert sorted(runs.lengths.tolist()) == [1] * 9 + [2, 3, 3]
+
+
+def test_detection_gaps_of_the_true_target_only():
+    det, gt = _scene_pair()
+    gaps = detection_gaps(det, gt)
+    assert gaps.lengths.tolist() == [2, 1]
+    np.testing.assert_array_equal(gaps.points, [[125.0, 200.0], [125.0, 200.0]])
+
+
+def test_calibrate_init_exact_on_known_runs():
+    det, gt = _scene_pair()
+    lengths = false_positive_runs(det, gt).lengths  # 1, 1, 2, 3, 3, 7
+    assert calibrate_init(lengths) == 8  # 99% of 6 runs: all must be shorter
+    assert calibrate_init(lengths, reject=5 / 6) == 4  # 5 runs < 4, 4 runs < 3
+    assert calibrate_init(lengths, reject=0.5) == 3  # 3 runs < 3, 2 runs < 2
+    assert calibrate_term(detection_gaps(det, gt).lengths) == 3
+
+
+def test_calibration_matches_brute_force():
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        lengths = rng.geometric(0.3, size=rng.integers(1, 300))
+        share = rng.uniform(0.05, 1.0)
+        brute = next(
+            th for th in range(1, lengths.max() + 2) if np.mean(lengths < th) >= share - 1e-12
+        )
+        assert calibrate_init(lengths, share) == brute
+
+
+def test_calibration_refuses_bad_input():
+    with pytest.raises(InputError, match="no false-positive runs"):
+        calibrate_init(np.zeros(0, np.int64))
+    with pytest.raises(InputError, match="share"):
+        calibrate_term(np.array([1, 2]), keep=0.0)
+    det, gt = _scene_pair()
+    with pytest.raises(InputError, match="IoU"):
+        false_positive_runs(det, gt, link_iou=0.0)
+
+
+def _scene() -> SceneZones:
+    """200 x 100 image, 10 px cells; left half active; a zone box over x in [0, 20]."""
+    activity = np.zeros((10, 20), bool)
+    activity[:, :10] = True
+    return SceneZones(boxes=np.array([[0.0, 0.0, 20.0, 100.0]]), activity=activity, cell_size=10.0)
+
+
+def test_point_regions_on_a_hand_made_mask():
+    scene = _scene()
+    points = jnp.array([[5.0, 50.0], [20.0, 99.0], [50.0, 50.0], [150.0, 50.0], [300.0, 10.0]])
+    regions = point_regions(scene.boxes, scene.activity, scene.cell_size, points)
+    assert regions.tolist() == [ZONE, ZONE, ACTIVE, INACTIVE, INACTIVE]
+
+
+def _runs(placed):
+    lengths = [n for n, _ in placed]
+    points = [p for _, p in placed]
+    return Runs(np.asarray(lengths, np.int64), np.asarray(points, np.float64))
+
+
+def test_region_thresholds_follow_the_documented_rule():
+    zone, active, inactive = (10.0, 50.0), (50.0, 50.0), (150.0, 50.0)
+    runs = _runs(
+        [(1, zone), (1, zone), (2, active), (3, active), (4, active)] + [(6, inactive)] * 2
+    )
+    gaps = _runs([(9, zone), (2, active), (5, active), (3, inactive)])
+    thresholds = region_thresholds(runs, gaps, _scene())
+    # init: own statistic 5 (active), 7 (inactive, raised to >= global 7), 2 (zone, <= global)
+    assert thresholds.init.tolist() == [5, 7, 2]
+    # term: global 10; active own 6; inactive min(4, 10); zone min(10, 10)
+    assert thresholds.term.tolist() == [6, 4, 10]
+
+
+def test_region_without_runs_takes_the_global_value_and_zones_never_rise():
+    zone, active = (10.0, 50.0), (50.0, 50.0)
+    runs = _runs([(9, zone), (1, active), (2, active)])  # global 10, zone own 10, active 3
+    gaps = _runs([(2, active)])
+    thresholds = region_thresholds(runs, gaps, _scene())
+    assert thresholds.init.tolist() == [3, 10, 10]
+    assert thresholds.term.tolist() == [3, 3, 3]
+    with pytest.raises(InputError, match="activity mask"):
+        region_thresholds(runs, gaps, SceneZones(_scene().boxes, None, None))
+
+
+def _one_slot(supported, th_init, th_term):
+    state = voting_init(1)
+    statuses = []
+    for s in supported:
+        state = voting_step(state, jnp.array([bool(s)]), jnp.array([th_init]), jnp.array([th_term]))
+        statuses.append(int(state.status[0]))
+    return statuses
+
+
+def test_voting_transitions_by_hand():
+    T, G = TENTATIVE, TARGET
+    assert _one_slot([1, 1, 1, 0, 1, 0, 0, 0, 1], 3, 2) == [T, T, G, G, G, G, ENDED, EMPTY, T]
+    assert _one_slot([1, 1, 0, 1, 1, 1], 3, 2) == [T, T, EMPTY, T, T, G]  # must be consecutive
+    assert _one_slot([1, 0, 0, 0], 1, 3) == [G, G, G, ENDED]
+    assert _one_slot([1, 1, 0, 0, 1, 0, 0], 2, 3) == [T, G, G, G, G, G, G]  # support resets
+
+
+def _reference_vote(supported, th_init, th_term):
+    """Slot-by-slot loop of the documented rules (independent of the JAX code)."""
+    num_frames, num_slots = supported.shape
+    status = [EMPTY] * num_slots
+    support = [0] * num_slots
+    missed = [0] * num_slots
+    history = np.zeros((num_frames, num_slots), np.int64)
+    for t in range(num_frames):
+        for s in range(num_slots):
+            if status[s] == TARGET:
+                if supported[t, s]:
+                    support[s], missed[s] = support[s] + 1, 0
+                else:
+                    support[s], missed[s] = 0, missed[s] + 1
+                    if missed[s] >= th_term[s]:
+                        status[s] = ENDED
+            elif supported[t, s]:
+                support[s] = support[s] + 1 if status[s] == TENTATIVE else 1
+                missed[s] = 0
+                status[s] = TARGET if support[s] >= th_init[s] else TENTATIVE
+            else:
+                status[s], support[s], missed[s] = EMPTY, 0, 0
+        history[t] = status
+    return history
+
+
+def test_voting_scan_matches_loop_reference_and_jit():
+    rng = np.random.default_rng(2)
+    supported = rng.random((60, 16)) < 0.7
+    th_init = rng.integers(1, 6, 16)
+    th_term = rng.integers(1, 6, 16)
+
+    def step(state, s):
+        state = voting_step(state, s, jnp.asarray(th_init), jnp.asarray(th_term))
+        return state, state.status
+
+    _, eager = jax.lax.scan(step, voting_init(16), jnp.asarray(supported))
+    _, jitted = jax.jit(lambda xs: jax.lax.scan(step, voting_init(16), xs))(jnp.asarray(supported))
+    expected = _reference_vote(supported, th_init, th_term)
+    np.testing.assert_array_equal(eager, expected)
+    np.testing.assert_array_equal(jitted, expected)
+    assert {TENTATIVE, TARGET, ENDED, EMPTY} <= set(np.unique(expected).tolist())
