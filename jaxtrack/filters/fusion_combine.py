@@ -110,11 +110,11 @@ def fusion_weights(
     taken = upper & valid[:, None] & valid[None, :] & (pair_total > 0)
     pair_weight = jnp.where(taken, accordances, 0.0)
     pair_sum = jnp.sum(pair_weight)
-    share = confidences[:, None] / jnp.where(taken, pair_total, 1.0)  # S_i / (S_i + S_j)
+    safe_total = jnp.where(taken, pair_total, 1.0)
     # pair (i, j), i < j, gives R_i the weight A_ij S_i / (S_i + S_j) and R_j A_ij S_j / (...)
-    weighted = pair_weight * share
-    weighted_other = pair_weight * share.T
-    member = jnp.sum(weighted, axis=1) + jnp.sum(weighted_other, axis=0)
+    to_first = pair_weight * confidences[:, None] / safe_total
+    to_second = pair_weight * confidences[None, :] / safe_total
+    member = jnp.sum(to_first, axis=1) + jnp.sum(to_second, axis=0)
     dynamic = member / jnp.where(pair_sum > 0, pair_sum, 1.0)
     return jnp.where(pair_sum > 0, dynamic, naive_weights(valid))
 
