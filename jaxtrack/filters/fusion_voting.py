@@ -37,6 +37,7 @@ The per-frame state machine (:func:`voting_step`) is pure JAX over ``S`` fixed s
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -275,6 +276,21 @@ def point_regions(
     return jnp.where(in_zone, ZONE, jnp.where(active, ACTIVE, INACTIVE))
 
 
+def _per_region(
+    found: Runs, scene: SceneZones, calibrate: Callable[[np.ndarray, float], int], share: float
+) -> tuple[np.ndarray, int]:
+    """``([3] own threshold of each region, global threshold)``; a region without runs: global."""
+    whole = calibrate(found.lengths, share)
+    regions = np.asarray(
+        point_regions(scene.boxes, scene.activity, scene.cell_size, found.points)
+    ).reshape(-1)
+    own = [
+        calibrate(found.lengths[regions == region], share) if np.any(regions == region) else whole
+        for region in (ACTIVE, INACTIVE, ZONE)
+    ]
+    return np.asarray(own, np.int64), whole
+
+
 def region_thresholds(
     runs: Runs, gaps: Runs, scene: SceneZones, share: float = SHARE
 ) -> Thresholds:
@@ -295,20 +311,8 @@ def region_thresholds(
     if scene.activity is None:
         raise InputError("per-region thresholds need the scene's activity mask")
 
-    def per_region(found: Runs, calibrate) -> np.ndarray:
-        whole = calibrate(found.lengths, share)
-        regions = np.asarray(
-            point_regions(scene.boxes, scene.activity, scene.cell_size, found.points)
-        ).reshape(-1)
-        return np.array(
-            [
-                calibrate(found.lengths[regions == r], share) if np.any(regions == r) else whole
-                for r in (ACTIVE, INACTIVE, ZONE)
-            ]
-        ), whole
-
-    init, init_whole = per_region(runs, calibrate_init)
-    term, term_whole = per_region(gaps, calibrate_term)
+    init, init_whole = _per_region(runs, scene, calibrate_init, share)
+    term, term_whole = _per_region(gaps, scene, calibrate_term, share)
     init[INACTIVE] = max(init[INACTIVE], init_whole)
     init[ZONE] = min(init[ZONE], init_whole)
     term[INACTIVE] = min(term[INACTIVE], term_whole)
