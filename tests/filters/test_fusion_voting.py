@@ -70,6 +70,26 @@ def test_false_positive_runs_match_the_hand_made_scene():
     assert found[(215.0, 460.0)] == 3
 
 
+def test_false_positive_runs_on_random_scenes_with_known_runs():
+    """Tracks on distinct cells of a 100 px grid (no ambiguity): the runs are the tracks."""
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        cells = rng.permutation(64)[:24]
+        det, gt, truth = [], [], []
+        for k, cell in enumerate(cells):
+            x, y = 100.0 * (cell % 8), 100.0 * (cell // 8)
+            first, length = rng.integers(1, 30), rng.integers(1, 12)
+            frames = range(first, first + length)
+            if k % 3 == 0:  # a detected gt person, missed now and then: no run
+                gt += [[f, k, x, y, 40, 80, 1] for f in frames]
+                det += [[f, -1, x + 1, y, 40, 80, 1] for f in frames if rng.random() < 0.7]
+            else:
+                det += [[f, -1, x + rng.uniform(-2, 2), y, 40, 80, 1] for f in frames]
+                truth.append(length)
+        runs = false_positive_runs(_table(det), _table(gt))
+        assert sorted(runs.lengths.tolist()) == sorted(truth)
+
+
 def test_linking_threshold_splits_a_drifting_run():
     det, gt = _scene_pair()
     # the drifting box moves 2 px a frame: IoU (28 / 32) ~ 0.875 links it at 0.3, not at 0.9
@@ -126,6 +146,10 @@ def test_point_regions_on_a_hand_made_mask():
     points = jnp.array([[5.0, 50.0], [20.0, 99.0], [50.0, 50.0], [150.0, 50.0], [300.0, 10.0]])
     regions = point_regions(scene.boxes, scene.activity, scene.cell_size, points)
     assert regions.tolist() == [ZONE, ZONE, ACTIVE, INACTIVE, INACTIVE]
+    jitted = jax.jit(point_regions, static_argnums=2)(
+        scene.boxes, scene.activity, scene.cell_size, points
+    )
+    np.testing.assert_array_equal(jitted, regions)
 
 
 def _runs(placed):
