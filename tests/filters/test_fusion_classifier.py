@@ -119,19 +119,22 @@ def _ref_step(a, b, box, frame, p, update):
 # --- tests ------------------------------------------------------------------------------------
 
 PARAMS = classifier_params(learning_rate=0.35, sigma=1.0)
+# Compiled once per shape for speed; test_jit_equals_eager checks them against eager runs.
+STEP = jax.jit(classifier_step)
+INIT = jax.jit(init_classifier, static_argnums=4)
 
 
 def _start(corners, params=PARAMS, alive=None):
     alive = jnp.ones(len(corners), bool) if alive is None else jnp.asarray(alive)
-    return init_classifier(_scene(corners), _boxes(corners), alive, params, PATCH)
+    return INIT(_scene(corners), _boxes(corners), alive, params, PATCH)
 
 
 @pytest.mark.parametrize("shift", [(3, 0), (-3, 2), (5, -4), (-6, -5), (0, 7), (4, 6), (-7, 0)])
 def test_recovers_a_known_translation_within_one_pixel(shift):
     start = [(50, 30)]
-    state = init_classifier(_scene(start), _boxes(start), jnp.ones(1, bool), PARAMS)
+    state = INIT(_scene(start), _boxes(start), jnp.ones(1, bool), PARAMS)
     moved = [(50 + shift[0], 30 + shift[1])]
-    state, response = classifier_step(state, _scene(moved), PARAMS, jnp.ones(1, bool))
+    state, response = STEP(state, _scene(moved), PARAMS, jnp.ones(1, bool))
     np.testing.assert_allclose(state.boxes[0], _boxes(moved)[0], atol=1.0)
     assert float(response.psr[0]) > 5.0
 
@@ -141,7 +144,7 @@ def test_step_matches_a_numpy_loop_reference():
     state = _start(corners, alive=[True, True, False])
     frame = _scene([(43, 28), (78, 53)])
     update = jnp.array([True, False, True])
-    new, response = classifier_step(state, frame, PARAMS, update)
+    new, response = STEP(state, frame, PARAMS, update)
     for slot in range(2):
         a0, b0 = _ref_terms(
             _ref_features(_scene(corners), _boxes(corners)[slot], 2.0, PATCH)[0], 1.0
@@ -163,7 +166,7 @@ def test_step_matches_a_numpy_loop_reference():
 def test_learning_rate_zero_keeps_the_filter_while_the_box_moves():
     params = classifier_params(learning_rate=0.0, sigma=1.0)
     state = _start([(40, 30)], params)
-    new, _ = classifier_step(state, _scene([(44, 32)]), params, jnp.ones(1, bool))
+    new, _ = STEP(state, _scene([(44, 32)]), params, jnp.ones(1, bool))
     np.testing.assert_array_equal(new.numerator, state.numerator)
     np.testing.assert_array_equal(new.denominator, state.denominator)
     np.testing.assert_allclose(new.boxes[0, :2], [44, 32], atol=1.0)
@@ -172,7 +175,7 @@ def test_learning_rate_zero_keeps_the_filter_while_the_box_moves():
 def test_frozen_slots_keep_their_filter_and_learning_slots_change():
     corners = [(40, 30), (80, 50)]
     state = _start(corners)
-    new, _ = classifier_step(state, _scene([(42, 31), (82, 49)]), PARAMS, jnp.array([False, True]))
+    new, _ = STEP(state, _scene([(42, 31), (82, 49)]), PARAMS, jnp.array([False, True]))
     np.testing.assert_array_equal(new.numerator[0], state.numerator[0])
     np.testing.assert_array_equal(new.denominator[0], state.denominator[0])
     assert float(jnp.abs(new.numerator[1] - state.numerator[1]).max()) > 1e-3
@@ -183,10 +186,10 @@ def test_vmap_over_targets_equals_one_target_at_a_time():
     corners = [(40, 30), (80, 50)]
     frame = _scene([(43, 28), (78, 53)])
     update = jnp.array([True, False])
-    both, both_response = classifier_step(_start(corners), frame, PARAMS, update)
+    both, both_response = STEP(_start(corners), frame, PARAMS, update)
     for slot in range(2):
         single = ClassifierState(*(leaf[slot : slot + 1] for leaf in _start(corners)))
-        one, one_response = classifier_step(single, frame, PARAMS, update[slot : slot + 1])
+        one, one_response = STEP(single, frame, PARAMS, update[slot : slot + 1])
         for got, want in zip(one, both, strict=True):
             np.testing.assert_allclose(got[0], want[slot], rtol=1e-6, atol=1e-6)
         np.testing.assert_allclose(one_response.psr[0], both_response.psr[slot], rtol=1e-6)
@@ -204,17 +207,16 @@ def test_jit_equals_eager():
 
 
 def test_two_textured_targets_tracked_over_twenty_frames():
-    step = jax.jit(classifier_step)
     truth = [
         [(10 + 3 * t, 12 + t // 2) for t in range(21)],  # right along the top, 3 px per frame
         [(100 - 2 * t, 64 - t // 3) for t in range(21)],  # left along the bottom, slightly up
     ]
     first = [truth[0][0], truth[1][0]]
-    state = init_classifier(_scene(first), _boxes(first), jnp.ones(2, bool), PARAMS)
+    state = INIT(_scene(first), _boxes(first), jnp.ones(2, bool), PARAMS)
     worst = 0.0
     for t in range(1, 21):
         corners = [truth[0][t], truth[1][t]]
-        state, response = step(state, _scene(corners), PARAMS, jnp.ones(2, bool))
+        state, response = STEP(state, _scene(corners), PARAMS, jnp.ones(2, bool))
         worst = max(worst, float(jnp.abs(state.boxes[:, :2] - _boxes(corners)[:, :2]).max()))
         assert float(response.psr.min()) > 10.0
     assert worst < 1.0  # measured 0.84 px
@@ -222,11 +224,11 @@ def test_two_textured_targets_tracked_over_twenty_frames():
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_psr_high_on_the_moved_target_low_on_its_shuffled_pixels(seed):
-    state = init_classifier(_scene([(50, 30)]), _boxes([(50, 30)]), jnp.ones(1, bool), PARAMS)
-    _, on_target = classifier_step(state, _scene([(53, 32)]), PARAMS, jnp.ones(1, bool))
+    state = INIT(_scene([(50, 30)]), _boxes([(50, 30)]), jnp.ones(1, bool), PARAMS)
+    _, on_target = STEP(state, _scene([(53, 32)]), PARAMS, jnp.ones(1, bool))
     pixels = TEXTURES[0].reshape(-1, 3)
     shuffled = pixels[np.random.default_rng(seed).permutation(len(pixels))].reshape(24, 16, 3)
-    _, on_shuffled = classifier_step(
+    _, on_shuffled = STEP(
         state, _scene([(53, 32)], textures=(shuffled,)), PARAMS, jnp.ones(1, bool)
     )
     assert float(on_target.psr[0]) > 20.0
