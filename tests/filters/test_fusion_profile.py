@@ -7,6 +7,7 @@ occluder), the recursive-mean formula for the models, and loops for the vmapped 
 
 from __future__ import annotations
 
+import colorsys
 import functools
 
 import jax
@@ -32,7 +33,9 @@ GREY = (128, 128, 128)
 RED, YELLOW, GREEN, BLUE = (200, 30, 30), (200, 200, 30), (30, 180, 30), (30, 30, 200)
 PATCH, STEP, MIN_ROWS = (8, 4), 32.0, 2
 NUM_BINS = 8**3
-_signatures = jax.jit(functools.partial(signatures, patch_shape=PATCH, step=STEP, min_rows=2))
+_signatures = jax.jit(
+    functools.partial(signatures, patch_shape=PATCH, step=STEP, min_rows=MIN_ROWS)
+)
 _status = jax.jit(occlusion_status)
 _reidentify = jax.jit(reidentify)
 
@@ -59,8 +62,6 @@ def one_hot_parts(upper: int, lower: int) -> np.ndarray:
 
 def hsv_bin(colour) -> int:
     """Joint HSV bin at step 32, from colorsys."""
-    import colorsys
-
     h, s, v = colorsys.rgb_to_hsv(*(c / 255 for c in colour))
     channels = [int(256 * h // STEP), int(256 * s // STEP), int(255 * v // STEP)]
     return (channels[0] * 8 + channels[1]) * 8 + channels[2]
