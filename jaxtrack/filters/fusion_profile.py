@@ -191,7 +191,16 @@ def start_signatures(
     observed: Float[Array, "slots 2 num_bins"],
     born: Bool[Array, " slots"],
 ) -> AppearanceModel:
-    """The models with each newly born slot's replaced by a model of its first signature."""
+    """The models with each newly born slot's replaced by a model of its first signature.
+
+    :func:`~jaxtrack.appearance.model.init_model` (``m = p``, ``n = 1``, no distance
+    statistics yet) where ``born``, the old model elsewhere.
+
+    Args:
+        models: the slots' models.
+        observed: the slots' signature histograms in the current frame.
+        born: which slots hold a target initiated in this frame.
+    """
     fresh = init_model(observed)
     return jax.tree.map(
         lambda new, old: jnp.where(born.reshape(born.shape + (1,) * (new.ndim - 1)), new, old),
