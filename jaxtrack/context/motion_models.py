@@ -19,15 +19,20 @@ leaves open, made here (each a parameter):
   fewer than ``min_tracklets`` informative tracklets has no model (constant velocity).
 * **Regression.** Input ``u = (v_2, ..., v_N)`` flattened, the ``N - 1`` velocities
   ``v_k = p_k - p_{k-1}`` (pixels per frame); output the next displacement
-  ``d = p_{N+1} - p_N``. The GP has the constant-velocity prior mean ``m(u) = v_N`` and
-  models the residual ``r = d - v_N`` (two outputs sharing one kernel): far from the
-  training tracklets the prediction falls back to constant velocity. Kernel
+  ``d = p_{N+1} - p_N``. The GP has the constant-velocity prior mean
+  ``m(u) = (p_N - p_1) / (N - 1)``, the tracklet's mean velocity (on PETS09-S2L1 gt it
+  predicts the next foot point 9% better than the last velocity ``v_N``: 0.82 vs 0.90
+  pixels), and models the residual ``r = d - m(u)`` (two outputs sharing one kernel): far
+  from the training tracklets the prediction falls back to constant velocity. Kernel
   ``k(u, u') = s^2 exp(-|u - u'|^2 / (2 l^2))`` plus noise ``sigma^2`` on the diagonal
   (tinygp's ``ExpSquared``).
-* **Hyperparameters.** Shared by all cells, set from the training tracklets (not
-  optimised): ``s^2`` the mean squared residual per axis, ``l`` the median distance between
-  the inputs of informative tracklets (the median heuristic), ``sigma^2 = noise_fraction
-  s^2``.
+* **Hyperparameters.** Shared by all cells, chosen by type-II maximum likelihood on a
+  grid: the prior variance of a residual ``s^2 + sigma^2 = V``, the mean squared residual
+  per axis of the informative tracklets, is split as ``sigma^2 = f V``, ``s^2 = (1 - f) V``;
+  ``(l, f)`` maximises the summed log marginal likelihood of the cells' residuals
+  (R&W eq. 2.30; both axes, padded slots contribute nothing) over ``l`` in
+  ``LENGTH_SCALE_FACTORS`` times the median distance between the inputs of informative
+  tracklets and ``f`` in ``NOISE_FRACTIONS``.
 * **Fixed size.** At most ``max_points`` tracklets per cell (evenly spaced in the cell's
   list when there are more): every cell's model is padded to ``K = max_points`` slots with
   a mask, and its Cholesky factor ``L`` of ``K_y = K + sigma^2 I`` (identity on padded
@@ -63,8 +68,10 @@ MIN_DISPLACEMENT = 4.0
 MIN_TRACKLETS = 8
 #: ``K``: most tracklets kept per cell (the padded model size).
 MAX_POINTS = 64
-#: Noise variance as a fraction of the signal variance.
-NOISE_FRACTION = 0.25
+#: Candidate length scales, as multiples of the median distance between inputs.
+LENGTH_SCALE_FACTORS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
+#: Candidate shares ``f`` of the residual variance that is noise.
+NOISE_FRACTIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
 
 
 class MotionModels(NamedTuple):
@@ -94,7 +101,7 @@ class MotionModels(NamedTuple):
     amplitude: Float[Array, ""]
     noise: Float[Array, ""]
     cell_size: Float[Array, ""]
-    grid: Int[Array, "2"]
+    grid: Int[Array, " 2"]
 
 
 class Tracklets(NamedTuple):
@@ -118,6 +125,11 @@ def tracklet_inputs(points: Float[Array, "*batch N 2"]) -> Float[Array, "*batch 
     """``u = (v_2, ..., v_N)``, ``v_k = p_k - p_{k-1}``, flattened (works on NumPy and JAX)."""
     velocities = points[..., 1:, :] - points[..., :-1, :]
     return velocities.reshape(*velocities.shape[:-2], -1)
+
+
+def mean_velocity(points: Float[Array, "*batch N 2"]) -> Float[Array, "*batch 2"]:
+    """``m(u) = (p_N - p_1) / (N - 1)``, the constant-velocity prior mean (NumPy or JAX)."""
+    return (points[..., -1, :] - points[..., 0, :]) / (points.shape[-2] - 1)
 
 
 def cut_tracklets(table: MotTable, length: int = TRACKLET_LENGTH) -> Tracklets:
@@ -154,7 +166,7 @@ def cut_tracklets(table: MotTable, length: int = TRACKLET_LENGTH) -> Tracklets:
 
 
 def tracklet_cells(
-    points: Float[Array, "*batch 2"], cell_size: Float[Array, ""], grid: Int[Array, "2"]
+    points: Float[Array, "*batch 2"], cell_size: Float[Array, ""], grid: Int[Array, " 2"]
 ) -> Int[Array, "*batch"]:
     """Cell ``i * columns + j`` of each point, clipped to the grid (NumPy or JAX)."""
     xnp = jnp if isinstance(points, jax.Array) else np
@@ -172,7 +184,8 @@ def fit_motion_models(
     min_displacement: float = MIN_DISPLACEMENT,
     min_tracklets: int = MIN_TRACKLETS,
     max_points: int = MAX_POINTS,
-    noise_fraction: float = NOISE_FRACTION,
+    length_scale_factors: tuple[float, ...] = LENGTH_SCALE_FACTORS,
+    noise_fractions: tuple[float, ...] = NOISE_FRACTIONS,
 ) -> MotionModels:
     """Per-cell GP models of the next displacement (Fusion Sec. 3.2; module docstring).
 
@@ -184,7 +197,8 @@ def fit_motion_models(
         min_displacement: ``|p_N - p_1|`` of an informative tracklet, pixels.
         min_tracklets: fewest informative tracklets of a cell with a model.
         max_points: ``K``, most tracklets kept per cell.
-        noise_fraction: ``sigma^2 / s^2``.
+        length_scale_factors: candidate ``l`` over the median input distance.
+        noise_fractions: candidate ``f = sigma^2 / (s^2 + sigma^2)``, each in ``(0, 1)``.
 
     Returns:
         The models (every cell constant velocity when no tracklet is informative).
@@ -196,17 +210,20 @@ def fit_motion_models(
         ("width", width),
         ("height", height),
         ("cell_size", cell_size),
-        ("noise_fraction", noise_fraction),
         ("max_points", max_points),
         ("min_tracklets", min_tracklets),
     ]:
         if not value > 0:
             raise InputError(f"{name} must be > 0, got {value}")
+    if not length_scale_factors or min(length_scale_factors) <= 0:
+        raise InputError(f"length_scale_factors must be > 0, got {length_scale_factors}")
+    if not noise_fractions or not all(0 < f < 1 for f in noise_fractions):
+        raise InputError(f"noise_fractions must lie in (0, 1), got {noise_fractions}")
     points = np.asarray(tracklets.points, np.float64)
     moving = np.linalg.norm(points[:, -1] - points[:, 0], axis=1) >= min_displacement
     points, next_points = points[moving], np.asarray(tracklets.next_points)[moving]
     inputs = tracklet_inputs(points)
-    residuals = next_points - points[:, -1] - (points[:, -1] - points[:, -2])
+    residuals = next_points - points[:, -1] - mean_velocity(points)
     grid = np.array(grid_shape(width, height, cell_size))
     num_cells = int(grid.prod())
     cells = tracklet_cells(points[:, -1], cell_size, grid)
@@ -222,16 +239,22 @@ def fit_motion_models(
         padded_inputs[cell, : kept.size] = inputs[kept]
         padded_residuals[cell, : kept.size] = residuals[kept]
         mask[cell, : kept.size] = True
-    amplitude, length_scale = hyperparameters(inputs, residuals)
-    noise = noise_fraction * amplitude
-    cholesky, alpha = _condition(
-        jnp.asarray(padded_inputs),
-        jnp.asarray(padded_residuals),
-        jnp.asarray(mask),
-        length_scale,
-        amplitude,
-        noise,
-    )
+    v, median_distance = residual_scales(inputs, residuals)
+    data = (jnp.asarray(padded_inputs), jnp.asarray(padded_residuals), jnp.asarray(mask))
+    candidates = [
+        (factor * median_distance, fraction)
+        for factor in length_scale_factors
+        for fraction in noise_fractions
+    ]
+    scores = [
+        float(
+            log_marginal_likelihood(*data[1:], *condition_cells(*data, scale, (1 - f) * v, f * v))
+        )
+        for scale, f in candidates
+    ]
+    length_scale, fraction = candidates[int(np.argmax(scores))]
+    amplitude, noise = (1 - fraction) * v, fraction * v
+    cholesky, alpha = condition_cells(*data, length_scale, amplitude, noise)
     return MotionModels(
         inputs=jnp.asarray(padded_inputs, jnp.float32),
         mask=jnp.asarray(mask),
@@ -246,11 +269,12 @@ def fit_motion_models(
     )
 
 
-def hyperparameters(inputs: np.ndarray, residuals: np.ndarray) -> tuple[float, float]:
-    """``(s^2, l)``: mean squared residual per axis; median pairwise input distance.
+def residual_scales(inputs: np.ndarray, residuals: np.ndarray) -> tuple[float, float]:
+    """``(V, D)``: mean squared residual per axis; median distance between inputs.
 
-    With fewer than two informative tracklets, ``s^2 = 1`` and ``l = 1`` (no cell has a
-    model then; they set the constant-velocity variance ``s^2 + sigma^2``).
+    The median is over at most 1000 evenly spaced tracklets. With fewer than two informative
+    tracklets, ``V = 1`` and ``D = 1`` (no cell has a model then; ``V`` is the
+    constant-velocity variance).
     """
     if inputs.shape[0] < 2:
         return 1.0, 1.0
@@ -262,8 +286,18 @@ def hyperparameters(inputs: np.ndarray, residuals: np.ndarray) -> tuple[float, f
 
 
 @jax.jit
-def _condition(inputs, residuals, mask, length_scale, amplitude, noise):
-    """``L = chol(K + sigma^2 I)`` and ``alpha = K_y^-1 r`` per cell, identity when padded."""
+def condition_cells(
+    inputs: Float[Array, "cells K features"],
+    residuals: Float[Array, "cells K 2"],
+    mask: Bool[Array, "cells K"],
+    length_scale: Float[Array, ""],
+    amplitude: Float[Array, ""],
+    noise: Float[Array, ""],
+) -> tuple[Float[Array, "cells K K"], Float[Array, "cells K 2"]]:
+    """``L = chol(K + sigma^2 I)`` and ``alpha = K_y^-1 r`` per cell (R&W Alg. 2.1).
+
+    Padded slots: identity rows and columns of ``K_y``, zero residuals (so zero ``alpha``).
+    """
 
     def one_cell(cell_inputs, cell_residuals, cell_mask):
         kernel = motion_kernel(length_scale, amplitude)
@@ -275,3 +309,19 @@ def _condition(inputs, residuals, mask, length_scale, amplitude, noise):
         return factor, alpha
 
     return jax.vmap(one_cell)(inputs, residuals, mask)
+
+
+@jax.jit
+def log_marginal_likelihood(
+    residuals: Float[Array, "cells K 2"],
+    mask: Bool[Array, "cells K"],
+    cholesky: Float[Array, "cells K K"],
+    alpha: Float[Array, "cells K 2"],
+) -> Float[Array, ""]:
+    """``sum over cells and axes of -r^T alpha / 2 - sum_i log L_ii - n log(2 pi) / 2``.
+
+    R&W eq. 2.30 (Alg. 2.1); padded slots (``L_ii = 1``, ``r_i = 0``) add nothing.
+    """
+    fit = -0.5 * jnp.sum(jnp.where(mask[..., None], residuals, 0.0) * alpha)
+    log_det = 2.0 * jnp.sum(jnp.log(jnp.diagonal(cholesky, axis1=1, axis2=2)))
+    return fit - log_det - jnp.sum(mask) * jnp.log(2 * jnp.pi)

@@ -5,13 +5,14 @@ last ``N`` foot points is assigned to a grid cell (the cell of its last point) a
 cell's model predicts the next position. With the models of
 :mod:`jaxtrack.context.motion_models` (constant-velocity prior mean, residual GP, ``alpha``
 and ``L`` precomputed per cell), the GP posterior (Rasmussen & Williams 2006, eq. 2.25-2.26,
-Alg. 2.1) of the next displacement of a tracklet with input ``u`` and last velocity ``v_N``:
+Alg. 2.1) of the next displacement of a tracklet with input ``u`` and prior mean
+``m(u) = (p_N - p_1) / (N - 1)`` (its mean velocity):
 
-    d = v_N + k_*^T alpha,        k_* = [k(u_i, u)]_i over the cell's real training slots
+    d = m(u) + k_*^T alpha,        k_* = [k(u_i, u)]_i over the cell's real training slots
     var = s^2 - |L^-1 k_*|^2 + sigma^2     (per axis; the two outputs share the kernel)
 
 and the next point ``p_{N+1} = p_N + d``. A cell without a model, or an invalid tracklet,
-gives constant velocity ``d = v_N`` with the prior variance ``s^2 + sigma^2``.
+gives constant velocity ``d = m(u)`` with the prior variance ``s^2 + sigma^2``.
 
 Pure JAX: jit-able, vmap-able over targets; every cell's model has the same padded size.
 """
@@ -25,6 +26,7 @@ from jaxtyping import Array, Bool, Float
 
 from jaxtrack.context.motion_models import (
     MotionModels,
+    mean_velocity,
     motion_kernel,
     tracklet_cells,
     tracklet_inputs,
@@ -33,7 +35,7 @@ from jaxtrack.context.motion_models import (
 
 def predict_one(
     models: MotionModels, tracklet: Float[Array, "N 2"], valid: Bool[Array, ""]
-) -> tuple[Float[Array, "2"], Float[Array, ""]]:
+) -> tuple[Float[Array, " 2"], Float[Array, ""]]:
     """Next foot point and its per-axis variance for one tracklet (module docstring).
 
     Args:
@@ -52,11 +54,10 @@ def predict_one(
     row = jnp.where(mask, kernel(inputs, tracklet_inputs(tracklet)[None])[:, 0], 0.0)
     reduced = jsl.solve_triangular(models.cholesky[cell], row, lower=True)
     use_model = valid & models.fitted[cell]
-    last_velocity = tracklet[-1] - tracklet[-2]
     residual = jnp.where(use_model, row @ models.alpha[cell], 0.0)
     explained = jnp.where(use_model, reduced @ reduced, 0.0)
     variance = models.amplitude - explained + models.noise
-    return tracklet[-1] + last_velocity + residual, variance
+    return tracklet[-1] + mean_velocity(tracklet) + residual, variance
 
 
 def predict_motion(
