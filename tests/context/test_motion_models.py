@@ -29,28 +29,33 @@ def table(frames, ids, feet):
 
 
 def reference_tracklets(frames, ids, feet, length):
-    """Loop: every run of ``length + 1`` consecutive frames of one id."""
+    """Loop: each id's runs of consecutive frames, cut into windows of ``length + 1``."""
     windows = []
     for identity in sorted(set(ids)):
         rows = sorted(
             (f, tuple(p)) for f, i, p in zip(frames, ids, feet, strict=True) if i == identity
         )
-        for start in range(len(rows) - length):
-            run = rows[start : start + length + 1]
-            if all(b[0] == a[0] + 1 for a, b in itertools.pairwise(run)):
-                windows.append([p for _, p in run])
+        runs = [[rows[0]]]
+        for previous, row in itertools.pairwise(rows):
+            if row[0] == previous[0] + 1:
+                runs[-1].append(row)
+            else:
+                runs.append([row])
+        for run in runs:
+            for start in range(0, len(run) - length, length + 1):
+                windows.append([p for _, p in run[start : start + length + 1]])
     return np.array(windows, float).reshape(-1, length + 1, 2)
 
 
 def test_cut_tracklets_matches_a_loop_with_gaps_and_unsorted_rows():
     rng = np.random.default_rng(0)
-    frames = np.r_[1:9, 11:15, 3:10]  # id 1 has a gap between 8 and 11
-    ids = np.r_[np.full(12, 1), np.full(7, 2)]
+    frames = np.r_[1:10, 11:19, 3:13]  # id 1 has a gap between 9 and 11
+    ids = np.r_[np.full(17, 1), np.full(10, 2)]
     feet = rng.uniform(0, 100, (frames.size, 2))
     order = rng.permutation(frames.size)
     cut = cut_tracklets(table(frames[order], ids[order], feet[order]), length=3)
     expected = reference_tracklets(frames, ids, feet, 3)
-    assert cut.points.shape == (expected.shape[0], 3, 2) == (5 + 1 + 4, 3, 2)
+    assert cut.points.shape == (expected.shape[0], 3, 2) == (2 + 2 + 2, 3, 2)
     np.testing.assert_allclose(cut.points, expected[:, :3])
     np.testing.assert_allclose(cut.next_points, expected[:, 3])
 

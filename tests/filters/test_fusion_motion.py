@@ -83,8 +83,8 @@ def test_fallback_cells_and_invalid_slots_give_constant_velocity(random_models):
 
 
 def test_prediction_beats_constant_velocity_in_the_turn_and_matches_it_on_straights():
-    train = cut_tracklets(road_walkers(seed=0, num_walkers=30))
-    test = cut_tracklets(road_walkers(seed=1, num_walkers=10))
+    train = cut_tracklets(road_walkers(seed=0, num_walkers=60))
+    test = cut_tracklets(road_walkers(seed=1, num_walkers=30))
     models = fit_motion_models(train, 640, 480, cell_size=64)
     points, _ = jax.jit(predict_motion)(
         models, jnp.asarray(test.points, jnp.float32), jnp.ones(len(test.points), bool)
@@ -96,8 +96,8 @@ def test_prediction_beats_constant_velocity_in_the_turn_and_matches_it_on_straig
     on_arc = np.abs(np.linalg.norm(last - TURN_CENTRE, axis=1) - TURN_RADIUS) < 3
     turning = on_arc & (last[:, 0] > TURN_CENTRE[0]) & (last[:, 1] < TURN_CENTRE[1])
     straight = (last[:, 0] < 250) | (last[:, 1] > 260)
-    assert turning.sum() > 100 and straight.sum() > 500
-    assert gp_error[turning].mean() < 0.8 * cv_error[turning].mean()  # measured 0.40 vs 0.57
+    assert turning.sum() > 100 and straight.sum() > 300
+    assert gp_error[turning].mean() < 0.8 * cv_error[turning].mean()  # measured 0.41 vs 0.60
     assert gp_error[straight].mean() < 1.05 * cv_error[straight].mean()
 
 
