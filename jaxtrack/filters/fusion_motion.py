@@ -15,6 +15,10 @@ and the next point ``p_{N+1} = p_N + d``. A cell without a model, or an invalid 
 gives constant velocity ``d = m(u)`` with the prior variance ``s^2 + sigma^2``.
 
 Pure JAX: jit-able, vmap-able over targets; every cell's model has the same padded size.
+The kernel is tinygp's; the conditioning is not tinygp's ``GaussianProcess.condition``,
+which has no mask for padded slots and factorises the cell's ``K x K`` Gram matrix on every
+call: for 16 targets, 0.81 ms per frame against 0.17 ms with ``L`` and ``alpha`` computed
+once at fitting (same results within 4e-4; ``benchmarks/fusion_motion.py``, 2 CPU cores).
 """
 
 from __future__ import annotations
