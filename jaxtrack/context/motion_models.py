@@ -159,8 +159,10 @@ def cut_tracklets(table: MotTable, length: int = TRACKLET_LENGTH) -> Tracklets:
     frames, ids, feet = frames[order], ids[order], foot_points(table.boxes)[order]
     repeated = (ids[1:] == ids[:-1]) & (frames[1:] == frames[:-1])
     if repeated.any():
-        row = int(np.asarray(table.lines)[order][1:][repeated][0])
-        raise InputError(f"{table.path or 'table'}, line {row}: two boxes of one id in a frame")
+        at = int(np.flatnonzero(repeated)[0]) + 1
+        line = int(np.asarray(table.lines)[order][at])
+        where = f"{table.path or 'table'}" + (f", line {line}" if line > 0 else "")
+        raise InputError(f"{where}: id {ids[at]} has two boxes in frame {frames[at]}")
     window = length + 1
     if frames.size < window:
         return Tracklets(np.zeros((0, length, 2)), np.zeros((0, 2)))

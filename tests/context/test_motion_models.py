@@ -62,7 +62,7 @@ def test_cut_tracklets_matches_a_loop_with_gaps_and_unsorted_rows():
 
 def test_cut_tracklets_rejects_a_repeated_id_in_a_frame_and_a_short_length():
     bad = table([1, 2, 2], [1, 1, 1], [[0, 0], [1, 0], [2, 0]])
-    with pytest.raises(InputError, match="line 0: two boxes of one id"):
+    with pytest.raises(InputError, match="table: id 1 has two boxes in frame 2"):
         cut_tracklets(bad)
     with pytest.raises(InputError, match="length must be >= 2"):
         cut_tracklets(bad, length=1)
