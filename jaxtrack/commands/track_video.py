@@ -50,16 +50,14 @@ from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
 from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.evaluate import evaluate_sequence
-from jaxtrack.pipelines.events import event_outputs, event_rows, merge_identities
+from jaxtrack.pipelines.events import event_outputs
 from jaxtrack.pipelines.frame_context import streamed_params
-from jaxtrack.pipelines.stream import streamed_outputs
+from jaxtrack.pipelines.stream import streamed_outputs, streamed_rows
 from jaxtrack.pipelines.tracking import (
     load_tracker_context,
-    output_rows,
     track_outputs,
     track_sequences,
     tracker_description,
-    warn_if_no_tracks,
 )
 from jaxtrack.plot.cmt_frames import (
     CMTFrame,
@@ -356,11 +354,7 @@ def track_span(sequence, reader, config, args, context, variant, used, progress:
     outputs = streamed_outputs(
         sequence, reader, config, args.seed, params, frame_output=frame_output
     )
-    if writes_events(config):
-        outputs = merge_identities(jax.device_get(outputs))
-    rows = output_rows(outputs, config, sequence.first_frame)
-    warn_if_no_tracks(sequence, rows, config)
-    events = event_rows(outputs, rows, sequence.first_frame) if writes_events(config) else None
+    rows, events, outputs = streamed_rows(outputs, sequence, config)
     return rows, outputs if drawn else None, events
 
 

@@ -13,7 +13,7 @@ compile per frame size, chunk length and detection capacity.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 
@@ -51,8 +51,8 @@ def track_streamed(
 ) -> MotTable:
     """Tracks a sequence (or span) with a tracker that uses frames, its frames streamed.
 
-    :func:`streamed_outputs` with :func:`~jaxtrack.pipelines.tracking.track_outputs`, turned
-    into result rows.
+    :func:`track_streamed_events` without the event rows (a tracker's merged identities are
+    merged all the same).
 
     Args:
         seq: the loaded sequence; its ``seqinfo.ini`` size is the frames' size.
@@ -75,10 +75,7 @@ def track_streamed(
         ResourceError: the run would need more memory than the machine has, before it runs.
         FileFormatError: a frame that does not decode.
     """
-    outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames)
-    rows = output_rows(outputs, config, seq.first_frame)
-    warn_if_no_tracks(seq, rows, config)
-    return rows
+    return track_streamed_events(seq, video, config, seed, params, chunk_frames, events=False)[0]
 
 
 def track_streamed_events(
@@ -88,20 +85,46 @@ def track_streamed_events(
     seed: int = 0,
     params: Any = None,
     chunk_frames: int = STREAM_CHUNK_FRAMES,
+    events: bool = True,
 ) -> tuple[MotTable, EventRows | None]:
     """:func:`track_streamed`, and for a tracker that ``writes_events`` the event state of
-    every result row (:func:`~jaxtrack.pipelines.events.event_rows`; None for the others).
+    every result row (:func:`~jaxtrack.pipelines.events.event_rows`; None for the others,
+    or without ``events``): :func:`streamed_rows` of the run's outputs.
 
     Raises:
         InputError, ResourceError, FileFormatError: as :func:`track_streamed`.
     """
-    if not writes_events(config):
-        return track_streamed(seq, video, config, seed, params, chunk_frames), None
-    outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames, event_outputs)
-    outputs = merge_identities(jax.device_get(outputs))
+    frame_output = event_outputs if writes_events(config) else track_outputs
+    outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames, frame_output)
+    return streamed_rows(outputs, seq, config, events)[:2]
+
+
+class StreamedRows(NamedTuple):
+    """What :func:`streamed_rows` makes of a run: the result rows, the event rows (or
+    None) and the per-frame outputs with merged identities merged (for drawing)."""
+
+    rows: MotTable
+    events: EventRows | None
+    outputs: Any
+
+
+def streamed_rows(
+    outputs: Any, seq: MotSequence, config: TrackerConfig, events: bool = True
+) -> StreamedRows:
+    """The result rows of a streamed run's per-frame outputs and, for a tracker that
+    ``writes_events`` (with ``events``), the event state of every row.
+
+    For such a tracker the identities its re-associations merged are merged first
+    (:func:`~jaxtrack.pipelines.events.merge_identities`); a sequence with detections but
+    no rows warns (:func:`~jaxtrack.pipelines.tracking.warn_if_no_tracks`).
+    """
+    if writes_events(config):
+        outputs = merge_identities(jax.device_get(outputs))
     rows = output_rows(outputs, config, seq.first_frame)
     warn_if_no_tracks(seq, rows, config)
-    return rows, event_rows(outputs, rows, seq.first_frame)
+    if not (events and writes_events(config)):
+        return StreamedRows(rows, None, outputs)
+    return StreamedRows(rows, event_rows(outputs, rows, seq.first_frame), outputs)
 
 
 def streamed_outputs(
