@@ -247,9 +247,10 @@ def _tracks(boxes, ids, selected, scores) -> Tracks:
 
 
 def _measured(info: LowInfo, num_tracks: int) -> Bool[Array, " T"]:
-    """The low-level slots that took a measurement on the frame (births included)."""
+    """The low-level slots that took a measurement on the frame (a birth's slot is its
+    measurement's assignment)."""
     slot = jnp.where(info.assignment >= 0, info.assignment, num_tracks)
-    return jnp.zeros((num_tracks,), bool).at[slot].set(True, mode="drop") | info.born
+    return jnp.zeros((num_tracks,), bool).at[slot].set(True, mode="drop")
 
 
 def _follow(high: HighState, low: LowState, boxes, velocity, max_lost, size) -> HighState:
@@ -390,7 +391,7 @@ def hierarchical_step(
             state,
             low_info,
             jnp.array(False),
-            measurement,
+            boxes,
             jnp.full_like(state.high.ids, -1),
         )
         return state, info
@@ -458,21 +459,22 @@ def hierarchical_step(
         state,
         low_info,
         new.overflow,
-        measurement,
+        boxes,
         merged,
     )
     return state, info
 
 
-def _info(tracks, candidates, state, low_info, overflow, measurement, merged):
-    """The frame's :class:`HierarchicalInfo` (after the frame's ``state``)."""
+def _info(tracks, candidates, state, low_info, overflow, boxes, merged):
+    """The frame's :class:`HierarchicalInfo` (after the frame's ``state``; ``boxes``: its
+    low-level estimates, :func:`~jaxtrack.filters.hier_low.low_boxes`)."""
     high, low = state.high, state.low
     return HierarchicalInfo(
         tracks=tracks,
         candidates=candidates,
         events=high.event,
         event_ids=high.ids,
-        low_boxes=low_boxes(low, measurement),
+        low_boxes=boxes,
         low_confirmed=low.confirmed & low.alive,
         low_alive=low.alive,
         high_boxes=high.boxes,
