@@ -49,16 +49,25 @@ def identity_merges(merged: np.ndarray, event_ids: np.ndarray) -> dict[int, int]
             frame (-1: none), ``[num_frames, S]``.
         event_ids: per frame and slot, the tracker's identity, ``[num_frames, S]``.
     """
+    direct = _direct_merges(merged, event_ids)
+    return {source: _resolve(source, direct)[0] for source in direct}
+
+
+def _direct_merges(merged, event_ids) -> dict[int, int]:
+    """``{merged: tracker}`` of each re-association (one merge each)."""
     merged, event_ids = np.asarray(merged), np.asarray(event_ids)
     pairs = merged >= 0
-    mapping = dict(zip(merged[pairs].tolist(), event_ids[pairs].tolist(), strict=True))
-    for source in list(mapping):
-        target, seen = mapping[source], {source}
-        while target in mapping and target not in seen:
-            seen.add(target)
-            target = mapping[target]
-        mapping[source] = target
-    return mapping
+    return dict(zip(merged[pairs].tolist(), event_ids[pairs].tolist(), strict=True))
+
+
+def _resolve(identity: int, direct: dict[int, int]) -> tuple[int, int]:
+    """The final tracker of ``identity`` through the chain of ``direct`` merges, and the
+    number of merges on the way (0: not merged)."""
+    depth, seen = 0, set()
+    while identity in direct and identity not in seen:
+        seen.add(identity)
+        identity, depth = direct[identity], depth + 1
+    return identity, depth
 
 
 def merge_identities(outputs: Any) -> Any:
@@ -66,14 +75,11 @@ def merge_identities(outputs: Any) -> Any:
     ``merged``, NumPy or JAX leaves) with every merged identity replaced by its tracker's
     (:func:`identity_merges`): the rows of a target before a lost tracker took it back are
     the tracker's."""
-    merged, event_ids = np.asarray(outputs.merged), np.asarray(outputs.event_ids)
-    mapping = identity_merges(merged, event_ids)
-    if not mapping:
+    direct = _direct_merges(outputs.merged, outputs.event_ids)
+    if not direct:
         return outputs
-    direct = dict(zip(merged[merged >= 0].tolist(), event_ids[merged >= 0].tolist(), strict=True))
-    keys = np.array(sorted(mapping), np.int64)
-    values = np.array([mapping[key] for key in keys.tolist()], np.int64)
-    depths = np.array([_depth(key, direct) for key in keys.tolist()], np.int64)
+    keys = np.array(sorted(direct), np.int64)
+    values, depths = np.array([_resolve(key, direct) for key in keys.tolist()], np.int64).T
 
     def relabel(tracks: Tracks) -> Tracks:
         ids = np.array(tracks.ids, copy=True)
@@ -101,15 +107,6 @@ def merge_identities(outputs: Any) -> Any:
         candidates=relabel(outputs.candidates),
         event_ids=event_ids,
     )
-
-
-def _depth(identity: int, direct: dict[int, int]) -> int:
-    """Merges between ``identity`` and its final tracker (``direct``: one merge each)."""
-    depth, seen = 0, set()
-    while identity in direct and identity not in seen:
-        seen.add(identity)
-        identity, depth = direct[identity], depth + 1
-    return depth
 
 
 def event_rows(outputs: EventOutputs, rows: MotTable, first_frame: int) -> EventRows:
