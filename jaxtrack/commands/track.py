@@ -113,22 +113,18 @@ from jaxtrack.commands.paths import (
     video_input,
 )
 from jaxtrack.configs import TrackerConfig
-from jaxtrack.detect.pipeline import DetectorConfig, detect_video
-from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
 from jaxtrack.filters.kalman import KALMAN_PRESETS
 from jaxtrack.filters.registry import build_tracker, tracker_entry, writes_events
 from jaxtrack.io import (
     load_sequence,
-    parse_frame_span,
-    read_mot_file,
     read_seqinfo,
     write_results,
 )
 from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import VideoReader, find_frame_source, open_sequence_frames
 from jaxtrack.limits import FRAME_NUMBER
-from jaxtrack.pipelines.frame_context import streamed_params
+from jaxtrack.pipelines.frame_context import load_tracked_sequence, streamed_params
 from jaxtrack.pipelines.stream import track_streamed_events
 from jaxtrack.pipelines.tracking import (
     load_tracker_context,
@@ -258,29 +254,6 @@ def track_sequence(
     if events is not None:
         print(f"  events: {write_events(events_path(out_path), events)}", file=sys.stderr)
     return len(rows.frames), seq.num_frames
-
-
-def load_tracked_sequence(sequence_dir, frames=None, detections: str | None = None, reader=None):
-    """A sequence folder (or span) with its ``det/det.txt``, or with ``detections`` instead:
-    a detections file, ``"det"`` (the folder's own) or ``"bs"`` (background subtraction on
-    the sequence's frames, :func:`~jaxtrack.detect.pipeline.detect_video`, which needs the
-    open ``reader``).
-
-    Raises:
-        FileFormatError: a missing or malformed ``seqinfo.ini`` or detections file.
-        InputError: a bad frame span, or ``"bs"`` for a tracker that reads no frames.
-    """
-    if detections is None or detections == "det":
-        return load_sequence(sequence_dir, frames=frames)
-    info = read_seqinfo(Path(sequence_dir) / "seqinfo.ini")
-    span = parse_frame_span(frames, info.seq_length)
-    if detections == "bs":
-        if reader is None:
-            raise InputError("--detections bs needs a tracker that reads the frames")
-        table = detect_video(reader, span, DetectorConfig()).table
-    else:
-        table = read_mot_file(detections, "det", info=info)
-    return video_sequence(sequence_dir, table, span, info)
 
 
 def run(args) -> int:

@@ -33,8 +33,6 @@ from typing import Any, NamedTuple
 from tqdm import tqdm
 
 from jaxtrack.datasets.video_scene import generate_video_scene
-from jaxtrack.detect.pipeline import DetectorConfig, detect_video
-from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
 from jaxtrack.experiments.cmt_ablation import (
     BEST_PEER_IDF1,
@@ -42,19 +40,18 @@ from jaxtrack.experiments.cmt_ablation import (
     MOT15_COMBINED,
     QUICK_SCENE,
     SYNTHETIC_COMBINED,
-    ExperimentSequence,
     experiment_sequences,
 )
 from jaxtrack.experiments.common import evaluate_rows, markdown_table, output_folder
 from jaxtrack.filters.hier_events import DEFAULT_EXITING_FRAMES
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
-from jaxtrack.io import MotSequence, load_sequence, write_mot_file
+from jaxtrack.io import load_sequence, write_mot_file
 from jaxtrack.io.events import write_events
 from jaxtrack.io.video import open_sequence_frames
 from jaxtrack.metrics.evaluate import Evaluation, combine_sequences
 from jaxtrack.metrics.events import DEFAULT_TOLERANCE, score_events
 from jaxtrack.metrics.reassociation import identity_kept
-from jaxtrack.pipelines.frame_context import streamed_params
+from jaxtrack.pipelines.frame_context import load_tracked_sequence, streamed_params
 from jaxtrack.pipelines.stream import track_streamed_events
 from jaxtrack.pipelines.tracking import tracker_description
 
@@ -84,17 +81,6 @@ class RunKey(NamedTuple):
 def experiment_configs() -> dict[str, HierarchicalConfig]:
     """Table name -> configuration (defaults, one variant each)."""
     return {name: HierarchicalConfig(variant=variant) for name, variant in TRACKERS.items()}
-
-
-def load_with_source(sequence: ExperimentSequence, source: str, reader) -> MotSequence:
-    """The sequence (span) with the detections of ``source`` (``bs``: detected on the
-    frames of the open ``reader`` with the default :class:`DetectorConfig`)."""
-    loaded = load_sequence(sequence.folder, sequence.frames)
-    if source == "det":
-        return loaded
-    span = (loaded.first_frame, loaded.last_frame)
-    table = detect_video(reader, span, DetectorConfig()).table
-    return video_sequence(sequence.folder, table, span, loaded.info)
 
 
 def score_row(key: RunKey, synthetic: bool, evaluation: Evaluation) -> dict[str, Any]:
@@ -158,7 +144,9 @@ def run_experiment(
         scene = scenes.get(sequence.name)
         loaded = load_sequence(sequence.folder, sequence.frames)
         with open_sequence_frames(sequence.folder, loaded.info, sequence.video) as reader:
-            tracked = load_with_source(sequence, source, reader)
+            tracked = loaded
+            if source == "bs":
+                tracked = load_tracked_sequence(sequence.folder, sequence.frames, "bs", reader)
             folder = out / "sequences" / sequence.name / source
             folder.mkdir(parents=True, exist_ok=True)
             if source == "bs":

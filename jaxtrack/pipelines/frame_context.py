@@ -6,16 +6,21 @@ A tracker that uses frames may take, as its context, the scene's entry/exit zone
 Hierarchical tracker: the span's median image,
 :func:`~jaxtrack.pipelines.background.median_background`). :func:`streamed_params` builds its
 parameters with that context, so that ``jaxtrack track``, ``jaxtrack track-video`` and the
-experiments run it the same way.
+experiments run it the same way; :func:`load_tracked_sequence` loads a sequence with the
+detections it is tracked on (its own, a file, or background subtraction on its frames).
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from jaxtrack.configs import TrackerConfig
+from jaxtrack.detect.pipeline import DetectorConfig, detect_video
+from jaxtrack.detect.sequence import video_sequence
+from jaxtrack.errors import InputError
 from jaxtrack.filters.registry import build_tracker, tracker_entry
-from jaxtrack.io import MotSequence
+from jaxtrack.io import MotSequence, load_sequence, parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.io.video import VideoReader
 from jaxtrack.pipelines.background import BACKGROUND_FRAMES, median_background
 from jaxtrack.pipelines.zones import tracker_zones
@@ -57,3 +62,26 @@ def streamed_params(
         )
     _, params = build_tracker(config, seq.info, context)
     return params, used
+
+
+def load_tracked_sequence(sequence_dir, frames=None, detections: str | None = None, reader=None):
+    """A sequence folder (or span) with its ``det/det.txt``, or with ``detections`` instead:
+    a detections file, ``"det"`` (the folder's own) or ``"bs"`` (background subtraction on
+    the sequence's frames, :func:`~jaxtrack.detect.pipeline.detect_video`, which needs the
+    open ``reader``).
+
+    Raises:
+        FileFormatError: a missing or malformed ``seqinfo.ini`` or detections file.
+        InputError: a bad frame span, or ``"bs"`` for a tracker that reads no frames.
+    """
+    if detections is None or detections == "det":
+        return load_sequence(sequence_dir, frames=frames)
+    info = read_seqinfo(Path(sequence_dir) / "seqinfo.ini")
+    span = parse_frame_span(frames, info.seq_length)
+    if detections == "bs":
+        if reader is None:
+            raise InputError("--detections bs needs a tracker that reads the frames")
+        table = detect_video(reader, span, DetectorConfig()).table
+    else:
+        table = read_mot_file(detections, "det", info=info)
+    return video_sequence(sequence_dir, table, span, info)
