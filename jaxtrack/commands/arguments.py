@@ -168,6 +168,24 @@ def add_context_arguments(
     )
 
 
+def add_variant_and_scene_arguments(parser: argparse.ArgumentParser, see: str) -> None:
+    """``--context`` and ``--variant`` (a context's parts, or a tracker's own variants) and
+    ``--zones`` (CMT's entry/exit zones): the options of ``jaxtrack track`` and
+    ``track-video`` that pick what a tracker knows of the scene; ``see`` says where the
+    context's variants are explained."""
+    add_context_arguments(
+        parser,
+        f"{see}; mtb, cpd, cmt for --tracker cmt; kalman, managed, full for --tracker hierarchical",
+        tuple(tracker_variant_names()),
+    )
+    parser.add_argument(
+        "--zones",
+        metavar="ZONES.json",
+        help="entry/exit zones for --tracker cmt (jaxtrack learn-zones; default: learned on "
+        "the fly from the tracked span)",
+    )
+
+
 #: The ``--variant`` used with ``--context`` when none is given.
 DEFAULT_VARIANT = "GM"
 

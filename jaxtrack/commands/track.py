@@ -87,13 +87,13 @@ from tqdm import tqdm
 from jaxtrack.commands.arguments import (
     DEFAULT_VARIANT,
     add_config,
-    add_context_arguments,
     add_frames,
     add_json,
     add_out,
     add_quiet,
     add_seed,
     add_tracker,
+    add_variant_and_scene_arguments,
     apply_tracker_variant,
     context_variant,
     load_config,
@@ -158,18 +158,7 @@ def register(subparsers) -> None:
     )
     add_config(parser)
     add_seed(parser)
-    add_context_arguments(
-        parser,
-        "see above; mtb, cpd, cmt for --tracker cmt; kalman, managed, full for --tracker "
-        "hierarchical",
-        tuple(tracker_variant_names()),
-    )
-    parser.add_argument(
-        "--zones",
-        metavar="ZONES.json",
-        help="entry/exit zones for --tracker cmt (jaxtrack learn-zones; default: learned on "
-        "the fly from the tracked span)",
-    )
+    add_variant_and_scene_arguments(parser, "see above")
     add_tracker(parser)
     parser.add_argument(
         "--preset",

@@ -18,12 +18,12 @@ from jaxtrack.commands.arguments import (
     DEFAULT_VARIANT,
     FRAMES_OR_NONE,
     add_config,
-    add_context_arguments,
     add_frames,
     add_out,
     add_quiet,
     add_seed,
     add_tracker,
+    add_variant_and_scene_arguments,
     apply_tracker_variant,
     context_variant,
     load_config,
@@ -153,18 +153,7 @@ def register(subparsers) -> None:
     )
     add_tracker(parser)
     add_config(parser)
-    add_context_arguments(
-        parser,
-        "see jaxtrack track --help; mtb, cpd, cmt for --tracker cmt; kalman, managed, full "
-        "for --tracker hierarchical",
-        tuple(tracker_variant_names()),
-    )
-    parser.add_argument(
-        "--zones",
-        metavar="ZONES.json",
-        help="entry/exit zones for --tracker cmt (jaxtrack learn-zones; default: learned on "
-        "the fly from the tracked span)",
-    )
+    add_variant_and_scene_arguments(parser, "see jaxtrack track --help")
     add_seed(parser)
     parser.add_argument("--annotate", metavar="OUT.mp4", help="write the annotated frames")
     parser.add_argument(
