@@ -130,7 +130,7 @@ def motion_kernel(length_scale: Float[Array, ""], amplitude: Float[Array, ""]):
 def tracklet_inputs(points: Float[Array, "*batch N 2"]) -> Float[Array, "*batch features"]:
     """``u = (v_2, ..., v_N)``, ``v_k = p_k - p_{k-1}``, flattened (works on NumPy and JAX)."""
     velocities = points[..., 1:, :] - points[..., :-1, :]
-    return velocities.reshape(*velocities.shape[:-2], -1)
+    return velocities.reshape(*velocities.shape[:-2], velocities.shape[-2] * velocities.shape[-1])
 
 
 def mean_velocity(points: Float[Array, "*batch N 2"]) -> Float[Array, "*batch 2"]:

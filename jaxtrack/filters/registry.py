@@ -26,6 +26,13 @@ from jaxtrack.filters.cmt_tracker import (
     cmt_memory_estimate,
     cmt_properties,
 )
+from jaxtrack.filters.fusion import FusionParams
+from jaxtrack.filters.fusion_tracker import (
+    FusionConfig,
+    build_fusion,
+    fusion_memory_estimate,
+    fusion_properties,
+)
 from jaxtrack.filters.hierarchical import HierarchicalParams
 from jaxtrack.filters.hierarchical_tracker import VARIANTS as HIERARCHICAL_VARIANTS
 from jaxtrack.filters.hierarchical_tracker import (
@@ -73,6 +80,10 @@ class TrackerEntry(NamedTuple):
         takes_background: whether it compares targets with the background model's image
             (given to ``build`` as its context by the pipelines,
             :func:`~jaxtrack.pipelines.background.median_background`).
+        takes_training: whether it learns its context from a training span of the tracked
+            sequence (``--train-frames``; the pipelines give ``build`` a
+            :class:`~jaxtrack.filters.fusion_tracker.FusionContext`,
+            :func:`~jaxtrack.pipelines.fusion_context.learn_fusion_context`).
         writes_events: ``config -> bool``, whether a run of that configuration has event
             states to write beside the results (``RES.events.csv``,
             :mod:`~jaxtrack.io.events`; its info has ``events`` and ``event_ids``).
@@ -89,6 +100,7 @@ class TrackerEntry(NamedTuple):
     uses_frames: bool = False
     takes_zones: bool = False
     takes_background: bool = False
+    takes_training: bool = False
     writes_events: Callable[[Any], bool] = lambda config: False
     variants: tuple[str, ...] = ()
 
@@ -121,6 +133,16 @@ TRACKERS: dict[str, TrackerEntry] = {
         takes_background=True,
         writes_events=hierarchical_events,
         variants=HIERARCHICAL_VARIANTS,
+    ),
+    "fusion": TrackerEntry(
+        FusionConfig,
+        FusionParams,
+        build_fusion,
+        fusion_properties,
+        takes_context=False,
+        memory=fusion_memory_estimate,
+        uses_frames=True,
+        takes_training=True,
     ),
 }
 

@@ -23,6 +23,7 @@ from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence, load_sequence, parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.io.video import VideoReader
 from jaxtrack.pipelines.background import BACKGROUND_FRAMES, median_background
+from jaxtrack.pipelines.fusion_context import learn_fusion_context
 from jaxtrack.pipelines.zones import tracker_zones
 
 
@@ -32,6 +33,7 @@ def streamed_params(
     reader: VideoReader,
     seed: int = 0,
     zones: str | None = None,
+    train_frames: str | None = None,
 ) -> tuple[Any, dict[str, str]]:
     """A frame tracker's parameters for a sequence (span), and what it used.
 
@@ -41,10 +43,13 @@ def streamed_params(
         reader: its open frames (for the background image).
         seed: PRNG seed of the zones' learning.
         zones: a zones file for a tracker that takes zones (default: learned on the fly).
+        train_frames: the training span (``"A:B"``) of a tracker that learns from one
+            (default: its configuration's share of the tracked span).
 
     Returns:
-        The parameters, and ``{"zones": ...}`` or ``{"background": ...}`` saying what was
-        used (for ``.config.json``; empty for a tracker that takes neither).
+        The parameters, and ``{"zones": ...}``, ``{"background": ...}`` or
+        ``{"training": ...}`` saying what was used (for ``.config.json``; empty for a tracker
+        that takes none of them).
 
     Raises:
         FileFormatError: an unreadable zones file or frame.
@@ -54,6 +59,9 @@ def streamed_params(
     context = None
     if entry.takes_zones:
         context, used["zones"] = tracker_zones(seq, zones, seed)
+    elif entry.takes_training:
+        context = learn_fusion_context(config, seq, train_frames, seed)
+        used["training"] = context.description
     elif entry.takes_background:
         span = (seq.first_frame, seq.last_frame)
         context = median_background(reader, span)

@@ -1,0 +1,233 @@
+"""The Fusion tracker's configuration: what ``jaxtrack track --tracker fusion`` runs.
+
+* :class:`FusionConfig`: the pool (``--pool``), the fusion rule (``--fusion``), the share of
+  the tracked span it trains on when no ``--train-frames`` is given, the calibration share,
+  the classifier's learning rate, the table size and the output rules;
+* :class:`FusionContext`: what the tracker learns from a training span (entry/exit zones and
+  activity mask, local motion models, voting thresholds per region), built by
+  :func:`~jaxtrack.pipelines.fusion_context.learn_fusion_context`;
+* :func:`fusion_params` and :func:`build_fusion`, the registry entry ``(config, info,
+  context, variant) -> (Filter, params)``.
+
+Without a context (direct API use) the tracker runs on no scene knowledge: no zones, the
+whole image active, constant-velocity motion, and the paper's thresholds for PETS 2009
+(:data:`PAPER_TH_INIT`, :data:`PAPER_TH_TERM`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import itertools
+from typing import Any, ClassVar, NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.context.activity import ACTIVITY_CELL, grid_shape
+from jaxtrack.context.motion_models import MotionModels, Tracklets, fit_motion_models
+from jaxtrack.context.zones import SceneZones
+from jaxtrack.errors import InputError
+from jaxtrack.filters.base import Filter
+from jaxtrack.filters.fusion import FUSIONS, MEMBERS, SIGNATURE_PATCH, FusionParams, fusion_filter
+from jaxtrack.filters.fusion_classifier import CLASSIFIER_PATCH_SHAPE, classifier_params
+from jaxtrack.filters.fusion_voting import SHARE, Thresholds
+from jaxtrack.parameters import frozen_properties
+from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
+from jaxtrack.types import SequenceInfo
+
+#: Every pool: the non-empty subsets of the members, written in :data:`MEMBERS` order.
+POOLS = tuple(
+    ",".join(subset)
+    for size in range(1, len(MEMBERS) + 1)
+    for subset in itertools.combinations(MEMBERS, size)
+)
+#: The paper's thresholds for PETS 2009 (its Table 2), used without a calibration.
+PAPER_TH_INIT, PAPER_TH_TERM = 3, 8
+#: Smallest IoU of a detection with a slot's predicted box (the link IoU of the
+#: false-positive runs the initiation threshold is calibrated on).
+GATE = 0.3
+#: Smallest peak-to-sidelobe ratio of a classifier response (Bolme et al.: 20-60 when
+#: tracking well, below about 7 on failure or occlusion).
+PSR_MIN = 7.0
+#: ``Q`` of an occlusion (paper: 0.3 of the boxes' area).
+OCCLUSION_Q = 0.3
+#: Learning-rate floor of the signature models.
+SIGNATURE_RATE = 0.1
+#: Re-identification vicinity (new-box heights) and largest signature distance.
+REID_RADIUS, REID_GATE = 2.0, 0.35
+
+
+@dataclasses.dataclass(frozen=True)
+class FusionConfig(TrackerConfig):
+    """The Fusion tracker's configuration (``jaxtrack track --tracker fusion``)."""
+
+    tracker: ClassVar[str] = "fusion"
+
+    pool: str = setting(
+        "detection,classifier,predictor",
+        Rule(
+            "the pool's members, comma-separated in the order detection, classifier, "
+            "predictor (one member: that tracker alone)",
+            str,
+            choices=POOLS,
+        ),
+    )
+    fusion: str = setting(
+        "proposed",
+        Rule(
+            "'proposed' (confidence and accordance, the paper's eq. 6) or 'naive' (the mean "
+            "of the responses)",
+            str,
+            choices=FUSIONS,
+        ),
+    )
+    train_fraction: float = setting(
+        0.5,
+        Rule(
+            "share of the tracked span, from its first frame, trained on when no training "
+            "span is given (--train-frames)",
+            float,
+            0.0,
+            1.0,
+            lower_open=True,
+        ),
+    )
+    share: float = setting(
+        SHARE,
+        Rule(
+            "share of the false-positive runs th_init rejects, and of the detection gaps "
+            "th_term survives (the paper: 0.99)",
+            float,
+            0.0,
+            1.0,
+            lower_open=True,
+        ),
+    )
+    learning_rate: float = setting(
+        0.35, Rule("the classifier's learning rate lambda (paper: 0.35 on PETS)", float, 0, 1)
+    )
+    max_targets: int = setting(32, Rule("slots for targets and hypotheses", int, 1, 1024))
+    output: str = setting("offline", OUTPUT)
+    max_gap: int = setting(25, MAX_GAP)
+
+
+class FusionContext(NamedTuple):
+    """What the Fusion tracker learns from a training span.
+
+    Attributes:
+        scene: entry/exit zones and activity mask.
+        motion: the local motion models.
+        thresholds: ``th_init`` / ``th_term`` per region.
+        description: how each was obtained, in words (for the user and ``.config.json``).
+    """
+
+    scene: SceneZones
+    motion: MotionModels
+    thresholds: Thresholds
+    description: str
+
+
+def pool_members(config: FusionConfig) -> tuple[str, ...]:
+    """The configuration's pool as a tuple of member names."""
+    return tuple(config.pool.split(","))
+
+
+def default_context(info: SequenceInfo) -> FusionContext:
+    """No scene knowledge: no zones, the whole image active, constant velocity everywhere,
+    the paper's PETS thresholds in every region."""
+    rows, columns = grid_shape(info.im_width, info.im_height, ACTIVITY_CELL)
+    scene = SceneZones(np.zeros((0, 4), np.float32), np.ones((rows, columns), bool), ACTIVITY_CELL)
+    empty = Tracklets(np.zeros((0, 5, 2)), np.zeros((0, 2)))
+    motion = fit_motion_models(empty, info.im_width, info.im_height)
+    thresholds = Thresholds(
+        init=np.full(3, PAPER_TH_INIT, np.int64), term=np.full(3, PAPER_TH_TERM, np.int64)
+    )
+    return FusionContext(scene, motion, thresholds, "no training: the paper's thresholds")
+
+
+def fusion_params(
+    config: FusionConfig, info: SequenceInfo, context: FusionContext | None = None
+) -> FusionParams:
+    """The parameters for a sequence with a learned context (default: :func:`default_context`).
+
+    Raises:
+        InputError: a context that is not a :class:`FusionContext`, or one without an
+            activity mask.
+    """
+    if context is None:
+        context = default_context(info)
+    if not isinstance(context, FusionContext):
+        raise InputError("the Fusion tracker takes a FusionContext (learn_fusion_context)")
+    scene = context.scene
+    if scene.activity is None:
+        raise InputError("the Fusion tracker's scene needs an activity mask")
+    boxes = np.asarray(scene.boxes, np.float32).reshape(-1, 4)
+    return FusionParams(
+        classifier=classifier_params(learning_rate=config.learning_rate),
+        motion=context.motion,
+        zone_boxes=jnp.asarray(boxes),
+        activity=jnp.asarray(scene.activity, bool),
+        activity_cell=jnp.float32(scene.cell_size),
+        th_init=jnp.asarray(context.thresholds.init, jnp.int32),
+        th_term=jnp.asarray(context.thresholds.term, jnp.int32),
+        gate=jnp.float32(GATE),
+        psr_min=jnp.float32(PSR_MIN),
+        occlusion_q=jnp.float32(OCCLUSION_Q),
+        signature_rate=jnp.float32(SIGNATURE_RATE),
+        reid_radius=jnp.float32(REID_RADIUS),
+        reid_gate=jnp.float32(REID_GATE),
+    )
+
+
+def build_fusion(
+    config: FusionConfig, info: SequenceInfo, context: Any = None, variant: str = "GM"
+) -> tuple[Filter, Any]:
+    """The Fusion tracker of a configuration: ``(filter, params)`` (cached filters).
+
+    Args:
+        config: the configuration.
+        info: the sequence (image size).
+        context: a :class:`FusionContext` (:func:`~jaxtrack.pipelines.fusion_context.
+            learn_fusion_context`), or None (:func:`default_context`).
+        variant: the PHD context's variant; only the default is accepted.
+
+    Raises:
+        InputError: a context of another kind, or a context variant.
+    """
+    if variant != "GM":
+        raise InputError(f"context variant {variant!r} is for the PHD tracker")
+    filt = _fusion_filter(pool_members(config), config.fusion, config.max_targets)
+    return filt, fusion_params(config, info, context)
+
+
+@functools.lru_cache(maxsize=16)
+def _fusion_filter(pool: tuple[str, ...], fusion: str, max_targets: int) -> Filter:
+    return fusion_filter(pool, fusion, max_targets)
+
+
+def fusion_memory_estimate(
+    config: FusionConfig, capacity: int, chunk_frames: int
+) -> MemoryEstimate:
+    """The tracker's memory for a detection capacity, from the sizes (frames left out).
+
+    Per slot the state holds two correlation-filter planes (complex and real) and the
+    signature model (two 512-bin histograms); a step's temporaries are the filters' search
+    windows and FFTs and the signatures of four boxes per slot.
+    """
+    slots = config.max_targets
+    rows, cols = CLASSIFIER_PATCH_SHAPE
+    samples = SIGNATURE_PATCH[0] * SIGNATURE_PATCH[1]
+    state = slots * (12 * rows * cols + 4 * 2 * 512 + 4 * 64 + 256)
+    temporaries = slots * (6 * 8 * rows * cols + 4 * (2 * 512 + 16 * samples) * 4)
+    temporaries += 4 * slots * capacity * 4
+    frame_output = slots * (2 * 25 + 3 * 16 + 3 + 12 + 4)
+    chunk = 2 * state + temporaries
+    chunk += chunk_frames * (DETECTION_SLOT_BYTES * capacity + frame_output)
+    return MemoryEstimate(chunk_bytes=int(chunk + (1 << 16)), frame_output_bytes=frame_output)
+
+
+def fusion_properties(params: Any) -> Any:
+    """The parameter-properties tree: every parameter frozen (thresholds and learned models)."""
+    return frozen_properties(params)
