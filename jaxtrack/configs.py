@@ -48,6 +48,9 @@ class TrackerConfig:
     """
 
     tracker: ClassVar[str] = ""
+    #: Whether the offline output drops each identity's leading and trailing rows of score
+    #: 0 (a tracker whose rows of score 0 are predictions without evidence).
+    trims_tails: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         for field in dataclasses.fields(self):

@@ -5,7 +5,9 @@ one row per output box (a :class:`~jaxtrack.types.MotTable`, the table MOTChalle
 read into), ready for :func:`jaxtrack.io.write_results` and the metrics. :func:`finalise_tracks`
 is an offline alternative to the online output: it keeps the whole history of every track
 that was confirmed at some point (the frames before its confirmation included) and fills
-gaps of at most ``max_gap`` frames by linear interpolation of the boxes.
+gaps of at most ``max_gap`` frames by linear interpolation of the boxes, and, for a tracker
+whose rows of score 0 are predictions without evidence (the Fusion tracker's coasting
+targets), drops each identity's leading and trailing rows of score 0 (``trim``).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ def track_rows(tracks: Tracks, first_frame: int = 1) -> MotTable:
 
 
 def finalise_tracks(
-    tracks: Tracks, candidates: Tracks, max_gap: int = 0, first_frame: int = 1
+    tracks: Tracks, candidates: Tracks, max_gap: int = 0, first_frame: int = 1, trim: bool = False
 ) -> MotTable:
     """Offline output: confirmed tracks over their whole life, short gaps interpolated.
 
@@ -46,6 +48,8 @@ def finalise_tracks(
         candidates: every labelled estimate, ``info.candidates``.
         max_gap: longest run of missing frames inside a track that is filled (0: none).
         first_frame: frame number of index 0.
+        trim: drop the rows of score 0 before an identity's first row of positive score and
+            after its last one (an identity without any is dropped whole).
 
     Returns:
         The rows of every identity that appears in ``tracks``, taken from ``candidates``,
@@ -55,6 +59,8 @@ def finalise_tracks(
     online = track_rows(tracks, first_frame)
     rows = track_rows(candidates, first_frame)
     kept = rows.select(np.isin(rows.ids, online.ids))
+    if trim:
+        kept = kept.select(_within_evidence(kept))
     parts = [kept]
     for identity in np.unique(kept.ids) if max_gap > 0 else []:
         own = np.nonzero(kept.ids == identity)[0]
@@ -80,3 +86,15 @@ def finalise_tracks(
         np.concatenate([part.confs for part in parts]),
     )
     return merged.select(np.lexsort((merged.ids, merged.frames)))
+
+
+def _within_evidence(rows: MotTable) -> np.ndarray:
+    """Rows lying between their identity's first and last row of positive score."""
+    ids = np.asarray(rows.ids)
+    positive = np.asarray(rows.confs) > 0
+    unique, index = np.unique(ids, return_inverse=True)
+    first = np.full(unique.size, np.inf)
+    last = np.full(unique.size, -np.inf)
+    np.minimum.at(first, index[positive], rows.frames[positive])
+    np.maximum.at(last, index[positive], rows.frames[positive])
+    return (rows.frames >= first[index]) & (rows.frames <= last[index])

@@ -49,7 +49,9 @@ One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each e
 The output (:class:`FusionInfo`): ``tracks`` are the targets (fused boxes), ``candidates``
 the targets and hypotheses (a hypothesis carries the identity it keeps when voted in), so the
 offline output (:func:`~jaxtrack.association.offline.finalise_tracks`) starts a target at its
-first detection.
+first detection. A row's score is 1 when a detection supports the slot on the frame, else 0
+(a coasting target): the offline output drops each target's trailing coasting rows (the
+frames after its last detection, before the vote ended it).
 """
 
 from __future__ import annotations
@@ -430,7 +432,8 @@ def fusion_step(
 
     # history of fused boxes
     fresh = new.born
-    history = jnp.concatenate([state.history[:, 1:], boxes[:, None]], axis=1)
+    evidence = jnp.where((supported & ~new.born)[:, None], detected, boxes)
+    history = jnp.concatenate([state.history[:, 1:], evidence[:, None]], axis=1)
     history = jnp.where(fresh[:, None, None], boxes[:, None], history)
     count = jnp.where(fresh, 1, jnp.minimum(state.count + 1, HISTORY))
     live = (voting.status == TENTATIVE) | now_target
@@ -447,10 +450,10 @@ def fusion_step(
         signature=signature,
         occluded=occluded,
     )
-    ones = jnp.ones((num_slots,), jnp.float32)
+    evidence = (supported | new.born).astype(jnp.float32)
     info = FusionInfo(
-        tracks=_tracks(boxes, ids, now_target, ones),
-        candidates=_tracks(boxes, ids, live, ones),
+        tracks=_tracks(boxes, ids, now_target, evidence),
+        candidates=_tracks(boxes, ids, live, evidence),
         members=members,
         member_valid=valid,
         weights=weights,

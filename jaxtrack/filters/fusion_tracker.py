@@ -50,7 +50,7 @@ PAPER_TH_INIT, PAPER_TH_TERM = 3, 8
 GATE = 0.3
 #: Smallest peak-to-sidelobe ratio of a classifier response (Bolme et al.: 20-60 when
 #: tracking well, below about 7 on failure or occlusion).
-PSR_MIN = 7.0
+PSR_MIN = 20.0
 #: ``Q`` of an occlusion (paper: 0.3 of the boxes' area).
 OCCLUSION_Q = 0.3
 #: Learning-rate floor of the signature models.
@@ -64,6 +64,7 @@ class FusionConfig(TrackerConfig):
     """The Fusion tracker's configuration (``jaxtrack track --tracker fusion``)."""
 
     tracker: ClassVar[str] = "fusion"
+    trims_tails: ClassVar[bool] = True
 
     pool: str = setting(
         "detection,classifier,predictor",

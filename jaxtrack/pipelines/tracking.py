@@ -185,7 +185,9 @@ def output_rows(info: Any, config: TrackerConfig, first_frame: int) -> MotTable:
     """The result rows of a run's per-frame infos, as the configuration's ``output`` says."""
     if config.output == "online":
         return track_rows(info.tracks, first_frame)
-    return finalise_tracks(info.tracks, info.candidates, config.max_gap, first_frame)
+    return finalise_tracks(
+        info.tracks, info.candidates, config.max_gap, first_frame, trim=config.trims_tails
+    )
 
 
 def tracker_description(config: TrackerConfig) -> dict[str, Any]:

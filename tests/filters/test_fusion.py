@@ -1,0 +1,258 @@
+"""The Fusion tracker's step on drawn scenes with known truth: voting, pool members, fusion
+rules, regions, occlusion and re-identification."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.context.zones import SceneZones
+from jaxtrack.filters.base import run
+from jaxtrack.filters.fusion import (
+    MEMBERS,
+    _signatures,
+    fusion_filter,
+)
+from jaxtrack.filters.fusion_tracker import (
+    FusionConfig,
+    FusionContext,
+    build_fusion,
+    default_context,
+)
+from jaxtrack.filters.fusion_voting import EMPTY, TARGET, TENTATIVE, Thresholds
+from jaxtrack.pipelines.tracking import output_rows
+from jaxtrack.types import Detections, FrameInputs
+from tests.filters.test_cmt import COLOURS, INFO, SIZE, two_tone
+
+BACKGROUND = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
+#: One walker 16 x 36 moving right 1.5 px per frame, detected in frames 0..39 of 60.
+NUM_FRAMES, DETECTED = 60, 40
+
+
+def walker(t: int, y: float = 30.0, x0: float = 20.0, speed: float = 1.5):
+    return (x0 + speed * t, y, 16.0, 36.0)
+
+
+def drawn_scene(people, detected, num_frames=NUM_FRAMES, num_slots=4):
+    """Frames and padded detections: ``people[k](t)`` the box of person ``k`` (drawn in
+    ``COLOURS[k]`` when not None), detected when ``detected[k](t)``."""
+    frames, boxes, mask = [], [], []
+    for t in range(num_frames):
+        image = BACKGROUND.copy()
+        kept = []
+        for k, person in enumerate(people):
+            box = person(t)
+            if box is None:
+                continue
+            two_tone(image, box, *COLOURS[k % len(COLOURS)])
+            if detected[k](t):
+                kept.append(box)
+        padded = np.tile([0.0, 0.0, 1.0, 1.0], (num_slots, 1))
+        padded[: len(kept)] = np.reshape(kept, (-1, 4))
+        frames.append(image)
+        boxes.append(padded)
+        mask.append(np.arange(num_slots) < len(kept))
+    detections = Detections(
+        jnp.asarray(np.array(boxes), jnp.float32),
+        jnp.asarray(np.where(mask, 0.99, 0.0), jnp.float32),
+        jnp.asarray(np.array(mask)),
+    )
+    return FrameInputs(detections, jnp.asarray(np.array(frames)))
+
+
+def tracked(config: FusionConfig, inputs: FrameInputs, context=None):
+    filt, params = build_fusion(config, INFO, context)
+    _, info = _runner(filt)(jax.random.PRNGKey(0), params, inputs)
+    return jax.device_get(info), output_rows(jax.device_get(info), config, 1)
+
+
+@functools.cache
+def _runner(filt):
+    """One compiled run per filter (the filters are cached per setting)."""
+    return jax.jit(functools.partial(run, filt))
+
+
+def one_walker():
+    return drawn_scene([walker], [lambda t: t < DETECTED])
+
+
+def iou(a, b):
+    ax, ay, aw, ah = a
+    bx, by, bw, bh = b
+    w = max(0.0, min(ax + aw, bx + bw) - max(ax, bx))
+    h = max(0.0, min(ay + ah, by + bh) - max(ay, by))
+    return w * h / (aw * ah + bw * bh - w * h)
+
+
+def test_a_walker_is_voted_in_after_th_init_and_ends_after_th_term():
+    info, rows = tracked(FusionConfig(max_targets=8), one_walker())  # paper: 3 and 8
+    shown = info.tracks.mask.any(axis=1)
+    assert np.flatnonzero(shown)[0] == 2  # third consecutive detection
+    assert np.flatnonzero(shown)[-1] == DETECTED + 8 - 2  # ended on the 8th missed frame
+    status = info.status.max(axis=1)
+    assert list(status[:3]) == [TENTATIVE, TENTATIVE, TARGET]
+    assert set(np.unique(info.tracks.ids[info.tracks.mask])) == {1}
+    # offline: from its first detection to its last one (coasting tail trimmed)
+    assert rows.frames.min() == 1 and rows.frames.max() == DETECTED
+    assert set(rows.ids.tolist()) == {1}
+    for frame, box in zip(rows.frames, rows.boxes, strict=True):
+        assert iou(box, walker(frame - 1)) > 0.8
+
+
+def test_a_pool_of_the_detection_member_follows_the_detections_and_coasts_at_constant_velocity():
+    info, _ = tracked(FusionConfig(pool="detection", max_targets=8), one_walker())
+    slot = info.tracks.mask.any(axis=0).argmax()
+    boxes = info.tracks.boxes[:, slot]
+    for t in range(2, DETECTED):
+        np.testing.assert_allclose(boxes[t], walker(t), atol=1e-4)
+    for t in range(DETECTED, DETECTED + 6):  # no detection: the constant-velocity box
+        np.testing.assert_allclose(boxes[t], walker(t), atol=1e-3)
+    assert not info.member_valid[:, :, 1:].any()  # classifier and predictor not in the pool
+
+
+@pytest.mark.parametrize("fusion", ["naive", "proposed"])
+def test_the_fused_box_is_the_weighted_sum_of_the_valid_responses(fusion):
+    info, _ = tracked(FusionConfig(fusion=fusion, max_targets=8), one_walker())
+    target = info.status == TARGET
+    target[1:] &= target[:-1]  # a target since the frame before (voted in: its detection)
+    valid = info.member_valid[target]
+    weights = info.weights[target]
+    assert valid.any(axis=1).all()
+    np.testing.assert_allclose(weights.sum(axis=1), 1.0, atol=1e-5)
+    assert (weights[~valid] == 0).all()
+    fused = np.einsum("sm,smk->sk", weights, info.members[target])
+    np.testing.assert_allclose(info.tracks.boxes[target], fused, atol=1e-3)
+    if fusion == "naive":
+        np.testing.assert_allclose(weights, valid / valid.sum(axis=1, keepdims=True), atol=1e-6)
+    else:  # the dynamic weights are not the mean on every frame
+        assert np.abs(weights - valid / valid.sum(axis=1, keepdims=True)).max() > 1e-3
+    # all three members respond while the walker is detected
+    assert info.member_valid[target][:20].all()
+
+
+def test_a_short_false_positive_run_never_becomes_a_target():
+    flicker = lambda t: (100.0, 70.0, 16.0, 36.0) if 10 <= t < 12 else None  # noqa: E731
+    inputs = drawn_scene([walker, flicker], [lambda t: t < DETECTED, lambda t: True])
+    info, rows = tracked(FusionConfig(max_targets=8), inputs)
+    assert set(rows.ids.tolist()) == {1}  # the run of 2 < th_init 3 frames is never output
+    assert (info.candidates.boxes[info.candidates.mask][:, 0] == 100.0).sum() == 2
+
+
+def _context(init, term, zone_boxes):
+    base = default_context(INFO)
+    activity = np.ones_like(base.scene.activity)
+    scene = SceneZones(np.asarray(zone_boxes, np.float32).reshape(-1, 4), activity, 8)
+    thresholds = Thresholds(np.asarray(init), np.asarray(term))
+    return FusionContext(scene, base.motion, thresholds, "drawn")
+
+
+def test_thresholds_follow_the_region_of_the_foot_point():
+    # a zone over the left part of the image: the walker starts inside it
+    inputs = drawn_scene([walker, lambda t: walker(t, y=70.0, x0=100.0)], [lambda t: True] * 2)
+    context = _context([5, 9, 2], [8, 8, 8], [(0, 0, 60, 120)])
+    info, _ = tracked(FusionConfig(max_targets=8), inputs, context)
+    first = [
+        int(np.flatnonzero(((info.status == TARGET) & close).any(axis=1))[0])
+        for close in (np.abs(info.candidates.boxes[..., 1] - y) < 3 for y in (30.0, 70.0))
+    ]
+    assert first == [1, 4]  # zone: th_init 2; active area: th_init 5
+
+
+def test_targets_that_overlap_have_one_occluder():
+    # two walkers cross: the second walks left on nearly the same row
+    inputs = drawn_scene(
+        [walker, lambda t: walker(t, y=34.0, x0=110.0, speed=-1.5)], [lambda t: True] * 2
+    )
+    info, _ = tracked(FusionConfig(max_targets=8), inputs)
+    occluded = info.occluded.sum(axis=1)
+    assert occluded.max() == 1  # never both
+    crossing = np.flatnonzero(occluded)
+    assert crossing.size > 0
+    # only while the two boxes overlap (they meet at t = 30)
+    assert 20 <= crossing.min() and crossing.max() <= 40
+
+
+def test_a_new_target_near_an_occluded_one_takes_its_identity_back():
+    state, params, frame, detections = _reidentification_case(COLOURS[0])
+    after, _ = _step()(jax.random.PRNGKey(0), state, params, FrameInputs(detections, frame))
+    assert int(after.voting.status[1]) == TARGET and int(after.ids[1]) == 7  # former identity
+    assert int(after.voting.status[0]) == EMPTY and int(after.ids[0]) == -1  # its slot freed
+
+
+def test_a_differently_dressed_new_target_keeps_its_own_identity():
+    state, params, frame, detections = _reidentification_case(((250, 250, 250), (10, 10, 10)))
+    after, _ = _step()(jax.random.PRNGKey(0), state, params, FrameInputs(detections, frame))
+    assert int(after.voting.status[1]) == TARGET and int(after.ids[1]) == 9
+    assert int(after.voting.status[0]) == TARGET and int(after.ids[0]) == 7
+
+
+@functools.cache
+def _step():
+    return jax.jit(build_fusion(FusionConfig(max_targets=4), INFO)[0].step)
+
+
+def _reidentification_case(new_colours):
+    """Slot 0: target 7, occluded, at ``old``; slot 1: hypothesis 9 one detection short of
+    th_init (3), detected at ``new`` 12 px to the right, dressed in ``new_colours``."""
+    filt, params = build_fusion(FusionConfig(max_targets=4), INFO)
+    old, new = (40.0, 30.0, 16.0, 36.0), (52.0, 30.0, 16.0, 36.0)
+    stored_frame = BACKGROUND.copy()
+    two_tone(stored_frame, old, *COLOURS[0])
+    stored = _signatures(jnp.asarray(stored_frame), jnp.asarray([old] * 4)).histograms
+    frame = BACKGROUND.copy()
+    two_tone(frame, new, *new_colours)
+    state = filt.init(jax.random.PRNGKey(0), params)
+    boxes = jnp.asarray([old, new, (0, 0, 1, 1), (0, 0, 1, 1)], jnp.float32)
+    state = state._replace(
+        ids=jnp.asarray([7, 9, -1, -1], jnp.int32),
+        next_id=jnp.int32(10),
+        voting=state.voting._replace(
+            status=jnp.asarray([TARGET, TENTATIVE, EMPTY, EMPTY], jnp.int32),
+            support=jnp.asarray([5, 2, 0, 0], jnp.int32),
+        ),
+        boxes=boxes,
+        history=jnp.broadcast_to(boxes[:, None], state.history.shape),
+        count=jnp.asarray([11, 2, 0, 0], jnp.int32),
+        signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2))),
+        occluded=jnp.asarray([True, False, False, False]),
+    )
+    detections = Detections(
+        jnp.asarray([new, (0, 0, 1, 1)], jnp.float32),
+        jnp.asarray([0.99, 0.0], jnp.float32),
+        jnp.asarray([True, False]),
+    )
+    return state, params, jnp.asarray(frame), detections
+
+
+def test_jit_and_eager_steps_agree():
+    inputs = one_walker()
+    filt, params = build_fusion(FusionConfig(max_targets=4), INFO)
+    state = filt.init(jax.random.PRNGKey(0), params)
+    jitted = _step()
+    eager_state, jit_state = state, state
+    for t in range(3):
+        frame = jax.tree.map(lambda x: x[t], inputs)  # noqa: B023
+        eager_state, eager_info = filt.step(jax.random.PRNGKey(t), eager_state, params, frame)
+        jit_state, jit_info = jitted(jax.random.PRNGKey(t), jit_state, params, frame)
+    np.testing.assert_allclose(eager_info.tracks.boxes, jit_info.tracks.boxes, atol=1e-4)
+    np.testing.assert_array_equal(eager_info.status, jit_info.status)
+
+
+def test_more_detections_than_slots_flag_an_overflow():
+    people = [lambda t, k=k: walker(t, y=10.0 + 25 * k, x0=10.0) for k in range(4)]
+    inputs = drawn_scene(people, [lambda t: True] * 4)
+    info, _ = tracked(FusionConfig(max_targets=2), inputs)
+    assert bool(info.overflow[0])
+
+
+@pytest.mark.parametrize(
+    ("pool", "fusion", "message"),
+    [((), "proposed", "non-empty"), (("radar",), "proposed", "subset"), (MEMBERS, "max", "fusion")],
+)
+def test_bad_filter_settings_are_refused(pool, fusion, message):
+    with pytest.raises(ValueError, match=message):
+        fusion_filter(pool, fusion, 4)
