@@ -7,8 +7,8 @@ Per slot alive on the frame (a target or a hypothesis,
   classifier's peak, the motion model's prediction) as a thin rectangle in the member's
   colour (:data:`MEMBER_COLOURS`);
 * a target's fused box ``R`` (paper eq. 6, or the naive mean) as a thick rectangle in its
-  identity's colour, with the identity below it; an occluded target's (Sec. 2.2, eq. 2: ``Q >
-  0.3`` and not the occluder) dashed, labelled ``occluded``;
+  identity's colour, with the identity on a black tag below it; an occluded target's (Sec.
+  2.2, eq. 2: ``Q > 0.3`` and not the occluder) dashed, labelled ``occluded``;
 * a hypothesis (a detection not yet voted in, Sec. 3.1) as a grey rectangle labelled
   ``hyp`` and the identity it keeps when voted in.
 
@@ -42,6 +42,8 @@ HYPOTHESIS_COLOUR = (160, 160, 160)
 MEMBER_THICK, HYPOTHESIS_THICK, FUSED_THICK = 1, 2, 4
 #: Lengths in pixels of the dashes of an occluded target's box and of the gaps between them.
 DASH = 6
+#: Font and scale of the labels under the boxes (on a black tag).
+LABEL_FONT, LABEL_SCALE = cv2.FONT_HERSHEY_SIMPLEX, 0.4
 #: Height in pixels of a legend row; the legend's margin from the image's corner and width.
 LEGEND_ROW, LEGEND_MARGIN, LEGEND_WIDTH = 16, 6, 112
 #: The legend's rows after the members': a sample line's colour, width, dashing, and name.
@@ -111,11 +113,12 @@ def _dashed_rectangle(image: np.ndarray, box: np.ndarray, colour, thickness: int
 
 
 def _label(image: np.ndarray, text: str, box: np.ndarray, colour) -> None:
-    """Writes ``text`` in place under ``box``, in ``colour`` on a black outline."""
+    """Writes ``text`` in place on a black tag under ``box``, in ``colour``."""
     (left, _), (_, bottom) = _corners(box)
-    origin = (left, bottom + 14)
-    cv2.putText(image, text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3)
-    cv2.putText(image, text, origin, cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1)
+    (width, height), baseline = cv2.getTextSize(text, LABEL_FONT, LABEL_SCALE, 1)
+    top = bottom + FUSED_THICK // 2 + 1
+    cv2.rectangle(image, (left, top), (left + width + 2, top + height + baseline + 2), 0, -1)
+    cv2.putText(image, text, (left + 1, top + height + 1), LABEL_FONT, LABEL_SCALE, colour, 1)
 
 
 def draw_fusion(image: np.ndarray, frame: FusionFrame) -> np.ndarray:
