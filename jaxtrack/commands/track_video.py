@@ -418,7 +418,8 @@ def write_annotated(
     :class:`~jaxtrack.plot.hier_frames.HierarchicalFrame` (low-level tracks in white,
     high-level trackers in black, with their event states) or a Fusion run's
     :class:`~jaxtrack.plot.fusion_frames.FusionFrame` (each member's response thin, the
-    fused boxes thick, occluded targets dashed, hypotheses grey, and the key)."""
+    fused boxes thick, occluded targets dashed, hypotheses grey, and the key of the members
+    that responded in the span)."""
 
     feet = np.stack([rows.boxes[:, 0] + rows.boxes[:, 2] / 2, rows.boxes[:, 1] + rows.boxes[:, 3]])
     if drawn is not None:

@@ -117,7 +117,9 @@ def _label(image: np.ndarray, text: str, box: np.ndarray, colour) -> None:
     (left, _), (_, bottom) = _corners(box)
     (width, height), baseline = cv2.getTextSize(text, LABEL_FONT, LABEL_SCALE, 1)
     top = bottom + FUSED_THICK // 2 + 1
-    cv2.rectangle(image, (left, top), (left + width + 2, top + height + baseline + 2), 0, -1)
+    cv2.rectangle(
+        image, (left, top), (left + width + 2, top + height + baseline + 2), (0, 0, 0), -1
+    )
     cv2.putText(image, text, (left + 1, top + height + 1), LABEL_FONT, LABEL_SCALE, colour, 1)
 
 
