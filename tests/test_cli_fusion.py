@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from jaxtrack.cli import main
-from jaxtrack.commands.arguments import parse_pool
+from jaxtrack.commands.arguments import apply_fusion_arguments, parse_pool
+from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.io import read_mot_file, write_seqinfo
 from jaxtrack.io.video import id_colour
 from jaxtrack.plot.fusion_frames import (
@@ -196,3 +197,14 @@ def test_help_explains_the_fusion_options(capsys):
     assert "refused with --benchmark, where each sequence trains on" in texts["track"]
     assert "its voting thresholds are the paper's" in texts["track-video"]
     assert "each pool member's response box thin" in texts["track-video"]
+
+
+def test_pool_and_fusion_override_the_configuration_file():
+    from_file = FusionConfig(pool="detection", fusion="naive", max_targets=8)
+    given = argparse.Namespace(
+        tracker="fusion", pool="classifier,predictor", fusion=None, train_frames=None
+    )
+    config = apply_fusion_arguments(given, from_file)
+    assert (config.pool, config.fusion, config.max_targets) == ("classifier,predictor", "naive", 8)
+    none = argparse.Namespace(tracker="fusion", pool=None, fusion=None, train_frames="1:5")
+    assert apply_fusion_arguments(none, from_file) == from_file
