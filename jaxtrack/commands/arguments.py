@@ -17,8 +17,11 @@ from collections.abc import Callable, Iterable
 
 from jaxtrack.configs import TrackerConfig, load_config_file
 from jaxtrack.errors import InputError
+from jaxtrack.filters.fusion import FUSIONS, MEMBERS
+from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.filters.phd_tracker import MAX_BIRTHS_PER_DETECTION, MAX_PARTICLES, VARIANTS
 from jaxtrack.filters.registry import TRACKERS, tracker_entry
+from jaxtrack.io import parse_frame_span
 from jaxtrack.limits import MAX_COORDINATE, MAX_FRAMES, SEED, Rule
 
 #: An IoU threshold (``--iou``, ``--iou-threshold``).
@@ -184,6 +187,94 @@ def add_variant_and_scene_arguments(parser: argparse.ArgumentParser, see: str) -
         help="entry/exit zones for --tracker cmt (jaxtrack learn-zones; default: learned on "
         "the fly from the tracked span)",
     )
+
+
+def parse_pool(text: str) -> str:
+    """An argparse ``type=`` for ``--pool``: comma-separated members in any order, each once,
+    as :class:`~jaxtrack.filters.fusion_tracker.FusionConfig`'s ``pool`` (MEMBERS order).
+
+    Raises (inside argparse):
+        argparse.ArgumentTypeError: no member, an unknown one (the members are listed) or
+            one named twice.
+    """
+    names = [name.strip() for name in text.split(",")]
+    members = ", ".join(MEMBERS)
+    if not any(names):
+        raise argparse.ArgumentTypeError(f"name at least one member of {members}")
+    unknown = [name for name in names if name not in MEMBERS]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f"unknown member {unknown[0][:40]!r}; the members are {members}"
+        )
+    if len(set(names)) < len(names):
+        raise argparse.ArgumentTypeError(f"a member named twice in {text[:80]!r}")
+    return ",".join(name for name in MEMBERS if name in names)
+
+
+def add_fusion_arguments(parser: argparse.ArgumentParser, train_note: str = "") -> None:
+    """``--pool``, ``--fusion`` and ``--train-frames``: the options of ``jaxtrack track`` and
+    ``track-video`` that set up the Fusion tracker (:func:`apply_fusion_arguments`);
+    ``train_note`` ends ``--train-frames``'s help."""
+    parser.add_argument(
+        "--pool",
+        type=parse_pool,
+        metavar="MEMBERS",
+        help=f"--tracker fusion's pool: comma-separated members, any non-empty subset of "
+        f"{','.join(MEMBERS)} in any order (default all three; one member: that tracker alone)",
+    )
+    parser.add_argument(
+        "--fusion",
+        choices=FUSIONS,
+        help="--tracker fusion's rule: proposed (confidence and accordance, default) or naive "
+        "(the mean of the members' responses)",
+    )
+    parser.add_argument(
+        "--train-frames",
+        metavar="A:B",
+        help="--tracker fusion's training span, where it learns its zones, motion models and "
+        "voting thresholds (1-based, inclusive, inside the tracked frames; default: the first "
+        f"half of the tracked frames){train_note}",
+    )
+
+
+def apply_fusion_arguments(args: argparse.Namespace, config: TrackerConfig) -> TrackerConfig:
+    """The configuration with ``--pool`` and ``--fusion``; refuses them and
+    ``--train-frames`` for a tracker other than the Fusion tracker.
+
+    Raises:
+        InputError: one of them given to another tracker (it would be ignored).
+    """
+    if not tracker_entry(args.tracker).takes_training:
+        refuse_ignored(
+            args, ["train_frames"], f"applies to --tracker fusion, not to {args.tracker}"
+        )
+    if not isinstance(config, FusionConfig):
+        refuse_ignored(
+            args, ["pool", "fusion"], f"applies to --tracker fusion, not to {args.tracker}"
+        )
+        return config
+    changes = {name: getattr(args, name) for name in ("pool", "fusion")}
+    return config.replace(**{name: value for name, value in changes.items() if value is not None})
+
+
+def check_train_frames(text: str | None, tracked: tuple[int, int], seq_length: int) -> None:
+    """Refuses a ``--train-frames`` span that is malformed or outside the tracked frames,
+    before any work (the span is read as ``--frames`` is, against the whole sequence).
+
+    Raises:
+        InputError: ``--train-frames`` named, with the reason.
+    """
+    if text is None:
+        return
+    try:
+        start, end = parse_frame_span(text, seq_length)
+    except InputError as err:
+        raise InputError(f"--train-frames {text[:40]}: {err}") from None
+    if not tracked[0] <= start <= end <= tracked[1]:
+        raise InputError(
+            f"--train-frames {start}:{end} must lie inside the tracked frames "
+            f"{tracked[0]}:{tracked[1]}"
+        )
 
 
 #: The ``--variant`` used with ``--context`` when none is given.

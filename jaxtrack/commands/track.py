@@ -60,6 +60,26 @@ blobs; ``jaxtrack detect``'s defaults), ``--detections det`` (default) uses ``de
 Its configuration (``HierarchicalConfig``) takes ``variant``, ``measurement`` ("box" or
 "ellipse"), ``max_tracks``, ``max_trackers``, ``lost_seconds``, ``output``, ``max_gap``.
 
+``--tracker fusion`` runs the context-aware multi-tracker Fusion tracker (SPEC section 3,
+``jaxtrack.filters.fusion``): a pool of trackers (``--pool``, any non-empty subset of
+``detection`` (detections assigned to the targets), ``classifier`` (a correlation filter per
+target) and ``predictor`` (local motion models), comma-separated in any order; default all
+three; one member is that tracker alone) whose responses are fused per target (``--fusion
+proposed``: weighted by confidence and accordance, the paper's eq. 6, default; ``--fusion
+naive``: their mean), targets initiated and terminated by voting with thresholds per region,
+occlusion reasoning and re-identification. It first learns its scene on a training span
+(``--train-frames A:B``, inside the tracked frames; default: the first half of the tracked
+frames, ``train_fraction`` of its configuration): the entry/exit zones and activity mask
+and the local motion models of the span's trajectories (its ground truth when the folder has
+``gt/gt.txt``, else the PHD tracker's tracks), and the voting thresholds calibrated on the
+detections' false positives against that ground truth (without one: the paper's). The
+training span is scored with the rest: hold it out when evaluating (``jaxtrack eval
+--frames``). With ``--benchmark`` each sequence trains on the first ``train_fraction`` of its
+own frames (``--train-frames`` is refused). ``.config.json`` records the pool, the fusion
+and how the context was learned (``training``). Its configuration (``FusionConfig``) takes
+``pool``, ``fusion``, ``train_fraction``, ``share``, ``learning_rate``, ``max_targets``,
+``output``, ``max_gap``; ``--pool`` and ``--fusion`` override the file's.
+
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance
 trackers) gets each frame beside its detections, streamed from the sequence's frames:
 ``--video FILE`` (a video file or image folder), else ``SEQ_DIR/img1/``, else
@@ -88,13 +108,16 @@ from jaxtrack.commands.arguments import (
     DEFAULT_VARIANT,
     add_config,
     add_frames,
+    add_fusion_arguments,
     add_json,
     add_out,
     add_quiet,
     add_seed,
     add_tracker,
     add_variant_and_scene_arguments,
+    apply_fusion_arguments,
     apply_tracker_variant,
+    check_train_frames,
     context_variant,
     load_config,
     ranged,
@@ -118,6 +141,7 @@ from jaxtrack.filters.kalman import KALMAN_PRESETS
 from jaxtrack.filters.registry import build_tracker, tracker_entry, writes_events
 from jaxtrack.io import (
     load_sequence,
+    parse_frame_span,
     read_seqinfo,
     write_results,
 )
@@ -165,6 +189,11 @@ def register(subparsers) -> None:
         choices=list(KALMAN_PRESETS),
         help="preset of --tracker kalman (default: default)",
     )
+    add_fusion_arguments(
+        parser,
+        "; refused with --benchmark, where each sequence trains on the first train_fraction of "
+        "its own frames",
+    )
     parser.add_argument(
         "--figure", metavar="PNG", help="also draw particles, estimates and tracks of one frame"
     )
@@ -196,6 +225,7 @@ def track_sequence(
     detections: str | None = None,
     video: str | None = None,
     zones: str | None = None,
+    train_frames: str | None = None,
 ) -> tuple[int, int]:
     """Tracks one sequence folder and writes MOTChallenge results.
 
@@ -213,6 +243,9 @@ def track_sequence(
         zones: for a tracker that takes zones, the zones file (default: learned on the fly,
             :func:`~jaxtrack.pipelines.zones.tracker_zones`; what was used is printed and
             written to ``.config.json``).
+        train_frames: for a tracker that learns from a training span, that span (``"A:B"``
+            inside ``frames``; default: the first half of ``frames``,
+            :func:`~jaxtrack.pipelines.fusion_context.training_frames`).
 
     Returns:
         The number of result rows (boxes) and of frames tracked.
@@ -226,9 +259,11 @@ def track_sequence(
         events = None
     else:
         info = read_seqinfo(Path(sequence_dir) / "seqinfo.ini")
+        tracked = parse_frame_span(frames, info.seq_length)
+        check_train_frames(train_frames, tracked, info.seq_length)
         with open_sequence_frames(sequence_dir, info, video) as reader:
             seq = load_tracked_sequence(sequence_dir, frames, detections, reader)
-            params, used = streamed_params(config, seq, reader, seed, zones)
+            params, used = streamed_params(config, seq, reader, seed, zones, train_frames)
             for value in used.values():
                 print(f"{seq.info.name}: {value}", file=sys.stderr)
             rows, events = track_streamed_events(seq, reader, config, seed, params)
@@ -249,7 +284,8 @@ def run(args) -> int:
     if (args.sequence is None) == (args.benchmark is None):
         raise InputError("give either SEQ_DIR or --benchmark MOT_ROOT (not both)")
     if args.benchmark is not None:
-        options = ["frames", "detections", "context", "figure", "figure_frame", "video", "zones"]
+        options = ["frames", "detections", "context", "figure", "figure_frame", "video"]
+        options += ["zones", "train_frames"]
         if args.variant not in tracker_variant_names():  # picks the tracker, not a context
             options.append("variant")
         refuse_ignored(args, options, "applies to one sequence, not to --benchmark")
@@ -293,6 +329,7 @@ def run(args) -> int:
         args.detections,
         args.video,
         args.zones,
+        args.train_frames,
     )
     seconds = time.perf_counter() - start
     summary = {"out": str(args.out), "rows": rows, "frames": frames, "seconds": seconds}
@@ -315,6 +352,7 @@ def _config(args) -> TrackerConfig:
     if not entry.takes_zones:
         refuse_ignored(args, ["zones"], f"applies to --tracker cmt, not to {args.tracker}")
     config = apply_tracker_variant(args, config)
+    config = apply_fusion_arguments(args, config)
     if args.preset is not None:
         if args.tracker != "kalman":
             raise InputError("--preset applies to --tracker kalman")

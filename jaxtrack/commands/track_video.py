@@ -1,4 +1,4 @@
-"""``jaxtrack track-video``: video -> background-subtraction detections -> tracks (PHD, CMT)."""
+"""``jaxtrack track-video``: video -> background-subtraction detections -> any tracker's tracks."""
 
 from __future__ import annotations
 
@@ -19,12 +19,15 @@ from jaxtrack.commands.arguments import (
     FRAMES_OR_NONE,
     add_config,
     add_frames,
+    add_fusion_arguments,
     add_out,
     add_quiet,
     add_seed,
     add_tracker,
     add_variant_and_scene_arguments,
+    apply_fusion_arguments,
     apply_tracker_variant,
+    check_train_frames,
     context_variant,
     load_config,
     ranged,
@@ -66,6 +69,12 @@ from jaxtrack.plot.cmt_frames import (
     draw_particles,
 )
 from jaxtrack.plot.context import position_map
+from jaxtrack.plot.fusion_frames import (
+    FusionFrame,
+    draw_fusion,
+    draw_fusion_legend,
+    fusion_frame_outputs,
+)
 from jaxtrack.plot.hier_frames import HierarchicalFrame, draw_levels, hier_frame_outputs
 
 DESCRIPTION = """\
@@ -91,6 +100,15 @@ the PHD tracker, --zones for CMT: given to another tracker they are errors.
 --variant kalman|managed|full (default full); its background model is the median of 25
 frames of the span; the event states are written beside the results (RES.events.csv).
 
+--tracker fusion runs the Fusion tracker (see `jaxtrack track --help`): --pool picks its
+members (comma-separated, any non-empty subset of detection,classifier,predictor in any
+order; default all three), --fusion proposed|naive the fusion rule (default proposed),
+--train-frames A:B the span (inside --frames) it learns its zones, activity mask, motion
+models and voting thresholds on (default: the first half of the span). A video has no ground
+truth to learn from: its trajectories are the PHD tracker's tracks on the training span's
+detections, and its voting thresholds are the paper's (th_init 3, th_term 8); --gt only
+scores. RES.config.json says what it learned (training).
+
 --annotate writes the frames with the tracks (box and id in the id's colour, a trail of the
 last --trail centres of the feet) and the detections (thin white boxes) to a video (.mp4 or
 .avi) or, for any other path, a folder of PNGs; --overlay birth|clutter blends in the
@@ -100,7 +118,11 @@ condition they were proposed under: normal cyan, split yellow, merge magenta, ex
 orange-red (legend in the top-right corner). With --tracker hierarchical it draws the
 low-level tracks as white ellipses (thin while tentative) and the high-level trackers as
 black ones (thin while lost), each labelled with its identity and event state, as the
-paper's Fig. 3. --gt GT.txt prints MOTA, MOTP, MODA, MODP and
+paper's Fig. 3. With --tracker fusion it draws, for every target and hypothesis, each pool
+member's response box thin (detection cyan, classifier magenta, predictor yellow), the fused
+box thick in the identity's colour with the identity below it (an occluded target's dashed,
+labelled "occluded"), a hypothesis not yet voted in grey, labelled "hyp" (key in the
+top-right corner). --gt GT.txt prints MOTA, MOTP, MODA, MODP and
 IDF1 against that ground truth.
 
 Writes RES.txt, RES.config.json (settings used), RES.events.csv (--tracker hierarchical)
@@ -115,10 +137,16 @@ examples:
   jaxtrack track-video ../shared/data/video/vtest.avi --frames 1:100 --fps 7 \\
       --tracker cmt --variant cmt --out cmt.txt --annotate cmt.mp4
   jaxtrack track-video ../shared/data/video/vtest.avi --tracker hierarchical \\
-      --out h.txt --annotate h.mp4"""
+      --out h.txt --annotate h.mp4
+  jaxtrack track-video ../shared/data/video/vtest.avi --fps 7 --tracker fusion \\
+      --pool detection,classifier --train-frames 1:200 --out f.txt --annotate f.mp4"""
 
 #: Trackers whose --annotate draws more than the tracks: their per-frame drawing outputs.
-FRAME_DRAWINGS = {"cmt": cmt_frame_outputs, "hierarchical": hier_frame_outputs}
+FRAME_DRAWINGS = {
+    "cmt": cmt_frame_outputs,
+    "hierarchical": hier_frame_outputs,
+    "fusion": fusion_frame_outputs,
+}
 #: Centres of the feet drawn behind each track by --annotate (default).
 DEFAULT_TRAIL = 20
 #: Detector of --method (default).
@@ -154,6 +182,7 @@ def register(subparsers) -> None:
     add_tracker(parser)
     add_config(parser)
     add_variant_and_scene_arguments(parser, "see jaxtrack track --help")
+    add_fusion_arguments(parser)
     add_seed(parser)
     parser.add_argument("--annotate", metavar="OUT.mp4", help="write the annotated frames")
     parser.add_argument(
@@ -224,6 +253,7 @@ def run(args: argparse.Namespace) -> int:
     with VideoReader(args.video, fps=args.fps) as reader:
         info = video_info(reader)
         span = parse_frame_span(args.frames, reader.num_frames)
+        check_train_frames(args.train_frames, span, reader.num_frames)
         if args.detections:
             detections = read_mot_file(args.detections, "det", info=info)
         else:
@@ -288,8 +318,9 @@ def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]
 
     Raises:
         InputError: an option the tracker does not take (``--zones`` but for CMT,
-            ``--context`` and ``--overlay`` but for PHD, a variant of another tracker), or a
-            bad configuration file.
+            ``--context`` and ``--overlay`` but for PHD, ``--pool``, ``--fusion`` and
+            ``--train-frames`` but for Fusion, a variant of another tracker), or a bad
+            configuration file.
     """
     entry = tracker_entry(args.tracker)
     if not entry.takes_zones:
@@ -298,7 +329,7 @@ def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]
         refuse_ignored(
             args, ("context", "overlay"), f"applies to the PHD tracker, not to {args.tracker}"
         )
-    config = load_config(args.config, args.tracker)
+    config = apply_fusion_arguments(args, load_config(args.config, args.tracker))
     if entry.variants or args.variant in tracker_variant_names():
         return apply_tracker_variant(args, config), None
     if not entry.takes_context:
@@ -308,15 +339,16 @@ def tracker_config(args: argparse.Namespace) -> tuple[TrackerConfig, str | None]
 
 def track_span(sequence, reader, config, args, context, variant, used, progress: bool):
     """Tracks the span's detections: streamed with its frames for a tracker that uses them
-    (CMT with its zones, the Hierarchical tracker with the background image, recorded in
-    ``used`` and printed), else as ``jaxtrack track`` does.
+    (CMT with its zones, the Hierarchical tracker with the background image, the Fusion
+    tracker with what it learned on its training span, recorded in ``used`` and printed),
+    else as ``jaxtrack track`` does.
 
     Args:
         sequence: the span with its detections (:func:`~jaxtrack.detect.sequence.
             video_sequence`).
         reader: the open video, the frames' source.
         config: the tracker's configuration.
-        args: the parsed arguments (``seed``, ``zones``, ``annotate``).
+        args: the parsed arguments (``seed``, ``zones``, ``train_frames``, ``annotate``).
         context: the PHD tracker's learned context, or None.
         variant: its variant (None without a context).
         used: the run's description for ``.config.json`` (the zones used are added).
@@ -332,7 +364,9 @@ def track_span(sequence, reader, config, args, context, variant, used, progress:
         _, params = build_tracker(config, sequence.info, context, variant or DEFAULT_VARIANT)
         (rows,) = track_sequences([sequence], config, args.seed, [params], progress=progress)
         return rows, None, None
-    params, scene = streamed_params(config, sequence, reader, args.seed, args.zones)
+    params, scene = streamed_params(
+        config, sequence, reader, args.seed, args.zones, args.train_frames
+    )
     for value in scene.values():
         print(value, file=sys.stderr)
     used.update(scene)
@@ -374,7 +408,7 @@ def write_annotated(
     path: str,
     trail: int,
     overlay=None,
-    drawn: CMTFrame | HierarchicalFrame | None = None,
+    drawn: CMTFrame | HierarchicalFrame | FusionFrame | None = None,
     progress: bool = True,
 ) -> None:
     """Writes the span's frames with detections, tracks (id colours), trails and overlay;
@@ -382,11 +416,16 @@ def write_annotated(
     :class:`~jaxtrack.plot.cmt_frames.CMTFrame` (the living components' particles coloured
     by motion condition on top, and their legend) or a Hierarchical run's
     :class:`~jaxtrack.plot.hier_frames.HierarchicalFrame` (low-level tracks in white,
-    high-level trackers in black, with their event states)."""
+    high-level trackers in black, with their event states) or a Fusion run's
+    :class:`~jaxtrack.plot.fusion_frames.FusionFrame` (each member's response thin, the
+    fused boxes thick, occluded targets dashed, hypotheses grey, and the key of the members
+    that responded in the span)."""
 
     feet = np.stack([rows.boxes[:, 0] + rows.boxes[:, 2] / 2, rows.boxes[:, 1] + rows.boxes[:, 3]])
     if drawn is not None:
         drawn = jax.device_get(drawn)
+    if isinstance(drawn, FusionFrame):
+        responded = np.asarray(drawn.member_valid).any(axis=(0, 1))
     with FrameWriter(path, (reader.width, reader.height), reader.fps) as writer:
         frames = range(span[0], span[1] + 1)
         for k in tqdm(frames, desc="annotate", unit="frame", disable=not progress):
@@ -408,4 +447,7 @@ def write_annotated(
                 image = draw_condition_legend(image)
             elif isinstance(drawn, HierarchicalFrame):
                 image = draw_levels(image, jax.tree.map(operator.itemgetter(t), drawn))
+            elif isinstance(drawn, FusionFrame):
+                image = draw_fusion(image, jax.tree.map(operator.itemgetter(t), drawn))
+                image = draw_fusion_legend(image, responded)
             writer.write(image, k)
