@@ -255,9 +255,11 @@ def constant_velocity(
     return last.at[:, :2].add(velocity)
 
 
-def _assign(boxes, detections, slots, taken, gate):
+def _assign(boxes, detections, slots, taken, gate, others=None):
     """One-to-one assignment of the free detections to ``slots`` (IoU >= gate)."""
     iou = iou_matrix(boxes, detections.boxes, xp=jnp)
+    if others is not None:
+        iou = jnp.maximum(iou, iou_matrix(others, detections.boxes, xp=jnp))
     allowed = slots[:, None] & (detections.mask & ~taken)[None, :] & (iou >= gate)
     return gated_assignment(1.0 - iou, allowed)
 
@@ -311,7 +313,9 @@ def fusion_step(
     predicted = constant_velocity(state.history, state.count)
 
     # detection member: targets first, then hypotheses, on the constant-velocity boxes
-    match = _assign(predicted, detections, target, jnp.zeros((num_detections,), bool), params.gate)
+    match = _assign(
+        predicted, detections, target, jnp.zeros((num_detections,), bool), params.gate, state.boxes
+    )
     taken = _taken(match, num_detections)
     match_h = _assign(predicted, detections, tentative, taken, params.gate)
     match = jnp.where(target, match, match_h)
