@@ -16,34 +16,53 @@ sequence, timed in its parts, with the default
 ``frames_per_s`` = frames / (context_s + track_s): the end-to-end rate after compilation;
 ``frames_per_s_with_compile`` counts the compiling run instead; ``track_frames_per_s`` is
 the streamed run alone. ``decode_ms_per_frame`` is the decoding of every frame alone (one
-thread, :class:`~jaxtrack.io.video.VideoReader`) and ``step_ms_per_frame`` the jitted step
-alone on frames already in memory (``--step-frames`` frames from frame 200, the state of a
-run up to there, one call per frame, ``block_until_ready``): the two parts of ``track_s``,
-which overlap in the streamed run. ``pool_step_ms_per_frame`` gives the step with each pool
-of one member (the rest of the step, voting, signatures and occlusion, is in all of them):
-the members' share of the step.
+thread, :class:`~jaxtrack.io.video.VideoReader`) and ``step_ms_per_frame`` the jitted
+:func:`~jaxtrack.filters.fusion.fusion_step` alone on frames already in memory (median over
+``--step-frames`` frames from frame 201, each on the state the run reached there, one call a
+frame, ``block_until_ready``): the two parts of ``track_s``, which overlap in the streamed
+run. The ``stage_ms_*`` are stages of the step, each jitted alone on the same states and
+frames: the detection member's Hungarian assignment (one of the step's two), the classifier
+member (:func:`~jaxtrack.filters.fusion_classifier.classifier_step`), the predictor member
+(:func:`~jaxtrack.filters.fusion_motion.predict_motion`) and the signatures (Fusion eq. 1)
+of four boxes per slot (the three responses and the fused box). Compiled alone they do not
+add up to the step (XLA fuses across stages; and the step also starts the classifiers of
+new targets, re-identifies, reasons about occlusions and votes).
 
 Prints one JSON object on its last line. The goal is ``frames_per_s >= 15`` on 2 CPU cores
 (``taskset -c 0,1``); timings on a shared machine vary with its other load
 (``load_average``). Usage: ``python benchmarks/fusion_speed.py [--frames N] [--repeats R]
-[--step-frames F] [--no-pools]``.
+[--step-frames F] [--no-stages]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
-import time
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from timing import timed
 
+from jaxtrack.association.assignment import gated_assignment
+from jaxtrack.boxes import iou_matrix
+from jaxtrack.context.motion_models import TRACKLET_LENGTH
 from jaxtrack.filters.base import fit_detections
-from jaxtrack.filters.fusion import MEMBERS
+from jaxtrack.filters.fusion import (
+    MEMBERS,
+    SIGNATURE_MIN_ROWS,
+    SIGNATURE_PATCH,
+    SIGNATURE_STEP,
+    feet,
+)
+from jaxtrack.filters.fusion_classifier import classifier_step
+from jaxtrack.filters.fusion_motion import predict_motion
+from jaxtrack.filters.fusion_profile import signatures
 from jaxtrack.filters.fusion_tracker import FusionConfig
+from jaxtrack.filters.fusion_voting import TARGET
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import load_sequence
 from jaxtrack.io.video import VideoReader, open_sequence_frames
@@ -63,7 +82,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=0, help="frames tracked (0: all)")
     parser.add_argument("--repeats", type=int, default=2, help="timed runs after the first")
     parser.add_argument("--step-frames", type=int, default=50, help="frames of the step timing")
-    parser.add_argument("--no-pools", action="store_true", help="skip the one-member pools")
+    parser.add_argument("--no-stages", action="store_true", help="skip the stages' timings")
     args = parser.parse_args()
 
     config = FusionConfig()
@@ -107,36 +126,78 @@ def main() -> None:
 
 
 def step_timing(args, seq, reader: VideoReader, params) -> dict:
-    """The jitted step alone (ms per frame, median over ``--step-frames`` frames, the state
-    carried) for the default pool and, unless ``--no-pools``, each pool of one member, all
-    from the state of the default pool's steps up to frame :data:`STEP_FROM`."""
+    """The jitted step alone and, unless ``--no-stages``, the members' stages alone (ms per
+    frame, median over ``--step-frames`` frames from :data:`STEP_FROM`, on the states of the
+    run up to each frame)."""
     first = max(min(STEP_FROM, seq.num_frames - args.step_frames), 0)
     count = min(args.step_frames, seq.num_frames - first)
     detections = fit_detections(seq.detections)
     key = jax.random.PRNGKey(0)
-
-    def inputs(k):  # frame k + 1 (k from 0)
-        return FrameInputs(jax.tree.map(lambda x: x[k], detections), reader.read(k + 1))
-
-    config = FusionConfig()
-    pools = [config.pool] if args.no_pools else [config.pool, *MEMBERS]
-    steps = {pool: jax.jit(build_tracker(FusionConfig(pool=pool), seq.info)[0].step) for pool in pools}
-    state = build_tracker(config, seq.info)[0].init(key, params)
-    for k in range(first):
-        state = steps[config.pool](key, state, params, inputs(k))[0]
-    timed_inputs = [inputs(first + k) for k in range(count)]
+    filt, _ = build_tracker(FusionConfig(), seq.info)
+    step = jax.jit(filt.step)
+    state, states, inputs = filt.init(key, params), [], []
+    for k in range(first + count):
+        frame_inputs = FrameInputs(
+            jax.tree.map(lambda x, k=k: x[k], detections), reader.read(k + 1)
+        )
+        if k >= first:
+            states.append(state)
+            inputs.append(frame_inputs)
+        state = step(key, state, params, frame_inputs)[0]
+    timings = {"step_ms_per_frame": (step, lambda k: (key, states[k], params, inputs[k]))}
+    if not args.no_stages:
+        timings.update(stage_timings(params, states, inputs))
     result = {"step_from_frame": first + 1, "step_frames": count}
-    for pool, step in steps.items():
-        carry = state
-        jax.block_until_ready(step(key, carry, params, timed_inputs[0]))  # compiles
+    for name, (function, arguments) in timings.items():
+        jax.block_until_ready(function(*arguments(0)))  # compiles
         times = []
-        for frame_inputs in timed_inputs:
-            start = time.perf_counter()
-            carry = jax.block_until_ready(step(key, carry, params, frame_inputs))[0]
-            times.append(time.perf_counter() - start)
-        name = "step_ms_per_frame" if pool == config.pool else f"step_ms_per_frame_{pool}"
+        for k in range(count):
+            call = functools.partial(function, *arguments(k))
+            times.append(timed(lambda call=call: jax.block_until_ready(call()))[0])
         result[name] = round(1e3 * float(np.median(times)), 2)
     return result
+
+
+def stage_timings(params, states, inputs) -> dict:
+    """The pool members' stages and the responses' signatures, each jitted alone."""
+
+    def assignment(state, frame_inputs):  # the detection member's Hungarian assignment
+        detections = frame_inputs.detections
+        iou = iou_matrix(state.boxes, detections.boxes, xp=jnp)
+        allowed = target(state)[:, None] & detections.mask[None, :] & (iou >= params.gate)
+        return gated_assignment(1.0 - iou, allowed)
+
+    def classifier(state, frame_inputs):
+        filters = state.classifier._replace(boxes=state.boxes, alive=target(state))
+        return classifier_step(filters, frame_inputs.frame, params.classifier, target(state))
+
+    def predictor(state, frame_inputs):
+        del frame_inputs
+        tracklets = feet(state.history[:, -TRACKLET_LENGTH:])
+        return predict_motion(params.motion, tracklets, target(state))
+
+    def responses(state, frame_inputs):  # four boxes per slot: three members and the fused
+        boxes = jnp.tile(state.boxes, (len(MEMBERS) + 1, 1))
+        return signatures(
+            frame_inputs.frame, boxes, SIGNATURE_PATCH, SIGNATURE_STEP, SIGNATURE_MIN_ROWS
+        )
+
+    stages = {
+        "assignment": assignment,
+        "classifier": classifier,
+        "predictor": predictor,
+        "signatures_4_per_slot": responses,
+    }
+    return {
+        f"stage_ms_{name}": (jax.jit(stage), lambda k: (states[k], inputs[k]))
+        for name, stage in stages.items()
+    }
+
+
+def target(state) -> jax.Array:
+    """The slots holding targets."""
+    return state.voting.status == TARGET
+
 
 if __name__ == "__main__":
     main()
