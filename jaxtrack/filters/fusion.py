@@ -44,7 +44,8 @@ One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each e
    targets whose fused boxes overlap (``Q > occlusion_q``) form groups; in each, the target
    closest to its own signature is the occluder, the others are occluded: their classifier
    and signature stop learning (on the next frame for the classifier, which learns as it
-   localises).
+   localises). An occluded target stays occluded "until it becomes fully visible again"
+   (Sec. 2.2): until a detection supports it while it is no group's occluded member.
 
 The output (:class:`FusionInfo`): ``tracks`` are the targets (fused boxes), ``candidates``
 the targets and hypotheses (a hypothesis carries the identity it keeps when voted in), so the
@@ -427,7 +428,9 @@ def fusion_step(
     status_now = occlusion_status(
         boxes, now_target, signature.histogram, observed, params.occlusion_q
     )
-    occluded = status_now.occluded & now_target
+    # occluded until fully visible again: re-detected, and the occluder of its group or alone
+    hidden = status_now.occluded | (state.occluded & ~supported)
+    occluded = hidden & now_target
     signature = update_signatures(
         signature, observed, occluded | ~now_target | initiated, params.signature_rate
     )
