@@ -107,10 +107,6 @@ TABLE_COLUMNS = (
 #: (the ablation, on CAVIAR), in :data:`PAPER_COLUMNS`.
 PAPER_COLUMNS = ("tracker", "MT %", "PT %", "ML %", "FM", "IDS")
 PAPER_TABLE4 = ("Proposed (paper, Table 4)", 94.7, 5.3, 0.0, 34, 7)
-#: Table 4's percentages as counts of PETS09-S2L1's 19 ground-truth trajectories.
-PAPER_TABLE4_COUNTS = {"MT": 18, "PT": 1, "ML": 0, "GT": 19}
-#: Columns of :func:`table4_rows`.
-TABLE4_COLUMNS = ("run", "MT %", "PT %", "ML %", "MT", "PT", "ML", "GT", "FM", "IDS")
 PAPER_TABLE1 = (
     ("Detector", 83.33, 13.89, 2.78, 49, 31),
     ("Classifier", 43.06, 43.75, 13.2, 83, 32),
@@ -118,6 +114,10 @@ PAPER_TABLE1 = (
     ("Naive Fusion", 89.58, 9.722, 0.694, 40, 25),
     ("Proposed", 91.70, 7.60, 0.70, 29, 13),
 )
+#: Table 4's percentages as counts of PETS09-S2L1's 19 ground-truth trajectories.
+PAPER_TABLE4_COUNTS = {"MT": 18, "PT": 1, "ML": 0, "GT": 19}
+#: Columns of :func:`table4_rows`.
+TABLE4_COLUMNS = ("run", "MT %", "PT %", "ML %", "MT", "PT", "ML", "GT", "FM", "IDS")
 #: The best off-the-shelf peer's MT (pooled over the three MOT15 sequences; the last row of
 #: :data:`PEERS` is this repository's PHD tracker, not a peer).
 BEST_PEER_MT = max(peer[PEER_COLUMNS.index("MT")] for peer in PEERS[:-1])
@@ -143,7 +143,8 @@ def experiment_trackers(quick: bool = False) -> dict[str, TrackerConfig]:
 
 
 def held_out_frames(sequence: MotSequence) -> tuple[int, int]:
-    """The frames after the Fusion tracker's default training span (first, last).
+    """The frames after the Fusion tracker's default training span (first, last): every
+    configuration of the experiment keeps the default ``train_fraction``.
 
     Raises:
         InputError: a training span covering the whole sequence.
@@ -204,7 +205,8 @@ def run_experiment(
         raise InputError("at least one synthetic scene seed is needed")
     start = time.perf_counter()
     out = output_folder(out_dir)
-    sequences = experiment_sequences(Path(data), out / "scenes", seeds, quick, _steps(progress))
+    steps = print if progress else None
+    sequences = experiment_sequences(Path(data), out / "scenes", seeds, quick, steps)
     trackers = experiment_trackers(quick)
     evaluations: dict[RunKey, Evaluation] = {}
     spans: dict[str, dict[str, list[int]]] = {}
@@ -247,10 +249,6 @@ def run_experiment(
     (out / "results.json").write_text(json.dumps(record, indent=1) + "\n")
     (out / "table.md").write_text(table_markdown(record))
     return record
-
-
-def _steps(progress: bool):
-    return print if progress else None
 
 
 def result_name(tracker: str) -> str:
