@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from jaxtrack.commands import cmt_ablation, hierarchical_experiment
+from jaxtrack.commands import cmt_ablation, fusion_experiment, hierarchical_experiment
 from jaxtrack.commands.arguments import (
     SEED_TYPE,
     add_out,
@@ -477,6 +477,16 @@ examples:
         sequence=False,
         add_extras=cmt_ablation.add_arguments,
         run=hierarchical_experiment.run,
+        files=hierarchical_experiment.FILES,
+        scene="scenes",
+    ),
+    "fusion": Experiment(
+        help=fusion_experiment.HELP,
+        description=fusion_experiment.DESCRIPTION,
+        quick_help=fusion_experiment.QUICK_HELP,
+        sequence=False,
+        add_extras=cmt_ablation.add_arguments,
+        run=fusion_experiment.run,
         files=hierarchical_experiment.FILES,
         scene="scenes",
     ),

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from jaxtrack.commands.cmt_ablation import SHARED_DATA
@@ -13,7 +14,8 @@ from jaxtrack.experiments.common import markdown_table
 from jaxtrack.experiments.hierarchical import TABLE_COLUMNS, run_experiment
 
 SEEDS = " ".join(map(str, HELD_OUT_SEEDS))
-#: The files the experiment writes into --out (besides sequences/ and scenes/).
+#: The files the experiment writes into --out (besides sequences/ and scenes/); the same for
+#: every experiment run by :func:`run_video_experiment`.
 FILES = ("table.md", "results.json")
 
 HELP = "Hierarchical tracker: Kalman bank vs |S|^1/2 managed low level vs both levels"
@@ -45,16 +47,25 @@ examples:
 
 def run(args: argparse.Namespace) -> int:
     """Runs the experiment on the parsed arguments; prints the table and the goals."""
+    return run_video_experiment(args, run_experiment, TABLE_COLUMNS)
+
+
+def run_video_experiment(
+    args: argparse.Namespace, experiment: Callable[..., dict], columns: Sequence[str]
+) -> int:
+    """Runs an experiment on the MOT15 videos and scenes (``--data``, ``--seeds``) with the
+    parsed arguments: ``experiment(out, data, seeds, seed=, quick=, progress=)`` returns its
+    record (``rows``, ``goals``); prints the table (``columns``) and the goals."""
     data = Path(args.data or SHARED_DATA)
     seeds = list(dict.fromkeys(args.seeds or HELD_OUT_SEEDS))
     inputs = video_input(data / PETS_VIDEO, f"the video {data / PETS_VIDEO}")
     for name in VIDEO_SEQUENCES:
         inputs += sequence_inputs(data / "mot15" / name)
     check_outputs(output_folder("--out", args.out, FILES), inputs)
-    record = run_experiment(
+    record = experiment(
         args.out, data, seeds, seed=args.seed, quick=args.quick, progress=not args.quiet
     )
-    print(markdown_table(record["rows"], TABLE_COLUMNS))
+    print(markdown_table(record["rows"], columns))
     for goal in record["goals"]:
         print(f"{'PASS' if goal['pass'] else 'FAIL'}: {goal['goal']}: {goal['measured']}")
     print(f"wrote {Path(args.out) / 'table.md'}, {Path(args.out) / 'results.json'}")

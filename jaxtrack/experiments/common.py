@@ -162,16 +162,29 @@ def learn_split(
     )
 
 
-def evaluate_rows(sequence: MotSequence, rows: MotTable) -> Evaluation:
+def evaluate_rows(
+    sequence: MotSequence, rows: MotTable, frames: tuple[int, int] | None = None
+) -> Evaluation:
     """Scores a tracker's rows against a sequence span's ground truth.
+
+    Args:
+        sequence: the span tracked, with its ground truth.
+        rows: the tracker's rows on it.
+        frames: a part ``(first, last)`` of the span (1-based, inclusive) scored alone: the
+            ground truth and the rows cut to it first, as ``jaxtrack eval --frames`` does
+            (default: the whole span).
 
     Raises:
         InputError: the sequence has no ground truth.
     """
     if sequence.gt_table is None:
         raise InputError(f"{sequence.path}: no ground truth (gt/gt.txt) to score against")
+    if frames is None:
+        return evaluate_sequence(
+            sequence.gt_table, rows, frames=(sequence.first_frame, sequence.last_frame)
+        )
     return evaluate_sequence(
-        sequence.gt_table, rows, frames=(sequence.first_frame, sequence.last_frame)
+        sequence.gt_table.frame_span(*frames), rows.frame_span(*frames), frames=frames
     )
 
 

@@ -30,8 +30,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from tqdm import tqdm
-
 from jaxtrack.datasets.video_scene import generate_video_scene
 from jaxtrack.errors import InputError
 from jaxtrack.experiments.cmt_ablation import (
@@ -43,20 +41,16 @@ from jaxtrack.experiments.cmt_ablation import (
     experiment_sequences,
 )
 from jaxtrack.experiments.common import evaluate_rows, markdown_table, output_folder
+from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
 from jaxtrack.filters.hier_events import DEFAULT_EXITING_FRAMES
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
-from jaxtrack.io import load_sequence, write_mot_file
+from jaxtrack.io import write_mot_file
 from jaxtrack.io.events import write_events
-from jaxtrack.io.video import open_sequence_frames
 from jaxtrack.metrics.evaluate import Evaluation, combine_sequences
 from jaxtrack.metrics.events import DEFAULT_TOLERANCE, score_events
 from jaxtrack.metrics.reassociation import identity_kept
-from jaxtrack.pipelines.frame_context import load_tracked_sequence, streamed_params
-from jaxtrack.pipelines.stream import track_streamed_events
 from jaxtrack.pipelines.tracking import tracker_description
 
-#: Detection sources: the sequence's own detections, background subtraction on its frames.
-SOURCES = ("det", "bs")
 #: The compared variants, table name -> ``HierarchicalConfig.variant``.
 TRACKERS = {"Kalman bank": "kalman", "Managed low level": "managed", "Hierarchical": "full"}
 #: Scores in percent, then counts.
@@ -135,38 +129,24 @@ def run_experiment(
     for scene_seed in seeds[:1] if quick else seeds:
         scene = generate_video_scene(scene_seed, scene_config)
         scenes[scene.info.name] = scene
-    runs = [(s, source) for s in sequences for source in SOURCES]
     evaluations: dict[RunKey, Evaluation] = {}
     events: dict[str, dict] = {}
     kept: dict[str, dict] = {}
     seconds = dict.fromkeys(configs, 0.0)
-    for sequence, source in tqdm(runs, desc="sequences", unit="run", disable=not progress):
-        scene = scenes.get(sequence.name)
-        loaded = load_sequence(sequence.folder, sequence.frames)
-        with open_sequence_frames(sequence.folder, loaded.info, sequence.video) as reader:
-            tracked = loaded
-            if source == "bs":
-                tracked = load_tracked_sequence(sequence.folder, sequence.frames, "bs", reader)
-            folder = out / "sequences" / sequence.name / source
-            folder.mkdir(parents=True, exist_ok=True)
-            if source == "bs":
-                write_mot_file(folder / "det.txt", tracked.det_table)
-            for name, config in configs.items():
-                params, _ = streamed_params(config, tracked, reader, seed)
-                begin = time.perf_counter()
-                rows, rows_events = track_streamed_events(tracked, reader, config, seed, params)
-                seconds[name] += time.perf_counter() - begin
-                key = RunKey(sequence.name, source, name)
-                write_mot_file(folder / f"{config.variant}.txt", rows)
-                evaluations[key] = evaluate_rows(loaded, rows)
-                if rows_events is not None:
-                    write_events(folder / f"{config.variant}.events.csv", rows_events)
-                if scene is not None and config.variant == "full":
-                    label = f"{sequence.name} {source}"
-                    events[label] = score_events(rows_events, rows, loaded.gt_table, scene.events)
-                if scene is not None:
-                    label = f"{sequence.name} {source} {name}"
-                    kept[label] = identity_kept(rows, loaded.gt_table, scene.events)
+    for run in frame_tracker_runs(sequences, configs, out, seed, progress):
+        scene, config = scenes.get(run.sequence.name), configs[run.name]
+        seconds[run.name] += run.seconds
+        key = RunKey(run.sequence.name, run.source, run.name)
+        write_mot_file(run.folder / f"{config.variant}.txt", run.rows)
+        evaluations[key] = evaluate_rows(run.loaded, run.rows)
+        if run.events is not None:
+            write_events(run.folder / f"{config.variant}.events.csv", run.events)
+        if scene is not None and config.variant == "full":
+            label = f"{run.sequence.name} {run.source}"
+            events[label] = score_events(run.events, run.rows, run.loaded.gt_table, scene.events)
+        if scene is not None:
+            label = f"{run.sequence.name} {run.source} {run.name}"
+            kept[label] = identity_kept(run.rows, run.loaded.gt_table, scene.events)
     rows_table = _table(sequences, configs, evaluations)
     record = {
         "quick": quick,
