@@ -31,14 +31,22 @@ def two_tone(image: np.ndarray, box, top, bottom) -> None:
 
 def scene(boxes_per_frame, colours, scores=None, num_slots=4):
     """Frames and padded detections of targets drawn at ``boxes_per_frame[t][k]``."""
-    frames, det_boxes, det_mask = [], [], []
+    frames = []
     for boxes in boxes_per_frame:
         image = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
         for box, (top, bottom) in zip(boxes, colours, strict=False):
             two_tone(image, box, top, bottom)
         frames.append(image)
+    return frame_inputs(frames, boxes_per_frame, scores, num_slots)
+
+
+def frame_inputs(frames, boxes_per_frame, scores=None, num_slots=4) -> FrameInputs:
+    """The frames with ``boxes_per_frame[t]`` as frame ``t``'s detections, padded to
+    ``num_slots`` (score 0.99, or ``scores`` ``[T, num_slots]``, on the real ones)."""
+    det_boxes, det_mask = [], []
+    for boxes in boxes_per_frame:
         padded = np.tile([0.0, 0.0, 1.0, 1.0], (num_slots, 1))
-        padded[: len(boxes)] = boxes
+        padded[: len(boxes)] = np.reshape(boxes, (-1, 4))
         det_boxes.append(padded)
         det_mask.append(np.arange(num_slots) < len(boxes))
     mask = np.array(det_mask)

@@ -26,7 +26,7 @@ from jaxtrack.filters.fusion_tracker import (
 from jaxtrack.filters.fusion_voting import EMPTY, TARGET, TENTATIVE, Thresholds
 from jaxtrack.pipelines.tracking import output_rows
 from jaxtrack.types import Detections, FrameInputs
-from tests.filters.test_cmt import COLOURS, INFO, SIZE, two_tone
+from tests.filters.test_cmt import COLOURS, INFO, SIZE, frame_inputs, two_tone
 
 BACKGROUND = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
 #: One walker 16 x 36 moving right 1.5 px per frame, detected in frames 0..39 of 60.
@@ -40,28 +40,20 @@ def walker(t: int, y: float = 30.0, x0: float = 20.0, speed: float = 1.5):
 def drawn_scene(people, detected, num_frames=NUM_FRAMES, num_slots=4):
     """Frames and padded detections: ``people[k](t)`` the box of person ``k`` (drawn in
     ``COLOURS[k]`` when not None), detected when ``detected[k](t)``."""
-    frames, boxes, mask = [], [], []
+    frames, kept = [], []
     for t in range(num_frames):
         image = BACKGROUND.copy()
-        kept = []
+        detected_now = []
         for k, person in enumerate(people):
             box = person(t)
             if box is None:
                 continue
             two_tone(image, box, *COLOURS[k % len(COLOURS)])
             if detected[k](t):
-                kept.append(box)
-        padded = np.tile([0.0, 0.0, 1.0, 1.0], (num_slots, 1))
-        padded[: len(kept)] = np.reshape(kept, (-1, 4))
+                detected_now.append(box)
         frames.append(image)
-        boxes.append(padded)
-        mask.append(np.arange(num_slots) < len(kept))
-    detections = Detections(
-        jnp.asarray(np.array(boxes), jnp.float32),
-        jnp.asarray(np.where(mask, 0.99, 0.0), jnp.float32),
-        jnp.asarray(np.array(mask)),
-    )
-    return FrameInputs(detections, jnp.asarray(np.array(frames)))
+        kept.append(detected_now)
+    return frame_inputs(frames, kept, num_slots=num_slots)
 
 
 def tracked(config: FusionConfig, inputs: FrameInputs, context=None):

@@ -10,7 +10,6 @@ event rows.
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -24,8 +23,8 @@ from jaxtrack.pipelines.events import (
     merge_identities,
 )
 from jaxtrack.pipelines.tracking import output_rows
-from jaxtrack.types import Detections, FrameInputs, MotTable, Tracks
-from tests.filters.test_cmt import COLOURS, INFO, SIZE, two_tone
+from jaxtrack.types import MotTable, Tracks
+from tests.filters.test_cmt import COLOURS, INFO, SIZE, frame_inputs, two_tone
 
 #: Frames of the occlusion scene, and the frames in which target 0 is not detected.
 NUM_FRAMES = 60
@@ -37,7 +36,7 @@ def occlusion_scene(reappearing_colours=None, num_slots=4):
     """Target 0 walks right and is not detected in :data:`HIDDEN` frames (and not drawn);
     target 1 walks left below it. From the first frame after the gap target 0 wears
     ``reappearing_colours`` (default: its own)."""
-    frames, boxes, mask = [], [], []
+    frames, kept = [], []
     for t in range(NUM_FRAMES):
         image = BACKGROUND.copy()
         truth = [(10.0 + 1.5 * t, 20.0, 16.0, 36.0), (130.0 - 1.5 * t, 72.0, 16.0, 36.0)]
@@ -48,18 +47,9 @@ def occlusion_scene(reappearing_colours=None, num_slots=4):
         for box, (top, bottom), visible in zip(truth, colours, shown, strict=True):
             if visible:
                 two_tone(image, box, top, bottom)
-        padded = np.tile([0.0, 0.0, 1.0, 1.0], (num_slots, 1))
-        kept = [box for box, visible in zip(truth, shown, strict=True) if visible]
-        padded[: len(kept)] = kept
         frames.append(image)
-        boxes.append(padded)
-        mask.append(np.arange(num_slots) < len(kept))
-    detections = Detections(
-        jnp.asarray(np.array(boxes), jnp.float32),
-        jnp.asarray(np.where(mask, 0.99, 0.0), jnp.float32),
-        jnp.asarray(np.array(mask)),
-    )
-    return FrameInputs(detections, jnp.asarray(np.array(frames)))
+        kept.append([box for box, visible in zip(truth, shown, strict=True) if visible])
+    return frame_inputs(frames, kept, num_slots=num_slots)
 
 
 def tracked(variant, inputs):
