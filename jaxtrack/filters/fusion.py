@@ -5,8 +5,9 @@ re-identification.
 One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each empty, a
 *hypothesis* (``TENTATIVE``: a chain of detections not yet voted in) or a *target*:
 
-1. **Prediction.** Each live slot's constant-velocity box: its last fused box moved by the
-   mean centre velocity of its last :data:`VELOCITY_FRAMES` fused boxes.
+1. **Prediction.** Each live slot's constant-velocity box: its last evidence box moved by the
+   mean centre velocity of its last :data:`VELOCITY_FRAMES` evidence boxes (a slot's
+   evidence is the detection where one supported it, else its fused box).
 2. **Pool** (paper Sec. 3.2), each member giving a response box per target (``[S, M, 4]``) and
    whether it has one this frame:
 
@@ -23,7 +24,7 @@ One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each e
    Every member starts from the last *fused* box (late fusion corrects each member's drift).
 3. **Fusion** (Sec. 4, :mod:`~jaxtrack.filters.fusion_combine`): per target, the confidence
    ``S_i = (Sim_sp + Sim_app) / 2`` of each response (its speed against the mean speed of the
-   last :data:`SPEED_FRAMES` fused frames; ``Sim_app = 1 - D``, ``D`` the signature distance
+   last :data:`SPEED_FRAMES` evidence boxes; ``Sim_app = 1 - D``, ``D`` the signature distance
    of the response's box to the target's stored signature), the accordance ``A_ij`` of each
    pair (``Sim_dist = exp(-d / h)``, IoU, ``1 - D`` between the two responses' signatures)
    and the fused box ``R = sum_ij (A_ij / A_sum) (S_i R_i + S_j R_j) / (S_i + S_j)``; or, in
@@ -112,10 +113,10 @@ FUSIONS = ("proposed", "naive")
 #: Samples per box of a signature (rows split into the upper and lower body), the HSV
 #: quantisation step (8 bins per channel) and the fewest rows of a part.
 SIGNATURE_PATCH, SIGNATURE_STEP, SIGNATURE_MIN_ROWS = (16, 8), 32.0, 3
-#: Fused frames whose mean speed ``v_mean`` the confidence compares a response's with (the
+#: Evidence boxes whose mean speed ``v_mean`` the confidence compares a response's with (the
 #: paper's ``N``).
 SPEED_FRAMES = 10
-#: Fused frames whose mean centre velocity predicts the next box.
+#: Evidence boxes whose mean centre velocity predicts the next box.
 VELOCITY_FRAMES = 5
 #: Boxes of history kept per slot.
 HISTORY = max(SPEED_FRAMES + 1, TRACKLET_LENGTH, VELOCITY_FRAMES + 1)
@@ -164,9 +165,10 @@ class FusionState(NamedTuple):
         next_id: identity of the next hypothesis.
         voting: the slots' voting counters and status.
         boxes: ``[S, 4]`` last fused box.
-        history: ``[S, HISTORY, 4]`` last fused boxes, oldest first (the first box repeated
+        history: ``[S, HISTORY, 4]`` last evidence boxes (the detection where one
+            supported the slot, else the fused box), oldest first (the first box repeated
             before the slot had ``HISTORY`` of them).
-        count: ``[S]`` fused boxes seen (capped at ``HISTORY``).
+        count: ``[S]`` evidence boxes seen (capped at ``HISTORY``).
         classifier: the correlation filters.
         signature: the signature models (``histogram`` ``[S, 2, bins]``).
         occluded: ``[S]`` occluded on the last frame.
@@ -437,7 +439,7 @@ def fusion_step(
     classifier = start_targets(classifier, frame, boxes, initiated, params.classifier)
     classifier = classifier._replace(alive=now_target)
 
-    # history of fused boxes
+    # evidence history: the detection where one supported the slot, else the fused box
     fresh = new.born
     evidence = jnp.where((supported & ~new.born)[:, None], detected, boxes)
     history = jnp.concatenate([state.history[:, 1:], evidence[:, None]], axis=1)
