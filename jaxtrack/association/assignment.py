@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import optax
 from jaxtyping import Array, Bool, Float, Int
@@ -17,6 +18,11 @@ def gated_assignment(
     had to use. Among matchings of maximum size over allowed pairs, the result has minimum
     cost.
 
+    When the allowed pairs already form a matching (no row and no column with two allowed
+    pairs: separated targets, the usual frame), that matching is the only one of maximum
+    size and is returned without the Hungarian algorithm's iterations (``lax.cond``; under
+    ``vmap`` both branches run).
+
     Args:
         cost: pair costs, finite where allowed.
         allowed: True where a row may be matched to a column (the gate, padded slots False).
@@ -24,6 +30,18 @@ def gated_assignment(
     Returns:
         For each row, the matched column, or -1.
     """
+    unambiguous = jnp.all(jnp.sum(allowed, axis=0) <= 1) & jnp.all(jnp.sum(allowed, axis=1) <= 1)
+    return jax.lax.cond(unambiguous, _allowed_pairs, _hungarian, cost, allowed)
+
+
+def _allowed_pairs(cost: Array, allowed: Array) -> Array:
+    """Each row's only allowed column (the allowed pairs form a matching), or -1."""
+    del cost
+    return jnp.where(jnp.any(allowed, axis=1), jnp.argmax(allowed, axis=1), -1).astype(jnp.int32)
+
+
+def _hungarian(cost: Array, allowed: Array) -> Array:
+    """The gated matching by the Hungarian algorithm (see :func:`gated_assignment`)."""
     safe_cost = jnp.where(allowed, cost, 0.0)
     span = jnp.max(jnp.abs(safe_cost))
     forbidden = (1.0 + 2.0 * span) * (1 + min(cost.shape))

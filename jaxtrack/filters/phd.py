@@ -51,6 +51,7 @@ from jaxtrack.models.dynamics import MEASURED, STATE_DIM, sample_constant_veloci
 from jaxtrack.models.likelihood import log_likelihood
 from jaxtrack.models.noise import NoiseModel, state_dependent_std
 from jaxtrack.models.survival import SurvivalMap, survival_probability
+from jaxtrack.reductions import max_leading, sum_leading
 from jaxtrack.types import PAD_BOX, Detections, Tracks
 
 
@@ -302,7 +303,7 @@ def score_log_ratio(
 
 #: Detection x particle pairs per block of :func:`phd_update` by default (the
 #: ``[max_detections, block]`` intermediates then stay in cache).
-PAIRS_PER_BLOCK = 32768
+PAIRS_PER_BLOCK = 65536
 #: Smallest default block of particles of :func:`phd_update`.
 MIN_BLOCK = 128
 
@@ -385,19 +386,33 @@ def phd_update(
     log_kappa = log_intensity(params.clutter_intensity, measurements)
     log_denominator = jnp.logaddexp(log_kappa - log_ratio, log_c)
 
-    def block_update(state_sums, index):
+    def block_update(part_sums, index):
         log_psi, block_particles, block_log_weights, fresh = block_log_psi(index)
+        # One exponential per pair serves the weight factor's log-sum-exp over detections,
+        # the expected scores' softmax and the detection parts: with
+        # top_i = max_z terms_zi and ratio_zi = exp(terms_zi - top_i),
+        # log_factor_i = log(pM + e^top_i sum_z ratio_zi) and
+        # psi_z(x_i) w_i / (kappa / r + C(z)) = ratio_zi e^(top_i + log w_i).
         terms = jnp.where(mask[:, None], log_psi - log_denominator[:, None], LOG_ZERO)
-        log_factor = jnp.logaddexp(log_missed, jax.nn.logsumexp(terms, axis=0))
+        top = jax.lax.stop_gradient(max_leading(terms))
+        ratio = jnp.exp(terms - top[None])
+        ratio_sum = sum_leading(ratio)
+        log_factor = jnp.logaddexp(log_missed, top + jnp.log(ratio_sum))
         updated = jnp.maximum(block_log_weights + log_factor, LOG_ZERO)
-        stopped = jax.lax.stop_gradient((log_psi, block_particles, block_log_weights, terms))
-        block_sums, particle_scores = _block_parts(
-            *stopped, jax.lax.stop_gradient(log_c), fresh, scores, mask
-        )
-        return state_sums + block_sums, (updated, particle_scores)
+        stopped = jax.lax.stop_gradient((ratio, ratio_sum, top, block_particles, block_log_weights))
+        block_sums, particle_scores = _block_parts(*stopped, fresh, scores)
+        return part_sums + block_sums, (updated, particle_scores)
 
-    state_sums, (updated, particle_scores) = jax.lax.scan(
-        block_update, jnp.zeros((num_slots, STATE_DIM), particles.dtype), jnp.arange(num_blocks)
+    part_sums, (updated, particle_scores) = jax.lax.scan(
+        block_update,
+        jnp.zeros((num_slots, STATE_DIM + 1), particles.dtype),
+        jnp.arange(num_blocks),
+    )
+    state_sums, part_masses = part_sums[:, :STATE_DIM], part_sums[:, STATE_DIM]
+    detection_states = jnp.where(
+        mask[:, None] & (part_masses[:, None] > 0),
+        state_sums / jnp.where(part_masses > 0, part_masses, 1.0)[:, None],
+        0.0,
     )
     log_likelihood_k = (
         -params.detection_prob * jnp.sum(jnp.exp(log_weights))
@@ -409,21 +424,26 @@ def phd_update(
         log_weights=_unblock(updated, num_particles),
         log_likelihood=log_likelihood_k,
         detection_log_masses=jnp.where(mask, detection_log_masses, LOG_ZERO),
-        detection_states=state_sums,
+        detection_states=detection_states,
         particle_scores=_unblock(particle_scores, num_particles),
     )
 
 
-def _block_parts(log_psi, particles, log_weights, terms, log_c, fresh, scores, mask):
+def _block_parts(ratio, ratio_sum, top, particles, log_weights, fresh, scores):
     """One block's share of the extraction's reductions (no gradient).
 
+    ``ratio[z, i] e^(top_i) w_i`` is ``psi_z(x_i) w_i / (kappa(z) / r + C(z))``, proportional
+    over ``i`` to particle ``i``'s share of detection ``z``'s part ``D_z``.
+
     Returns:
-        ``sum_i psi_z(x_i) w_i x_i / C(z)`` over the block's fresh particles (``[max_detections,
-        6]``), and each particle's expected score ``sum_z s_z softmax_z(terms)``.
+        Per detection, ``sum_i a_zi x_i`` and ``sum_i a_zi`` over the block's fresh particles,
+        ``a_zi = ratio[z, i] e^(top_i) w_i`` (``[max_detections, 7]``: the part's mean state is
+        their ratio), and each particle's expected score ``sum_z s_z ratio_zi / sum_z ratio_zi``.
     """
-    log_posterior = log_weights[None] + log_psi - log_c[:, None]
-    posterior = jnp.where(mask[:, None] & fresh[None], jnp.exp(log_posterior), 0.0)
-    return posterior @ particles, scores @ jax.nn.softmax(terms, axis=0)
+    share = jnp.where(fresh, jnp.exp(top + log_weights), 0.0)
+    weighted = ratio * share[None]
+    with_ones = jnp.concatenate([particles, jnp.ones((particles.shape[0], 1), particles.dtype)], 1)
+    return weighted @ with_ones, sum_leading(scores[:, None] * ratio) / ratio_sum
 
 
 def _unblock(blocks: Array, num_particles: int) -> Array:

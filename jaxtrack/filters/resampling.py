@@ -57,9 +57,27 @@ def _inverse_cdf(probs: Float[Array, " n"], uniforms: Float[Array, " m"]) -> Int
 def systematic(
     key: Array, probs: Float[Array, " n"], num_samples: int
 ) -> Int[Array, " num_samples"]:
-    """Systematic resampling: one uniform ``u``, points ``(u + i) / num_samples``."""
+    """Systematic resampling: one uniform ``u``, points ``(u + j) / num_samples``.
+
+    Equal to :func:`_inverse_cdf` of those points (``searchsorted``, a binary search per
+    point), computed in ``O(n + num_samples)`` instead: the points are evenly spaced, so the
+    number of points below ``cdf[i]`` is ``K_i = ceil(num_samples cdf[i] - u)`` (corrected by
+    one either way where float32 rounding of the points disagrees, so the ancestors are those
+    of the float32 points exactly), and point ``j``'s ancestor is the number of ``i`` with
+    ``K_i <= j``: a histogram of the ``K_i`` and its cumulative sum.
+    """
     offset = jax.random.uniform(key, (), probs.dtype)
-    return _inverse_cdf(probs, (offset + jnp.arange(num_samples)) / num_samples)
+    cdf = cumulative_probs(probs)
+
+    def point(j):
+        return (offset + j.astype(probs.dtype)) / num_samples
+
+    guess = jnp.clip(jnp.ceil(num_samples * cdf - offset), 0, num_samples).astype(jnp.int32)
+    below = jnp.where((guess > 0) & (point(guess - 1) >= cdf), guess - 1, guess)
+    below = jnp.where((below < num_samples) & (point(below) < cdf), below + 1, below)
+    histogram = jnp.zeros(num_samples + 1, jnp.int32).at[below].add(1)
+    ancestors = jnp.cumsum(histogram[:num_samples])
+    return jnp.clip(ancestors, 0, probs.shape[0] - 1).astype(jnp.int32)
 
 
 def stratified(

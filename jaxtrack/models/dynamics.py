@@ -71,5 +71,18 @@ def sample_constant_velocity(
     """
     normal = jax.random.normal(key, (states.shape[0], 4), states.dtype)
     scaled = noise_model(states[:, SIZE], noise_std) * normal
-    predicted = states @ transition_matrix().T + scaled @ noise_gain().T
-    return predicted.at[:, SIZE].set(jnp.maximum(predicted[:, SIZE], MIN_SIZE))
+    # G x + B n written out per component (T = 1): the same sums as the matrix products
+    # with transition_matrix() and noise_gain(), without a matrix product or a scatter.
+    y1, vy1, y2, vy2, width, height = (states[:, i] for i in range(STATE_DIM))
+    n1, n2, nw, nh = (scaled[:, i] for i in range(4))
+    return jnp.stack(
+        [
+            (y1 + vy1) + 0.5 * n1,
+            vy1 + n1,
+            (y2 + vy2) + 0.5 * n2,
+            vy2 + n2,
+            jnp.maximum(width + nw, MIN_SIZE),
+            jnp.maximum(height + nh, MIN_SIZE),
+        ],
+        axis=1,
+    )

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from jaxtrack.filters.resampling import (
+    _inverse_cdf,
     cumulative_probs,
     multinomial,
     resample,
@@ -103,3 +104,20 @@ def test_stop_gradient_resampling_gives_unbiased_gradients():
     standard_error = grads[True].std() / np.sqrt(keys.shape[0])
     assert abs(grads[True].mean() - exact) < 4 * standard_error
     assert abs(grads[False].mean() - exact) > 10 * grads[False].std() / np.sqrt(keys.shape[0])
+
+
+@pytest.mark.parametrize(("n", "num_samples"), [(7, 3), (5, 20), (1000, 1000), (2624, 2048)])
+def test_systematic_counting_equals_binary_search_of_the_points(n, num_samples):
+    # The O(n) histogram of systematic() against searchsorted of the same float32 points,
+    # on weights with zeros (repeated CDF values) and a wide dynamic range.
+    for seed in range(10):
+        probs = jax.random.uniform(jax.random.key(seed), (n,)) ** 4
+        if seed % 3 == 0:
+            probs = probs.at[::2].set(0.0)
+        key = jax.random.key(seed + 100)
+        offset = jax.random.uniform(key, (), probs.dtype)
+        points = (offset + jnp.arange(num_samples)) / num_samples
+        np.testing.assert_array_equal(
+            np.asarray(systematic(key, probs, num_samples)),
+            np.asarray(_inverse_cdf(probs, points)),
+        )
