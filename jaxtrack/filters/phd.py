@@ -51,7 +51,6 @@ from jaxtrack.models.dynamics import MEASURED, STATE_DIM, sample_constant_veloci
 from jaxtrack.models.likelihood import log_likelihood
 from jaxtrack.models.noise import NoiseModel, state_dependent_std
 from jaxtrack.models.survival import SurvivalMap, survival_probability
-from jaxtrack.reductions import max_leading, sum_leading
 from jaxtrack.types import PAD_BOX, Detections, Tracks
 
 
@@ -334,14 +333,18 @@ def phd_update(
     The sums over particles and over detections run over blocks of ``block_size`` particles
     (``lax.scan``; the last block overlaps its predecessor when ``block_size`` does not divide
     ``num_particles``) in two passes that recompute ``log psi`` per block: the first sums
-    ``C(z)``; the second updates the weights and reduces the parts of the extraction (the
-    detection parts' masses and mean states, the particles' expected scores). The sums over
-    particles of each detection (``C(z)``, the parts' state sums) are carried from block to
-    block. No ``[max_detections, num_particles]`` array is written, nor a
-    ``[num_blocks, max_detections]`` one, so memory grows with the block and the inputs
-    (with ``max_detections`` large, the number of blocks grows with it too), and on CPU it
-    runs an order of magnitude faster at 1e6 particles. The parts carry no
-    gradient; outputs a caller does not use are dropped by XLA.
+    ``C(z)`` (a log-sum-exp); the second updates the weights and reduces the parts of the
+    extraction (the detection parts' mean states, the particles' expected scores) from one
+    exponential per pair, ``exp(log psi - log(kappa / r + C) - top)`` with ``top`` the
+    particle's largest such term, shared by the weight factor, the expected scores' softmax
+    and the parts (each part's mean state is normalised by its own pass-2 mass, equal to
+    ``C(z) / (kappa / r + C(z))`` up to rounding). The sums over particles of each detection
+    (``C(z)``, the parts' weighted state sums) are carried from block to
+    block. No ``[max_detections, num_particles]`` array is written, nor a ``[num_blocks,
+    max_detections]`` one, so memory grows with the block and the inputs (with
+    ``max_detections`` large, the number of blocks grows with it too), and on CPU it runs an
+    order of magnitude faster at 1e6 particles. The parts carry no gradient; outputs a
+    caller does not use are dropped by XLA.
 
     Args:
         params: the tracker's parameters.
@@ -394,9 +397,9 @@ def phd_update(
         # log_factor_i = log(pM + e^top_i sum_z ratio_zi) and
         # psi_z(x_i) w_i / (kappa / r + C(z)) = ratio_zi e^(top_i + log w_i).
         terms = jnp.where(mask[:, None], log_psi - log_denominator[:, None], LOG_ZERO)
-        top = jax.lax.stop_gradient(max_leading(terms))
+        top = jax.lax.stop_gradient(jnp.max(terms, axis=0))
         ratio = jnp.exp(terms - top[None])
-        ratio_sum = sum_leading(ratio)
+        ratio_sum = jnp.sum(ratio, axis=0)
         log_factor = jnp.logaddexp(log_missed, top + jnp.log(ratio_sum))
         updated = jnp.maximum(block_log_weights + log_factor, LOG_ZERO)
         stopped = jax.lax.stop_gradient((ratio, ratio_sum, top, block_particles, block_log_weights))
@@ -443,7 +446,7 @@ def _block_parts(ratio, ratio_sum, top, particles, log_weights, fresh, scores):
     share = jnp.where(fresh, jnp.exp(top + log_weights), 0.0)
     weighted = ratio * share[None]
     with_ones = jnp.concatenate([particles, jnp.ones((particles.shape[0], 1), particles.dtype)], 1)
-    return weighted @ with_ones, sum_leading(scores[:, None] * ratio) / ratio_sum
+    return weighted @ with_ones, (scores @ ratio) / ratio_sum
 
 
 def _unblock(blocks: Array, num_particles: int) -> Array:
