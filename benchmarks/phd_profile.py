@@ -2,8 +2,11 @@
 
 On the scene of ``benchmarks/phd_step.py`` (768x576 frame, 10 pedestrian-sized targets, the
 detections of the targets then uniform clutter), for each ``particles x detections`` size it
-times, each under its own ``jax.jit`` with the inputs the previous stage produced (median of
-``--repeats`` calls after a compile call, ``block_until_ready`` on every call):
+times each stage on the inputs the previous stage produced, called ``--calls`` times inside
+one jitted ``lax.scan`` (every call's floating-point inputs get ``0 * i`` added and its PRNG
+keys ``i`` folded in, so that XLA cannot hoist the loop-invariant work out of the loop; the
+per-call cost of a Python dispatch is spread over the calls): the median over ``--repeats``
+runs after a compile run, divided by ``--calls``:
 
 * ``predict``: :func:`jaxtrack.filters.phd.predict` (constant-velocity draws, survival);
 * ``births``: :func:`~jaxtrack.filters.phd.phd_births` (draws around the detections, their
@@ -17,15 +20,12 @@ times, each under its own ``jax.jit`` with the inputs the previous stage produce
   assignment against a table of live tracks);
 * ``step``: the tracker's whole ``phd_filter(...).step``, and ``bookkeeping`` = ``step`` minus
   the stages' sum (the concatenations, key splits and outputs; negative when XLA fuses
-  across stages what separate calls cannot);
-* ``dispatch``: a jitted function that returns its input, the cost of a call from Python
-  that every separately timed stage pays once (the stages' sum pays it six times, the step
-  once).
+  across stages what separate calls cannot).
 
 The step keeps the tracker's default ``births_per_detection`` (32); the labelling sees the
 table after three steps on the frame (its tracks live). Prints one table per size and one
 JSON object on its last line. Usage: ``python benchmarks/phd_profile.py [--particles 2048
-100000] [--detections 18] [--repeats 51]``.
+100000] [--detections 18] [--repeats 11] [--calls 20]``.
 """
 
 from __future__ import annotations
@@ -36,7 +36,6 @@ import json
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 import jax
@@ -45,7 +44,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from phd_step import FRAME_RATE, HEIGHT, NUM_TARGETS, WIDTH, scene
+from phd_step import FRAME_RATE, HEIGHT, NUM_TARGETS, WIDTH, scene, wall_times
 
 from jaxtrack.association.labelling import label_step
 from jaxtrack.boxes import xywh_to_cxcywh
@@ -62,19 +61,8 @@ from jaxtrack.filters.phd_tracker import PHDConfig
 STAGES = ("predict", "births", "update", "resample", "extract", "label")
 
 
-def median_time(function, args: tuple, repeats: int) -> float:
-    """Median wall time (seconds) of ``repeats`` calls of a jitted function, after one call."""
-    jax.block_until_ready(function(*args))
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        jax.block_until_ready(function(*args))
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
-
-
-def in_scan(function, args: tuple, calls: int) -> tuple:
-    """``function`` called ``calls`` times inside one jitted ``lax.scan``.
+def in_scan(function, args: tuple, calls: int):
+    """A jitted ``() -> total`` calling ``function`` ``calls`` times inside one ``lax.scan``.
 
     Every call gets ``0 * i`` added to each floating-point leaf of ``args`` and ``i`` folded
     into each PRNG key (``i`` the iteration), so that XLA cannot hoist a loop-invariant
@@ -95,11 +83,11 @@ def in_scan(function, args: tuple, calls: int) -> tuple:
         return total + sum(jnp.sum(x) for x in floats), None
 
     looped = jax.jit(lambda: jax.lax.scan(body, 0.0, jnp.arange(calls, dtype=jnp.float32))[0])
-    return looped, ()
+    return looped
 
 
 def profile(num_particles: int, num_detections: int, repeats: int, calls: int) -> dict:
-    """Seconds per stage, the whole step, the bookkeeping and the dispatch at one size."""
+    """Seconds per stage, the whole step and the bookkeeping at one size."""
     births_per_detection = PHDConfig().births_per_detection
     params = default_phd_params(WIDTH, HEIGHT, FRAME_RATE)
     particles, log_weights, detections = scene(num_particles, num_detections)
@@ -151,12 +139,12 @@ def profile(num_particles: int, num_detections: int, repeats: int, calls: int) -
     stages["label"] = (jax.jit(label_step), (state.labels, params.labelling, estimates))
 
     stages["step"] = (filt.step, (key, state, params, frame))
-    seconds = {
-        name: median_time(*in_scan(fn, args, calls), repeats) / calls
-        for name, (fn, args) in stages.items()
-    }
+    seconds = {}
+    for name, (function, args) in stages.items():
+        looped = in_scan(function, args, calls)
+        jax.block_until_ready(looped())  # compile
+        seconds[name] = wall_times(lambda f=looped: jax.block_until_ready(f()), repeats)[0] / calls
     seconds["bookkeeping"] = seconds["step"] - sum(seconds[name] for name in STAGES)
-    seconds["dispatch"] = median_time(jax.jit(lambda x: x), (state.log_weights,), repeats)
     return {
         "num_particles": num_particles,
         "num_detections": num_detections,
@@ -175,7 +163,7 @@ def table(result: dict) -> str:
         f"({result['predicted_particles']} predicted with births, "
         f"{result['live_tracks']} live tracks)"
     ]
-    for name in (*STAGES, "bookkeeping", "step", "dispatch"):
+    for name in (*STAGES, "bookkeeping", "step"):
         share = 100 * seconds[name] / seconds["step"]
         lines.append(f"  {name:<12} {1e3 * seconds[name]:9.3f} ms  {share:6.1f} %")
     return "\n".join(lines)
