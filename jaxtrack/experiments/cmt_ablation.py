@@ -146,6 +146,42 @@ def experiment_trackers(quick: bool = False) -> dict[str, TrackerConfig]:
     return trackers
 
 
+class ExperimentStart(NamedTuple):
+    """What :func:`start_experiment` prepared.
+
+    Attributes:
+        start: ``time.perf_counter()`` when the experiment started.
+        out: the output folder (created).
+        steps: ``print`` when the experiment reports its steps, else None.
+        sequences: :func:`experiment_sequences` (synthetic scenes written to ``out/scenes``).
+    """
+
+    start: float
+    out: Path
+    steps: Callable[[str], None] | None
+    sequences: list[ExperimentSequence]
+
+
+def start_experiment(
+    out_dir: str | Path, data: str | Path, seeds: Sequence[int], quick: bool, progress: bool
+) -> ExperimentStart:
+    """The common start of the video-tracker experiments (CMT ablation, Hierarchical, Fusion).
+
+    Checks the seeds, starts the clock, creates ``out_dir`` and loads / writes
+    :func:`experiment_sequences` into ``out_dir/scenes``.
+
+    Raises:
+        InputError: no seeds, or data missing from ``data``.
+    """
+    if not seeds:
+        raise InputError("at least one synthetic scene seed is needed")
+    start = time.perf_counter()
+    out = output_folder(out_dir)
+    steps = print if progress else None
+    sequences = experiment_sequences(Path(data), out / "scenes", seeds, quick, steps)
+    return ExperimentStart(start, out, steps, sequences)
+
+
 def experiment_sequences(
     data: Path,
     scenes: Path,
@@ -434,12 +470,7 @@ def run_cmt_ablation(
     Raises:
         InputError: no seeds, or data missing from ``data``.
     """
-    if not seeds:
-        raise InputError("at least one synthetic scene seed is needed")
-    start = time.perf_counter()
-    out = output_folder(out_dir)
-    steps = print if progress else None
-    sequences = experiment_sequences(Path(data), out / "scenes", seeds, quick, steps)
+    start, out, steps, sequences = start_experiment(out_dir, data, seeds, quick, progress)
     trackers = experiment_trackers(quick)
     result = ablation_table(sequences, trackers, seed, progress)
     goals = goal_checks(result.rows)

@@ -49,14 +49,13 @@ from jaxtrack.experiments.cmt_ablation import (
     PEER_COLUMNS,
     PEERS,
     SYNTHETIC_COMBINED,
-    experiment_sequences,
     peer_rows,
+    start_experiment,
 )
 from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
     evaluate_rows,
     markdown_table,
-    output_folder,
 )
 from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
 from jaxtrack.filters.fusion_tracker import FusionConfig
@@ -201,12 +200,7 @@ def run_experiment(
     Raises:
         InputError: no seeds, or data missing from ``data``.
     """
-    if not seeds:
-        raise InputError("at least one synthetic scene seed is needed")
-    start = time.perf_counter()
-    out = output_folder(out_dir)
-    steps = print if progress else None
-    sequences = experiment_sequences(Path(data), out / "scenes", seeds, quick, steps)
+    start, out, _, sequences = start_experiment(out_dir, data, seeds, quick, progress)
     trackers = experiment_trackers(quick)
     evaluations: dict[RunKey, Evaluation] = {}
     spans: dict[str, dict[str, list[int]]] = {}

@@ -31,16 +31,15 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from jaxtrack.datasets.video_scene import generate_video_scene
-from jaxtrack.errors import InputError
 from jaxtrack.experiments.cmt_ablation import (
     BEST_PEER_IDF1,
     HELD_OUT_SEEDS,
     MOT15_COMBINED,
     QUICK_SCENE,
     SYNTHETIC_COMBINED,
-    experiment_sequences,
+    start_experiment,
 )
-from jaxtrack.experiments.common import evaluate_rows, markdown_table, output_folder
+from jaxtrack.experiments.common import evaluate_rows, markdown_table
 from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
 from jaxtrack.filters.hier_events import DEFAULT_EXITING_FRAMES
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
@@ -117,12 +116,7 @@ def run_experiment(
     Raises:
         InputError: no seeds, or data missing from ``data``.
     """
-    if not seeds:
-        raise InputError("at least one synthetic scene seed is needed")
-    start = time.perf_counter()
-    out = output_folder(out_dir)
-    steps = print if progress else None
-    sequences = experiment_sequences(Path(data), out / "scenes", seeds, quick, steps)
+    start, out, _, sequences = start_experiment(out_dir, data, seeds, quick, progress)
     configs = experiment_configs()
     scene_config = QUICK_SCENE if quick else None
     scenes = {}
