@@ -23,15 +23,13 @@ Prints one JSON object on its last line. The goal is ``frames_per_s >= 25`` on 2
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from timing import timed
+from timing import timed, video_run_parser
 
 from jaxtrack.filters.base import fit_detections, run
 from jaxtrack.filters.cmt_tracker import CMTConfig
@@ -44,16 +42,11 @@ from jaxtrack.pipelines.tracking import track_outputs
 from jaxtrack.pipelines.zones import tracker_zones
 from jaxtrack.types import FrameInputs
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 SWEEP_SIZE = (8, 8)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--sequence", type=Path, default=DATA / "mot15" / "PETS09-S2L1")
-    parser.add_argument("--video", type=Path, default=DATA / "video" / "vtest.avi")
-    parser.add_argument("--frames", type=int, default=0, help="frames tracked (0: all)")
-    parser.add_argument("--repeats", type=int, default=2, help="timed runs after the first")
+    parser = video_run_parser(__doc__.split("\n")[0])
     parser.add_argument("--sweep-frames", type=int, default=32, help="frames of the sweep")
     parser.add_argument("--no-sweep", action="store_true", help="skip the sweep")
     args = parser.parse_args()

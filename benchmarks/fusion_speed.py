@@ -36,16 +36,14 @@ Prints one JSON object on its last line. The goal is ``frames_per_s >= 15`` on 2
 
 from __future__ import annotations
 
-import argparse
 import functools
 import json
 import os
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from timing import timed
+from timing import timed, video_run_parser
 
 from jaxtrack.association.assignment import gated_assignment
 from jaxtrack.boxes import iou_matrix
@@ -70,17 +68,12 @@ from jaxtrack.pipelines.frame_context import streamed_params
 from jaxtrack.pipelines.stream import track_streamed
 from jaxtrack.types import FrameInputs
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 #: First frame (1-based) of the step-alone timing: people in the scene, targets voted in.
 STEP_FROM = 200
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--sequence", type=Path, default=DATA / "mot15" / "PETS09-S2L1")
-    parser.add_argument("--video", type=Path, default=DATA / "video" / "vtest.avi")
-    parser.add_argument("--frames", type=int, default=0, help="frames tracked (0: all)")
-    parser.add_argument("--repeats", type=int, default=2, help="timed runs after the first")
+    parser = video_run_parser(__doc__.split("\n")[0])
     parser.add_argument("--step-frames", type=int, default=50, help="frames of the step timing")
     parser.add_argument("--no-stages", action="store_true", help="skip the stages' timings")
     args = parser.parse_args()

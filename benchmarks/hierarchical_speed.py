@@ -24,12 +24,10 @@ Prints one JSON object on its last line. The goal is ``frames_per_s >= 25`` on 2
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
-from pathlib import Path
 
-from timing import timed
+from timing import timed, video_run_parser
 
 from jaxtrack.detect.pipeline import DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_info, video_sequence
@@ -38,14 +36,9 @@ from jaxtrack.io.video import VideoReader
 from jaxtrack.pipelines.frame_context import streamed_params
 from jaxtrack.pipelines.stream import track_streamed_events
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--video", type=Path, default=DATA / "video" / "vtest.avi")
-    parser.add_argument("--frames", type=int, default=0, help="frames (0: all)")
-    parser.add_argument("--repeats", type=int, default=2, help="timed runs after the first")
+    parser = video_run_parser(__doc__.split("\n")[0], sequence=False)
     args = parser.parse_args()
 
     with VideoReader(str(args.video)) as reader:

@@ -3,7 +3,12 @@ own folder is first on ``sys.path``)."""
 
 from __future__ import annotations
 
+import argparse
 import time
+from pathlib import Path
+
+#: The shared data folder beside the repository.
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
 def best_time(function, repeats: int) -> float:
@@ -21,3 +26,18 @@ def timed(function) -> tuple[float, object]:
     start = time.perf_counter()
     value = function()
     return time.perf_counter() - start, value
+
+
+def video_run_parser(description: str, sequence: bool = True) -> argparse.ArgumentParser:
+    """A parser with the options of the streamed video-tracker benchmarks.
+
+    ``--sequence`` (when ``sequence``; PETS09-S2L1), ``--video`` (vtest.avi), ``--frames``
+    (0: all) and ``--repeats`` (timed runs after the first); a script adds its own.
+    """
+    parser = argparse.ArgumentParser(description=description)
+    if sequence:
+        parser.add_argument("--sequence", type=Path, default=DATA / "mot15" / "PETS09-S2L1")
+    parser.add_argument("--video", type=Path, default=DATA / "video" / "vtest.avi")
+    parser.add_argument("--frames", type=int, default=0, help="frames tracked (0: all)")
+    parser.add_argument("--repeats", type=int, default=2, help="timed runs after the first")
+    return parser
