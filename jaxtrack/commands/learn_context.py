@@ -66,6 +66,9 @@ Event sources:
   --clutter-from tracks detections overlapping no tracker output box by IoU 0.5
   --clutter-from FILE   detections labelled as clutter with `jaxtrack label-clutter`
                         (magnitude: clutter per labelled frame)
+  With gt and tracks, an unmatched detection that still overlaps an object of its frame
+  (IoU >= 0.2) is the object's badly placed detection, not clutter, and is left out (the
+  run prints how many).
 --frames A:B is the training span (default: all frames).
 A video (or image folder) instead of SEQ_DIR: give its detections with --detections
 (`jaxtrack detect VIDEO --out DET.txt`) and, for the gt sources, its ground truth with --gt;
@@ -251,6 +254,11 @@ def run(args: argparse.Namespace) -> int:
             f"{info['num_frames']} frames -> magnitude {info['magnitude']:.4g}/frame, "
             f"{info['components_alive']} Gaussians alive, pi_u {info['uniform_weight']:.3g}"
         )
+        if info.get("object_overlaps"):
+            print(
+                f"    {info['object_overlaps']} unmatched detections overlapping an object "
+                "left out (badly placed detections of objects, not clutter)"
+            )
         held = info.get("heldout")
         if held is not None:
             print("    " + heldout_line(held))

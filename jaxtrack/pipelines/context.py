@@ -176,9 +176,14 @@ def learn_context(
         clutter = clutter_samples_from_tracks(sequence.det_table, rows, span)
     for name, events in (("birth", births), ("clutter", clutter)):
         if events.count == 0:
+            left_out = (
+                f" ({events.object_overlaps} detections overlapping objects left out)"
+                if events.object_overlaps
+                else ""
+            )
             raise InputError(
-                f"no {name} events from {events.source} in frames {span[0]}:{span[1]}; "
-                "use a longer training span or another source"
+                f"no {name} events from {events.source} in frames {span[0]}:{span[1]}"
+                f"{left_out}; use a longer training span or another source"
             )
 
     uniform_birth, uniform_clutter = uniform_volumes(
@@ -263,6 +268,7 @@ def _summary(events: EventSamples, state: MixtureState, check: dict, mass: float
     return {
         "source": events.source,
         "num_events": events.count,
+        "object_overlaps": events.object_overlaps,
         "num_frames": events.num_frames,
         "magnitude": events.magnitude,
         "volume_mass": mass,

@@ -134,7 +134,7 @@ def _clutter_scene():
 
 def test_clutter_samples_from_gt_one_to_one_at_iou_half():
     det, gt = _clutter_scene()
-    events = clutter_samples_from_gt(det, gt, (1, 5))
+    events = clutter_samples_from_gt(det, gt, (1, 5), object_overlap=None)
     assert events.source == "gt" and events.num_frames == 5
     np.testing.assert_array_equal(events.frames, [1, 2, 4])
     np.testing.assert_allclose(
@@ -142,8 +142,27 @@ def test_clutter_samples_from_gt_one_to_one_at_iou_half():
     )
     assert events.magnitude == pytest.approx(3 / 5)
     # at IoU 0.95 no detection matches (best IoUs 0.82, 0.9, 0.82): all are clutter
-    strict = clutter_samples_from_gt(det, gt, (1, 5), iou_threshold=0.95)
+    strict = clutter_samples_from_gt(det, gt, (1, 5), iou_threshold=0.95, object_overlap=None)
     np.testing.assert_array_equal(strict.frames, [1, 1, 2, 2, 3, 4])
+
+
+def test_clutter_samples_from_gt_leave_out_badly_placed_detections_of_objects():
+    det, gt = _clutter_scene()
+    # frame 2's second box on the object (IoU 0.6 with it, unmatched one-to-one) is the
+    # object's detection, not clutter; the far box of frame 1 and frame 4's box are clutter
+    events = clutter_samples_from_gt(det, gt, (1, 5))
+    np.testing.assert_array_equal(events.frames, [1, 4])
+    np.testing.assert_allclose(events.values, [[310.0, 220.0, 20.0, 40.0], [7.0, 9.0, 4.0, 8.0]])
+    assert events.object_overlaps == 1
+    assert events.magnitude == pytest.approx(2 / 5)
+    # at IoU 0.95 nothing matches; the ignored object's box (frame 3) and every box on an
+    # object are left out, whatever the one-to-one mapping did
+    strict = clutter_samples_from_gt(det, gt, (1, 5), iou_threshold=0.95)
+    np.testing.assert_array_equal(strict.frames, [1, 4])
+    assert strict.object_overlaps == 4
+    # the overlap threshold is inclusive: 0.6 is the weaker box's IoU with the object
+    assert clutter_samples_from_gt(det, gt, (1, 5), object_overlap=0.6).object_overlaps == 1
+    assert clutter_samples_from_gt(det, gt, (1, 5), object_overlap=0.61).object_overlaps == 0
 
 
 def test_clutter_samples_from_tracks_by_best_iou():
@@ -160,6 +179,27 @@ def test_clutter_samples_from_tracks_by_best_iou():
     # frame 2: both detections overlap the track box by >= 0.5 (IoU 6/9 and 1), none is clutter
     np.testing.assert_array_equal(events.frames, [1, 3, 4])
     np.testing.assert_allclose(events.values[0], [310.0, 220.0, 20.0, 40.0])
+    assert events.object_overlaps == 0
+
+
+def test_clutter_samples_from_tracks_leave_out_badly_placed_detections_of_tracks():
+    # frame 1: a track box and a detection of half its height on it (IoU 0.5 * 0.8 = 0.4),
+    # a detection at IoU 0.1 (a corner) and a far one
+    rows = MotTable.from_arrays([1], [1], [[0.0, 0.0, 10.0, 20.0]], [1.0])
+    det = MotTable.from_arrays(
+        [1, 1, 1],
+        np.full(3, -1),
+        [[0.0, 0.0, 10.0, 8.0], [0.0, 0.0, 10.0, 20.0 / 11 * 2], [100.0, 100.0, 10.0, 20.0]],
+    )
+    ious = np.array([0.4, 2 / 11])
+    events = clutter_samples_from_tracks(det, rows, (1, 1))
+    # the first overlaps the track by IoU 0.4 >= 0.2: the track's detection; the second by
+    # 2/11 < 0.2 and the far one are clutter
+    assert ious[0] >= 0.2 > ious[1]
+    np.testing.assert_allclose(events.values[:, 1], [20.0 / 11, 110.0])
+    assert events.object_overlaps == 1
+    every = clutter_samples_from_tracks(det, rows, (1, 1), object_overlap=None)
+    assert every.count == 3 and every.object_overlaps == 0
 
 
 def test_clutter_samples_from_labels_file(tmp_path):
