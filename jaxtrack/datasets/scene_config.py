@@ -124,6 +124,8 @@ SCENE_RULES: dict[str, Rule] = {
     "exit_radius": Rule("standard deviations", float, 0.0, 100.0, lower_open=True),
     "min_exit_age": Rule("frames", int, 0, MAX_FRAMES),
     "detection_prob": _FRACTION,
+    "misplaced_detection_prob": _FRACTION,
+    "extra_detection_prob": _FRACTION,
     "occluded_detection_prob": _FRACTION,
     "occlusion_threshold": _FRACTION,
     "measurement_noise": _NOISES,
@@ -341,6 +343,12 @@ class SceneConfig:
             ``[-velocity_bound, velocity_bound]`` per axis, pixels/frame.
         target_score: ``(a, b)`` of the Beta distribution of true detections' scores.
         clutter_score: ``(a, b)`` of the Beta distribution of false detections' scores.
+        misplaced_detection_prob: probability that a target's detection is *badly placed*
+            instead of noisy about its box (a part of the person, a shifted box, a box
+            spilling over a neighbour; :func:`jaxtrack.datasets.synthetic.badly_placed_boxes`),
+            as real detectors do; 0 (default): never.
+        extra_detection_prob: probability that a detected target also yields a second,
+            badly placed box; 0 (default): never.
     """
 
     name: str | None = None
@@ -372,6 +380,8 @@ class SceneConfig:
     velocity_bound: float = 8.0
     target_score: Pair = (6.0, 1.5)
     clutter_score: Pair = (3.0, 3.0)
+    misplaced_detection_prob: float = 0.0
+    extra_detection_prob: float = 0.0
 
     def __post_init__(self) -> None:
         apply_rules(self, SCENE_RULES, "")

@@ -48,10 +48,17 @@ zone (within ``exit_radius`` standard deviations of the zone centre).
 row) covers more than ``occlusion_threshold`` of its box area; it is detected with
 probability ``detection_prob`` (``occluded_detection_prob`` when occluded). A detection of box
 ``(cx, cy, w, h)`` is ``N((cx, cy, w, h), diag(s_w w, s_h h, s_w w, s_h h)^2)`` (SPEC
-likelihood). Clutter is Poisson per frame: each source ``s`` emits ``Poisson(r_s)`` boxes
-``N(m_s, S_s)`` in ``(cx, cy, w, h)`` (spatially persistent clutter, e.g. waving vegetation),
-and ``Poisson(r_u)`` boxes are uniform over the image and the size range. The true clutter
-intensity is ``kappa(z) = lambda_r [pi_u / V + (1 - pi_u) sum_s pi_s N(z; m_s, S_s)]`` with
+likelihood), unless it is *badly placed* (probability ``misplaced_detection_prob``, default
+0): then it is one of :func:`badly_placed_boxes`' boxes (a part of the person, a shifted box,
+a box spilling over a neighbour), which overlaps the target by IoU 0.18-0.5, so that the
+IoU-0.5 evaluation counts it as a false positive although the target produced it. With
+probability ``extra_detection_prob`` (default 0) a detected target also yields a second,
+badly placed box. Both are the target's detections (``det_target_ids``), not clutter; they
+take the true detections' scores. Clutter is Poisson per frame: each source ``s`` emits
+``Poisson(r_s)`` boxes ``N(m_s, S_s)`` in ``(cx, cy, w, h)`` (spatially persistent clutter,
+e.g. waving vegetation), and ``Poisson(r_u)`` boxes are uniform over the image and the size
+range. The true clutter intensity is
+``kappa(z) = lambda_r [pi_u / V + (1 - pi_u) sum_s pi_s N(z; m_s, S_s)]`` with
 ``lambda_r = r_u + sum_s r_s``, ``pi_u = r_u / lambda_r``, ``pi_s = r_s / sum r_s``
 (:func:`clutter_intensity`). A source with an ``extent`` shifts its box centres uniformly over
 a rectangle; a flickering source (``off_frames > 0``) emits only in its on frames, a two-state
@@ -135,7 +142,8 @@ class SyntheticScene:
         birth_states: state of each birth (its first ground-truth state).
         num_targets: live targets per frame.
         num_births: births per frame.
-        num_target_detections: true detections per frame.
+        num_target_detections: detections produced by targets per frame (badly placed
+            ones included).
         num_clutter: clutter detections per frame and source, ``[num_frames,
             num_sources + 1]``; the last column counts uniform clutter.
         clutter_source_on: whether each clutter source was on, ``[num_frames, num_sources]``
@@ -435,6 +443,50 @@ def write_scene(scene: SyntheticScene, out_dir: str | Path) -> Path:
     return out
 
 
+#: Kinds of :func:`badly_placed_boxes`: a part of the person (top or bottom), a box shifted
+#: sideways, a box spilling over a neighbour or a shadow.
+BADLY_PLACED_KINDS = ("part", "shifted", "spilling")
+
+
+def badly_placed_boxes(rng: np.random.Generator, boxes: np.ndarray) -> np.ndarray:
+    """Badly placed detections of target boxes, as real detectors produce them.
+
+    Each box ``(cx, cy, w, h)`` gets one of :data:`BADLY_PLACED_KINDS`, equally likely:
+
+    * ``part``: the top or the bottom ``f h`` of the box, ``f ~ U(0.3, 0.5)`` (IoU ``f``);
+    * ``shifted``: the same box moved sideways by ``d w``, ``d ~ U(0.35, 0.7)``
+      (IoU ``(1 - d) / (1 + d)`` in ``[0.18, 0.48]``);
+    * ``spilling``: a box ``a w`` wide and ``b h`` high, ``a ~ U(1.8, 2.4)``,
+      ``b ~ U(1.0, 1.2)``, that keeps the target at one side (IoU ``1 / (a b)`` in
+      ``[0.35, 0.56]``).
+
+    Args:
+        rng: the scene's generator.
+        boxes: ``[n, 4]`` true ``(cx, cy, w, h)``.
+
+    Returns:
+        ``[n, 4]`` badly placed ``(cx, cy, w, h)``.
+    """
+    n = boxes.shape[0]
+    out = np.array(boxes, np.float64, copy=True)
+    if n == 0:
+        return out
+    kind = rng.integers(0, len(BADLY_PLACED_KINDS), n)
+    side = np.where(rng.random(n) < 0.5, -1.0, 1.0)
+    fraction = rng.uniform(0.3, 0.5, n)
+    shift = rng.uniform(0.35, 0.7, n)
+    wide, high = rng.uniform(1.8, 2.4, n), rng.uniform(1.0, 1.2, n)
+    cx, cy, w, h = boxes.T
+    part, shifted, spilling = kind == 0, kind == 1, kind == 2
+    out[part, 1] = cy[part] + side[part] * (1 - fraction[part]) * h[part] / 2
+    out[part, 3] = fraction[part] * h[part]
+    out[shifted, 0] = cx[shifted] + side[shifted] * shift[shifted] * w[shifted]
+    out[spilling, 0] = cx[spilling] + side[spilling] * (wide[spilling] - 1) * w[spilling] / 2
+    out[spilling, 2] = wide[spilling] * w[spilling]
+    out[spilling, 3] = high[spilling] * h[spilling]
+    return out
+
+
 def occluded_fraction(boxes: np.ndarray) -> np.ndarray:
     """Largest share of each box's area covered by one box nearer the camera.
 
@@ -670,10 +722,19 @@ class _Simulator:
         true_boxes = centre_boxes[detected]
         noise_std = true_boxes[:, [2, 3, 2, 3]] * np.array([s_w, s_h, s_w, s_h])
         measured = true_boxes + rng.normal(size=true_boxes.shape) * noise_std
+        measured_ids = self.gt_id[detected]
+        # random numbers drawn only when a scene uses the feature (old scenes unchanged)
+        if config.misplaced_detection_prob > 0:
+            bad = rng.random(measured.shape[0]) < config.misplaced_detection_prob
+            measured[bad] = badly_placed_boxes(rng, true_boxes[bad])
+        if config.extra_detection_prob > 0:
+            extra = rng.random(measured.shape[0]) < config.extra_detection_prob
+            measured = np.concatenate([measured, badly_placed_boxes(rng, true_boxes[extra])])
+            measured_ids = np.concatenate([measured_ids, measured_ids[extra]])
         clutter, clutter_source = self._clutter(t)
         all_boxes = np.concatenate([measured, clutter])
         sources = np.concatenate([np.full(measured.shape[0], -1), clutter_source])
-        target_ids = np.concatenate([self.gt_id[detected], np.full(clutter.shape[0], -1)])
+        target_ids = np.concatenate([measured_ids, np.full(clutter.shape[0], -1)])
         score_true = rng.beta(*config.target_score, size=measured.shape[0])
         score_clutter = rng.beta(*config.clutter_score, size=clutter.shape[0])
         scores = np.concatenate([score_true, score_clutter])

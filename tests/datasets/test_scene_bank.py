@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix
 from jaxtrack.datasets import (
     ClutterSource,
     EntryZone,
@@ -33,7 +34,9 @@ from jaxtrack.datasets.scene_bank import (
     simulation_seed,
     write_family_scene,
 )
+from jaxtrack.datasets.scene_config import DEFAULT_ZONES
 from jaxtrack.datasets.synthetic import (
+    badly_placed_boxes,
     birth_intensity,
     clutter_intensity,
     nominal_size,
@@ -270,6 +273,82 @@ def test_uniform_family_spreads_births_and_clutter_over_the_image(bank):
     # their cell (cells are 130+ pixels).
     lower, upper = (c1 - e1 - 15, c2 - e2 - 15), (c1 + e1 + 15, c2 + e2 + 15)
     assert _chi_square_pvalue(births, lower, upper) > 0.001
+
+
+def test_misplaced_family_boxes_of_people_lie_on_their_paths_and_are_not_clutter(bank):
+    for seed in SEEDS:
+        scene = bank["misplaced", seed]
+        det, gt = scene.det_table, scene.gt_table
+        from_targets = np.flatnonzero(~scene.is_clutter)
+
+        def own_rows(row, det=det, gt=gt, scene=scene):
+            return (gt.frames == det.frames[row]) & (gt.ids == scene.det_target_ids[row])
+
+        assert np.all(scene.det_target_ids[from_targets] >= 0)
+        # each target detection's IoU with its own target's box of the frame
+        own = np.array(
+            [
+                iou_matrix(
+                    det.boxes[row][None],
+                    gt.boxes[
+                        (gt.frames == det.frames[row]) & (gt.ids == scene.det_target_ids[row])
+                    ],
+                )[0, 0]
+                for row in from_targets
+            ]
+        )
+        badly = own < 0.5
+        # misplaced + extra probabilities of 6-12 % each: 8-30 % of the targets' boxes
+        assert 0.08 < badly.mean() < 0.3, badly.mean()
+        # badly placed, yet on the target: IoU 0.18 (shifted by 0.7 w) and up; the few
+        # below are boxes clipped at the image border
+        assert np.mean(own[badly] >= 0.17) > 0.98
+        # the paper's clutter (unmatched at IoU 0.5) would be mostly these boxes (as on
+        # PETS09-S2L1, where 73 % of the unmatched detections overlap a person)
+        assert badly.sum() > 1.5 * scene.is_clutter.sum()
+
+
+def test_badly_placed_boxes_overlap_their_box_by_the_documented_ious():
+    rng = np.random.default_rng(0)
+    boxes = np.tile([[300.0, 200.0, 40.0, 100.0]], (3000, 1))
+    bad = badly_placed_boxes(rng, boxes)
+    ious = np.array(
+        [iou_matrix(cxcywh_to_xywh(b[None]), cxcywh_to_xywh(boxes[:1]))[0, 0] for b in bad]
+    )
+    part = bad[:, 3] < boxes[:, 3]
+    spilling = bad[:, 2] > boxes[:, 2]
+    shifted = ~part & ~spilling
+    # each kind about a third; IoUs in the documented ranges
+    for kind in (part, shifted, spilling):
+        assert 0.3 < kind.mean() < 0.37
+    assert np.all((ious[part] >= 0.3 - 1e-9) & (ious[part] <= 0.5 + 1e-9))
+    assert np.all((ious[shifted] >= 0.3 / 1.7 - 1e-9) & (ious[shifted] <= 0.65 / 1.35 + 1e-9))
+    assert np.all((ious[spilling] >= 1 / (2.4 * 1.2) - 1e-9) & (ious[spilling] <= 1 / 1.8 + 1e-9))
+    # a part is the top or the bottom of the box, a spilling box keeps the target at a side
+    top = bad[part, 1] - bad[part, 3] / 2
+    bottom = bad[part, 1] + bad[part, 3] / 2
+    assert np.all(np.isclose(top, 150.0) | np.isclose(bottom, 250.0))
+    left, right = bad[spilling, 0] - bad[spilling, 2] / 2, bad[spilling, 0] + bad[spilling, 2] / 2
+    assert np.all(np.isclose(left, 280.0) | np.isclose(right, 320.0))
+    assert badly_placed_boxes(rng, np.zeros((0, 4))).shape == (0, 4)
+
+
+def test_detector_errors_are_off_by_default_and_follow_their_probabilities():
+    base = dataclasses.replace(QUIET, num_frames=400, zones=DEFAULT_ZONES, birth_rate=0.06)
+    plain = generate_scene(4, base)
+    assert _scene_digest(generate_scene(4, base)) == _scene_digest(plain)
+    scene = generate_scene(
+        4, dataclasses.replace(base, misplaced_detection_prob=0.2, extra_detection_prob=0.1)
+    )
+    targets = ~scene.is_clutter
+    detected = int(scene.gt_detected.sum())
+    # extra boxes: a second detection of the same target in the same frame
+    rows = np.c_[scene.det_table.frames[targets], scene.det_target_ids[targets]]
+    _, counts = np.unique(rows, axis=0, return_counts=True)
+    assert counts.max() == 2
+    extra = int(np.sum(counts == 2))
+    assert counts.size == detected
+    assert abs(extra / detected - 0.1) < 4 * np.sqrt(0.1 * 0.9 / detected)
 
 
 # --- the simulator features, on long custom scenes ----------------------------------------
