@@ -357,7 +357,7 @@ examples:
         help="UM vs GM on the scene bank's families (learned context on held-out scenes)",
         description="""\
 UM vs GM on the scene families of the test bank (jaxtrack.datasets.scene_bank): street,
-plaza-edges, sparse-door, layout-change, flicker, uniform.
+plaza-edges, sparse-door, layout-change, flicker, uniform, misplaced.
 
 For each family and seed, writes the scene to OUT/scenes/FAMILY-SEED, learns context on its
 first half (births from a UM tracker run, clutter from the ground truth, as
@@ -381,7 +381,7 @@ examples:
 Does learned context generalise? UM, GM, A1-A6 and GM+tuned on held-out scenes.
 
 Scenes: every family of the scene bank (jaxtrack.datasets.scene_bank: street, plaza-edges,
-sparse-door, layout-change, flicker, uniform) for each of --seeds, written to
+sparse-door, layout-change, flicker, uniform, misplaced) for each of --seeds, written to
 OUT/scenes/FAMILY-SEED, learned on frames 1-300 and tested on 301-600; then (unless
 --no-real) from --data: PETS09-S2L1 (learn 1:397, test 398:795), TUD-Stadtmitte (learn
 1:89, test 90:179) and (unless --no-video or --quick) PETS09-video: the video detector
