@@ -257,7 +257,8 @@ def run(args: argparse.Namespace) -> int:
         if info.get("object_overlaps"):
             print(
                 f"    {info['object_overlaps']} unmatched detections overlapping an object "
-                "left out (badly placed detections of objects, not clutter)"
+                "left out (badly placed detections of objects, not clutter); magnitude "
+                f"divided by the coverage {info['coverage']:.3g} (clutter landing on objects)"
             )
         held = info.get("heldout")
         if held is not None:

@@ -269,6 +269,7 @@ def _summary(events: EventSamples, state: MixtureState, check: dict, mass: float
         "source": events.source,
         "num_events": events.count,
         "object_overlaps": events.object_overlaps,
+        "coverage": events.coverage,
         "num_frames": events.num_frames,
         "magnitude": events.magnitude,
         "volume_mass": mass,

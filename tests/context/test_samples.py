@@ -11,6 +11,7 @@ from jaxtrack.context.samples import (
     birth_samples,
     birth_samples_from_gt,
     birth_samples_from_tracks,
+    chance_overlap,
     clutter_samples_from_gt,
     clutter_samples_from_labels,
     clutter_samples_from_tracks,
@@ -155,7 +156,8 @@ def test_clutter_samples_from_gt_leave_out_badly_placed_detections_of_objects():
     np.testing.assert_array_equal(events.frames, [1, 4])
     np.testing.assert_allclose(events.values, [[310.0, 220.0, 20.0, 40.0], [7.0, 9.0, 4.0, 8.0]])
     assert events.object_overlaps == 1
-    assert events.magnitude == pytest.approx(2 / 5)
+    # the kept boxes overlap no object in other frames either: nothing to count back
+    assert events.coverage == 1.0 and events.magnitude == pytest.approx(2 / 5)
     # at IoU 0.95 nothing matches; the ignored object's box (frame 3) and every box on an
     # object are left out, whatever the one-to-one mapping did
     strict = clutter_samples_from_gt(det, gt, (1, 5), iou_threshold=0.95)
@@ -253,3 +255,21 @@ def test_clutter_samples_are_the_scene_clutter_under_a_detector_that_misplaces_b
     precision, recall = precision_recall(events)
     assert precision > 0.9 and recall > 0.85
     assert events.count + events.object_overlaps == every.count
+
+
+def test_chance_overlap_counts_clutter_landing_on_objects_of_other_frames():
+    # one object, always at the same place in frames 1..10; clutter boxes at frames 1..10,
+    # the first four on the object's place (they would have been left out in a frame where
+    # the object is present) and six elsewhere
+    objects = MotTable.from_arrays(
+        np.arange(1, 11), np.ones(10, int), np.tile([[0.0, 0.0, 10.0, 20.0]], (10, 1))
+    )
+    boxes = np.array([[1.0, 1.0, 10.0, 20.0]] * 4 + [[100.0, 100.0, 10.0, 20.0]] * 6)
+    assert chance_overlap(boxes, np.arange(1, 11), objects, (1, 10), 0.2) == pytest.approx(0.4)
+    # the object present only in frames 1..5: every shift lands half the boxes on empty
+    # frames; hits only where a box on the place meets a frame with the object
+    half = objects.select(objects.frames <= 5)
+    shifted = [1 + (f - 1 + s) % 10 for s in (2, 4, 6, 8) for f in range(1, 5)]
+    expected = np.sum(np.array(shifted) <= 5) / 40
+    assert chance_overlap(boxes, np.arange(1, 11), half, (1, 10), 0.2) == pytest.approx(expected)
+    assert chance_overlap(boxes[:0], np.arange(0), objects, (1, 10), 0.2) == 0.0
