@@ -58,7 +58,9 @@ def test_learns_from_ground_truth_and_writes_figures(run_cli, scene_dir, tmp_pat
     assert meta["birth"]["source"] == "gt" and meta["clutter"]["source"] == "gt"
     assert meta["frames"] == [1, FRAMES]
     lam_r = meta["clutter"]["magnitude"]
-    assert lam_r == pytest.approx(meta["clutter"]["num_events"] / FRAMES)
+    counted = meta["clutter"]["num_events"] / meta["clutter"]["coverage"]
+    assert lam_r == pytest.approx(counted / FRAMES)
+    assert "left out" in printed and "coverage" in printed
     assert float(clutter.magnitude) == pytest.approx(lam_r / meta["clutter"]["volume_mass"])
     assert lam_r == pytest.approx(SceneConfig().total_clutter_rate, rel=0.2)
     for name in ("intensities.png", "birth_evolution.png", "clutter_evolution.png"):
