@@ -257,8 +257,8 @@ def run(args: argparse.Namespace) -> int:
         if info.get("object_overlaps"):
             print(
                 f"    {info['object_overlaps']} unmatched detections overlapping an object "
-                "left out (badly placed detections of objects, not clutter); magnitude "
-                f"divided by the coverage {info['coverage']:.3g} (clutter landing on objects)"
+                "left out (taken for its badly placed detections); magnitude divided by the "
+                f"coverage {info['coverage']:.3g} (the share of clutter landing off objects)"
             )
         held = info.get("heldout")
         if held is not None:
