@@ -43,8 +43,7 @@ clutter) and write it as a MOTChallenge folder:
 The same seed and configuration always give the same sequence. --family NAME starts from a
 scene family of the test bank instead of the default scene (jaxtrack.datasets.scene_bank:
 street, plaza-edges, sparse-door, layout-change, flicker, uniform, misplaced; 600 frames
-each), its
-layout drawn from --seed.
+each), its layout drawn from --seed.
 
 --video renders a scripted surveillance video instead (jaxtrack.datasets.video_scene; 640x480,
 25 fps, 500 frames by default): two-tone walking figures with perspective sizes entering and

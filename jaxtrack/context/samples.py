@@ -274,13 +274,14 @@ def clutter_samples_from_gt(
     matched = np.zeros(len(det_table), bool)
     matched[data.tracker_id[data.pairs.tracker_row[mapped]]] = True
     overlapping = _overlaps_objects(det_table, gt_table, object_overlap)
+    kept = ~matched & ~overlapping
     return _detection_events(
         det_table,
-        ~matched & ~overlapping,
+        kept,
         span,
         "gt",
         ~matched & overlapping,
-        _coverage(det_table, ~matched & ~overlapping, gt_table, span, object_overlap),
+        _coverage(det_table, kept, gt_table, span, object_overlap),
     )
 
 
@@ -311,13 +312,14 @@ def clutter_samples_from_tracks(
     best = _best_overlaps(det_table, rows)
     unassociated = best < iou_threshold
     overlapping = _overlaps_objects(det_table, rows, object_overlap, best)
+    kept = unassociated & ~overlapping
     return _detection_events(
         det_table,
-        unassociated & ~overlapping,
+        kept,
         span,
         "tracks",
         unassociated & overlapping,
-        _coverage(det_table, unassociated & ~overlapping, rows, span, object_overlap),
+        _coverage(det_table, kept, rows, span, object_overlap),
     )
 
 
@@ -371,18 +373,11 @@ def chance_overlap(
         return 0.0
     first, last = span
     length = last - first + 1
-    object_frames = np.asarray(objects.frames)
-    object_boxes = np.asarray(objects.boxes, np.float64)
     hits = []
     for fraction in CHANCE_SHIFTS:
         shifted = first + (np.asarray(frames) - first + round(fraction * length)) % length
-        for frame in np.unique(shifted):
-            rows = np.flatnonzero(shifted == frame)
-            present = object_boxes[object_frames == frame]
-            if len(present) == 0:
-                hits.append(np.zeros(rows.size, bool))
-                continue
-            hits.append(iou_matrix(boxes[rows], present).max(axis=1) >= object_overlap)
+        moved = MotTable.from_arrays(shifted, np.arange(len(shifted)), boxes)
+        hits.append(_best_overlaps(moved, objects) >= object_overlap)
     return float(np.mean(np.concatenate(hits)))
 
 
