@@ -358,3 +358,43 @@ def test_context_generalisation_quick(tmp_path, capsys):
     text = (out / "summary.md").read_text()
     assert "| group | seeds | UM | GM | A1 | A2 | A3 | A4 | A5 | A6 |" in text  # no GM+tuned
     assert "## Goals (issue 15)" in text and "Run time" in text
+    assert "run by run" not in text  # no real sequence
+    assert contexts[0]["seed"] == contexts[1]["seed"] == "1"
+
+
+def test_generalisation_real_runs_pair_um_and_gm_per_seed():
+    from jaxtrack.experiments.context_generalisation import goal_checks, real_runs, summarise
+
+    rows = _generalisation_rows(
+        {
+            ("street", 0): {"UM": 80.0, "GM": 90.0},  # bank scenes are not listed
+            ("PETS09-video", 0): {"UM": 72.2, "GM": 70.2},
+            ("PETS09-video", 1): {"UM": 67.0, "GM": 71.8},
+            ("PETS09-video", 2): {"UM": 70.3, "GM": 68.2},
+        }
+    )
+    for row in rows:  # a bank scene is named FAMILY-SEED, a real sequence's runs by its name
+        bank = row["family"] == "street"
+        row["scene"] = f"street-{row['seed']}" if bank else row["family"]
+    runs = real_runs(rows)
+    assert [(run["scene"], run["seed"]) for run in runs] == [("PETS09-video", s) for s in range(3)]
+    assert [run["GM-UM"] for run in runs] == [-2.0, 4.8, -2.1]
+    assert all(math.isnan(run["GM+tuned"]) for run in runs)
+    # the group's mean over its runs is what the loss goal reads: 70.07 - 69.83 = +0.23
+    video = {row["variant"]: row for row in summarise(rows) if row["group"] == "PETS09-video"}
+    assert video["GM"]["seeds"] == 3
+    assert video["GM"]["minus_UM"] == pytest.approx(0.23, abs=0.01)
+    assert goal_checks(summarise(rows))[0].status == "PASS"
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (("--no-real", "--real-seeds", "2"), "--real-seeds is not used with --no-real"),
+        (("--seed", "4294967295", "--real-seeds", "2"), "--seed + --real-seeds - 1"),
+    ],
+)
+def test_generalisation_real_seeds_refused(tmp_path, capsys, extra, message):
+    status = _experiment("context-generalisation", "--out", tmp_path / "cg", *extra)
+    assert status != 0
+    assert message in capsys.readouterr().err
