@@ -290,15 +290,20 @@ def test_generalisation_summary_and_goals_against_hand_numbers():
     assert street["GM"]["gain_pct_mean"] == pytest.approx(8.75)
     assert (street["GM"]["gain_pct_min"], street["GM"]["gain_pct_max"]) == (5.0, 12.5)
     assert street["UM"]["minus_UM"] == 0 and street["UM"]["gain_pct_mean"] == 0
+    # a perfect tracker: +25 % over 80 and +66.7 % over 60, mean +45.83 % on every row
+    assert street["GM"]["gain_ceiling_pct"] == street["UM"]["gain_ceiling_pct"] == 45.83
     loss, mean_gain, pets, flat = goal_checks(summary)
     assert loss.status == "FAIL" and "uniform -1.50 points" in loss.detail
     # only street has context here: 8.75 % < 9 %
     assert mean_gain.status == "FAIL" and mean_gain.detail.startswith("+8.75% over 1 families")
-    assert pets.status == "PASS" and pets.detail.startswith("+10.00%")
+    assert mean_gain.detail.endswith("; a perfect tracker: +45.8%)")
+    assert pets.detail == "+10.00% (+7.00 points; a perfect tracker: +42.9%)"
+    assert pets.status == "PASS"
     assert flat.status == "FAIL" and flat.detail == "-1.50 points"
     table = gain_table(summary)
     assert [row["group"] for row in table] == ["street", "uniform", "PETS09-S2L1"]
     assert table[0]["GM-UM"] == 6.5 and math.isnan(table[0]["GM+tuned"])
+    assert table[0]["ceiling gain %"] == 45.83
     # without the scenes a goal is about, it is not decided
     statuses = [goal.status for goal in goal_checks(summarise(rows[:4]))]
     assert statuses == ["PASS", "FAIL", "n/a", "n/a"]

@@ -4,7 +4,8 @@
 sequence), one bar per variant: the mean over the group's seeds of the relative MOTA gain
 ``100 (MOTA - MOTA_UM) / |MOTA_UM|``, with error marks from the smallest to the largest
 gain over the seeds, a line at 0 and a dashed line at the goal (+9 %, PHD-context's lower
-bound). Its input is the long summary of
+bound); under each group's name, the gain a perfect tracker would make over UM (the ceiling:
+a group whose UM already scores MOTA 93 cannot gain 9 %). Its input is the long summary of
 :func:`jaxtrack.experiments.context_generalisation.summarise` (one row per group and
 variant).
 
@@ -73,13 +74,20 @@ def gain_figure(
         )
     axes.axhline(0.0, color="black", linewidth=0.8)
     axes.axhline(goal, color="tab:red", linestyle="--", linewidth=1.0, label=f"goal +{goal:g} %")
-    axes.set_xticks(positions, groups)
+    axes.set_xticks(positions, [_tick_label(group, by_key) for group in groups])
     axes.tick_params(axis="x", labelrotation=30 if len(groups) > 4 else 0)
     axes.set_ylabel("MOTA gain over UM (%)")
     axes.grid(axis="y", alpha=0.3)
     axes.legend()
     axes.set_title(title or "Relative MOTA gain over UM (bars: mean over seeds; marks: min-max)")
     return figure
+
+
+def _tick_label(group: str, by_key: dict) -> str:
+    """The group's name, and below it the gain a perfect tracker would make (``ceiling``,
+    from UM's row's ``gain_ceiling_pct``) when the summary has it."""
+    ceiling = float(by_key.get((group, "UM"), {}).get("gain_ceiling_pct", math.nan))
+    return group if math.isnan(ceiling) else f"{group}\n(ceiling {ceiling:+.1f} %)"
 
 
 def _finite(row: dict | None, key: str, default: float = 0.0) -> float:

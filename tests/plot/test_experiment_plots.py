@@ -162,3 +162,8 @@ def test_gain_figure_draws_mean_bars_min_max_marks_and_the_goal_line():
     assert [tuple(span) for span in spans] == [(-2.0, 10.0), (0.0, 0.0)]
     levels = [line.get_ydata() for line in axes.lines if line.get_linestyle() != "None"]
     assert sorted(float(y[0]) for y in levels) == [0.0, 9.0]  # the zero and goal lines
+    # with the ceiling (a perfect tracker's gain over UM) in UM's rows, it is under the name
+    rows[0]["gain_ceiling_pct"], rows[3]["gain_ceiling_pct"] = 7.33, math.nan
+    (axes,) = gain_figure(rows).axes
+    labels = [label.get_text() for label in axes.get_xticklabels()]
+    assert labels == ["street\n(ceiling +7.3 %)", "PETS"]
