@@ -320,6 +320,7 @@ def test_context_generalisation_quick(tmp_path, capsys):
 
     out = tmp_path / "cg"
     argv = ("--out", out, "--quick", "--quiet", "--families", "sparse-door", "--seeds", 1)
+    argv += ("--particles", 200)  # instead of the quick configuration's 256
     assert _experiment("context-generalisation", *argv, "--no-real", "--no-tuned") == 0
     printed = capsys.readouterr().out
     assert printed.startswith("| " + " | ".join(GAIN_COLUMNS) + " |")
@@ -364,6 +365,7 @@ def test_context_generalisation_quick(tmp_path, capsys):
     assert "| group | seeds | UM | GM | A1 | A2 | A3 | A4 | A5 | A6 |" in text  # no GM+tuned
     assert "## Goals (issue 15)" in text and "Run time" in text
     assert "run by run" not in text  # no real sequence
+    assert "200 particles, 8 births per detection, quick run" in text
     assert contexts[0]["seed"] == contexts[1]["seed"] == "1"
 
 

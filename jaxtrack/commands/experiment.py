@@ -17,6 +17,7 @@ from typing import NamedTuple
 
 from jaxtrack.commands import cmt_ablation, fusion_experiment, hierarchical_experiment
 from jaxtrack.commands.arguments import (
+    PARTICLES,
     SEED_TYPE,
     add_out,
     add_quiet,
@@ -202,6 +203,13 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
         "--no-tuned", action="store_true", help="skip GM+tuned (the gradient tuning)"
     )
     parser.add_argument(
+        "--particles",
+        type=ranged(PARTICLES),
+        metavar="N",
+        help="the PHD tracker's particles in every run (default 2048; with --quick 256): "
+        "GM's gain over UM shrinks as the particles grow",
+    )
+    parser.add_argument(
         "--real-seeds",
         type=ranged(Rule("number of seeds", int, 1, 1000)),
         metavar="K",
@@ -246,6 +254,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
         tuned=not args.no_tuned,
         quick=args.quick,
         real_seeds=real_seeds,
+        particles=args.particles,
         progress=not args.quiet,
     )
     print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))

@@ -505,6 +505,7 @@ def run_context_generalisation(
     tuned: bool = True,
     quick: bool = False,
     real_seeds: Sequence[int] = REAL_SEEDS,
+    particles: int | None = None,
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -528,6 +529,8 @@ def run_context_generalisation(
             a short tuning (:data:`QUICK_TUNING`); the scenes are the same.
         real_seeds: the real sequences' seeds: each sequence is learned, tuned and tracked
             once per seed (a group of ``len(real_seeds)`` runs, summarised like a family).
+        particles: the tracker's particles (``PHDConfig.num_particles``; also those of the UM
+            run that yields the births); None: the configuration's (2048, quick 256).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -540,6 +543,8 @@ def run_context_generalisation(
     out = output_folder(out_dir)
     families = list(FAMILIES) if families is None else list(families)
     config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
+    if particles is not None:
+        config = dataclasses.replace(config, num_particles=particles)
     notes = []
     if tuned and not tuning_takes_context():
         tuned = False
