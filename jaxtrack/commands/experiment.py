@@ -133,6 +133,23 @@ def _sweep_magnitudes(args: argparse.Namespace) -> int:
     return 0
 
 
+#: A number of consecutive seeds (``--num-seeds``, ``--real-seeds``).
+SEED_COUNT_TYPE = ranged(Rule("number of seeds", int, 1, 1000))
+
+
+def _consecutive_seeds(first: int, count: int, option: str) -> list[int]:
+    """Seeds ``first .. first + count - 1``.
+
+    Raises:
+        InputError: the last one above :data:`~jaxtrack.limits.MAX_SEED` (``--seed +
+            OPTION - 1`` named).
+    """
+    seeds = list(range(first, first + count))
+    if seeds[-1] > MAX_SEED:
+        raise InputError(f"--seed + {option} - 1 must be at most {MAX_SEED}")
+    return seeds
+
+
 def _context_gap_extras(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--family",
@@ -143,7 +160,7 @@ def _context_gap_extras(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--num-seeds",
-        type=ranged(Rule("number of seeds", int, 1, 1000)),
+        type=SEED_COUNT_TYPE,
         default=3,
         metavar="K",
         help="seeds --seed .. --seed + K - 1 of each family (default 3)",
@@ -152,9 +169,7 @@ def _context_gap_extras(parser: argparse.ArgumentParser) -> None:
 
 def _context_gap(args: argparse.Namespace) -> int:
     families = args.family or list(FAMILIES)
-    seeds = list(range(args.seed, args.seed + args.num_seeds))
-    if seeds[-1] > MAX_SEED:
-        raise InputError(f"--seed + --num-seeds - 1 must be at most {MAX_SEED}")
+    seeds = _consecutive_seeds(args.seed, args.num_seeds, "--num-seeds")
     files = list(EXPERIMENTS[args.experiment].files)
     files += [
         f"scenes/{family}-{seed}/{name}"
@@ -211,7 +226,7 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--real-seeds",
-        type=ranged(Rule("number of seeds", int, 1, 1000)),
+        type=SEED_COUNT_TYPE,
         metavar="K",
         help="runs of each real sequence, seeds --seed .. --seed + K - 1 (default "
         f"{len(REAL_SEEDS)}; with --quick 1): one run's MOTA moves by points with the seed",
@@ -224,9 +239,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
     families = args.families or list(FAMILIES)
     seeds = list(dict.fromkeys(args.seeds or ([0] if args.quick else [0, 1, 2])))
     num_real = args.real_seeds or (1 if args.quick else len(REAL_SEEDS))
-    real_seeds = list(range(args.seed, args.seed + num_real))
-    if real_seeds[-1] > MAX_SEED:
-        raise InputError(f"--seed + --real-seeds - 1 must be at most {MAX_SEED}")
+    real_seeds = _consecutive_seeds(args.seed, num_real, "--real-seeds")
     data = None if args.no_real else Path(args.data or SHARED_DATA)
     video = data is not None and not (args.quick or args.no_video)
     files = list(GENERALISATION_FILES)
