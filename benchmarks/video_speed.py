@@ -97,7 +97,7 @@ def main() -> None:
         "detect_track_fps_with_compile": round(span_frames / (detect_seconds + track_times[0]), 1),
         "note": "wall clock on a shared machine; other load slows it",
     }
-    print(json.dumps(result, indent=2))
+    print(json.dumps(result))
 
 
 if __name__ == "__main__":
