@@ -22,7 +22,7 @@ from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.filters.phd_tracker import MAX_BIRTHS_PER_DETECTION, MAX_PARTICLES, VARIANTS
 from jaxtrack.filters.registry import TRACKERS, tracker_entry
 from jaxtrack.io import parse_frame_span
-from jaxtrack.limits import MAX_COORDINATE, MAX_FRAMES, SEED, Rule
+from jaxtrack.limits import MAX_COORDINATE, MAX_FRAMES, MAX_SEED, SEED, Rule
 
 #: An IoU threshold (``--iou``, ``--iou-threshold``).
 IOU = Rule("IoU threshold", float, 0.0, 1.0, lower_open=True)
@@ -110,6 +110,21 @@ JSON_HELP = "print the results as one JSON object instead of a table"
 
 #: The ``type=`` of ``--seed`` (every command): an integer in ``[0, 2^32 - 1]``.
 SEED_TYPE = ranged(SEED)
+#: A number of consecutive seeds (``--num-seeds``, ``--real-seeds``, ``--tracker-seeds``).
+SEED_COUNT_TYPE = ranged(Rule("number of seeds", int, 1, 1000))
+
+
+def consecutive_seeds(first: int, count: int, option: str) -> list[int]:
+    """Seeds ``first .. first + count - 1``.
+
+    Raises:
+        InputError: the last one above :data:`~jaxtrack.limits.MAX_SEED` (``--seed +
+            OPTION - 1`` named).
+    """
+    seeds = list(range(first, first + count))
+    if seeds[-1] > MAX_SEED:
+        raise InputError(f"--seed + {option} - 1 must be at most {MAX_SEED}")
+    return seeds
 
 
 def add_frames(parser: argparse.ArgumentParser) -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from jaxtrack.commands.arguments import SEED_TYPE
+from jaxtrack.commands.arguments import SEED_COUNT_TYPE, SEED_TYPE, consecutive_seeds
 from jaxtrack.commands.paths import check_outputs, output_folder, sequence_inputs, video_input
 from jaxtrack.datasets.video_files import TRUTH_FILE
 from jaxtrack.experiments.cmt_ablation import (
@@ -14,6 +14,7 @@ from jaxtrack.experiments.cmt_ablation import (
     HELD_OUT_SEEDS,
     PETS_VIDEO,
     TABLE_COLUMNS,
+    TRACKER_SEEDS,
     VIDEO_SEQUENCES,
     goal_lines,
     run_cmt_ablation,
@@ -36,7 +37,8 @@ Sequences: PETS09-S2L1 (frames: --data/{PETS_VIDEO}), TUD-Campus and TUD-Stadtmi
 {SEEDS}: held out, never used to tune any default; crossings of similarly dressed people,
 groups, an occluder), written to OUT/scenes/video-SEED with their simulated detections. Every
 tracker sees the same detections (CMT's foreground blobs) and runs with its default
-configuration and --seed: the CMT variants MTb (Gaussian prior + equally weighted features),
+configuration, --tracker-seeds times (seeds --seed onwards; the table and the goals
+read the means): the CMT variants MTb (Gaussian prior + equally weighted features),
 MTb+CPD (contextual proposal) and CMT (contextual proposal + contextual observation model),
 the PHD tracker and the Kalman baseline. CMT's entry/exit zones are learned on the fly on
 each sequence, as jaxtrack track does without --zones (table.md says what was found).
@@ -48,10 +50,11 @@ before the crossing to its end.
 
 Writes into --out: table.md (OE/DE/SE, MOTA/IDF1/HOTA/IDSW/MT/Frag per sequence and pooled
 over the three MOT15 sequences and over the synthetic scenes, the issue's off-the-shelf
-peers quoted (not re-run), the goals as PASS/FAIL, both analyses in numbers), results.json
-(the same, with the configurations, zones, run times and the figures' per-frame numbers),
-fig8_prediction.png, fig9_discrimination.png and sequences/SEQ/TRACKER.txt (every result,
-MOTChallenge format). Logic: jaxtrack.experiments.cmt_ablation and cmt_analysis.
+peers quoted (not re-run), the goals as PASS/FAIL, every seed's pooled rows, both analyses
+in numbers), results.json (the same, with every seed's rows, the configurations, zones, run
+times and the figures' per-frame numbers), fig8_prediction.png, fig9_discrimination.png and
+sequences/SEQ/TRACKER.txt (every result of the first tracker seed, MOTChallenge format).
+Logic: jaxtrack.experiments.cmt_ablation and cmt_analysis.
 
 examples:
   jaxtrack experiment cmt-ablation --out /tmp/cmt
@@ -59,7 +62,7 @@ examples:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--seeds`` and ``--data``."""
+    """``--seeds``, ``--tracker-seeds`` and ``--data``."""
     parser.add_argument(
         "--seeds",
         nargs="+",
@@ -67,6 +70,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help=f"seeds of the synthetic video scenes (default {SEEDS}, held out; with --quick "
         "the first only)",
+    )
+    parser.add_argument(
+        "--tracker-seeds",
+        type=SEED_COUNT_TYPE,
+        metavar="K",
+        help=f"runs of every tracker on every sequence, seeds --seed .. --seed + K - 1 (default "
+        f"{TRACKER_SEEDS}; with --quick 1); the table and the goals read the means: one run's "
+        "IDF1 moves by points with the seed",
     )
     parser.add_argument(
         "--data",
@@ -79,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
     """Runs the experiment on the parsed arguments; prints the table and the goals."""
     data = Path(args.data or SHARED_DATA)
     seeds = list(dict.fromkeys(args.seeds or HELD_OUT_SEEDS))
+    count = args.tracker_seeds or (1 if args.quick else TRACKER_SEEDS)
+    tracker_seeds = consecutive_seeds(args.seed, count, "--tracker-seeds")
     files = list(ABLATION_FILES)
     files += [
         f"scenes/video-{seed}/{name}"
@@ -90,7 +103,13 @@ def run(args: argparse.Namespace) -> int:
         inputs += sequence_inputs(data / "mot15" / name)
     check_outputs(output_folder("--out", args.out, files), inputs)
     result = run_cmt_ablation(
-        args.out, data, seeds, seed=args.seed, quick=args.quick, progress=not args.quiet
+        args.out,
+        data,
+        seeds,
+        seed=args.seed,
+        quick=args.quick,
+        progress=not args.quiet,
+        tracker_seeds=len(tracker_seeds),
     )
     print(markdown_table(result.rows, TABLE_COLUMNS))
     for line in goal_lines(result.goals):

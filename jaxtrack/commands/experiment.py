@@ -18,10 +18,12 @@ from typing import NamedTuple
 from jaxtrack.commands import cmt_ablation, fusion_experiment, hierarchical_experiment
 from jaxtrack.commands.arguments import (
     PARTICLES,
+    SEED_COUNT_TYPE,
     SEED_TYPE,
     add_out,
     add_quiet,
     add_seed,
+    consecutive_seeds,
     ranged,
     refuse_ignored,
 )
@@ -53,7 +55,6 @@ from jaxtrack.experiments.context_generalisation import (
 )
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
-from jaxtrack.limits import MAX_SEED, Rule
 
 #: The data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -133,23 +134,6 @@ def _sweep_magnitudes(args: argparse.Namespace) -> int:
     return 0
 
 
-#: A number of consecutive seeds (``--num-seeds``, ``--real-seeds``).
-SEED_COUNT_TYPE = ranged(Rule("number of seeds", int, 1, 1000))
-
-
-def _consecutive_seeds(first: int, count: int, option: str) -> list[int]:
-    """Seeds ``first .. first + count - 1``.
-
-    Raises:
-        InputError: the last one above :data:`~jaxtrack.limits.MAX_SEED` (``--seed +
-            OPTION - 1`` named).
-    """
-    seeds = list(range(first, first + count))
-    if seeds[-1] > MAX_SEED:
-        raise InputError(f"--seed + {option} - 1 must be at most {MAX_SEED}")
-    return seeds
-
-
 def _context_gap_extras(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--family",
@@ -169,7 +153,7 @@ def _context_gap_extras(parser: argparse.ArgumentParser) -> None:
 
 def _context_gap(args: argparse.Namespace) -> int:
     families = args.family or list(FAMILIES)
-    seeds = _consecutive_seeds(args.seed, args.num_seeds, "--num-seeds")
+    seeds = consecutive_seeds(args.seed, args.num_seeds, "--num-seeds")
     files = list(EXPERIMENTS[args.experiment].files)
     files += [
         f"scenes/{family}-{seed}/{name}"
@@ -239,7 +223,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
     families = args.families or list(FAMILIES)
     seeds = list(dict.fromkeys(args.seeds or ([0] if args.quick else [0, 1, 2])))
     num_real = args.real_seeds or (1 if args.quick else len(REAL_SEEDS))
-    real_seeds = _consecutive_seeds(args.seed, num_real, "--real-seeds")
+    real_seeds = consecutive_seeds(args.seed, num_real, "--real-seeds")
     data = None if args.no_real else Path(args.data or SHARED_DATA)
     video = data is not None and not (args.quick or args.no_video)
     files = list(GENERALISATION_FILES)

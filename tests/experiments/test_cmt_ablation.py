@@ -22,6 +22,8 @@ from jaxtrack.experiments.cmt_ablation import (
     SYNTHETIC_COMBINED,
     TABLE_COLUMNS,
     goal_checks,
+    pooled_rows_by_seed,
+    seed_mean_rows,
 )
 from jaxtrack.experiments.cmt_analysis import likelihood_gaps, pair_boxes, proposal_distances
 from jaxtrack.io.motchallenge import read_mot_file
@@ -198,6 +200,52 @@ def test_goal_checks_against_hand_rows():
     assert not any(goal.startswith("video-1: SE") for goal in met)
 
 
+def _full_row(sequence, tracker, value):
+    """A table row whose every score is ``value`` (counts: ``int(value)``)."""
+    row = {"sequence": sequence, "tracker": tracker, "synthetic": sequence.startswith("v")}
+    row.update({key: value for key in ("OE", "DE", "SE", "MOTA", "IDF1", "HOTA")})
+    row.update({key: int(value) for key in ("IDSW", "MT", "Frag")})
+    return row
+
+
+def test_seed_means_against_hand_numbers():
+    seed_0 = [_full_row("A", "CMT", 58.0), _full_row(MOT15_COMBINED, "CMT", 10.0)]
+    seed_1 = [_full_row("A", "CMT", 62.0), _full_row(MOT15_COMBINED, "CMT", 20.0)]
+    seed_2 = [_full_row("A", "CMT", 57.0), _full_row(MOT15_COMBINED, "CMT", 31.0)]
+    means = seed_mean_rows([seed_0, seed_1, seed_2])
+    assert [(r["sequence"], r["tracker"]) for r in means] == [("A", "CMT"), (MOT15_COMBINED, "CMT")]
+    assert means[0]["IDF1"] == 59.0 and means[0]["IDSW"] == 59.0
+    assert means[1]["OE"] == pytest.approx(20.33) and means[1]["Frag"] == pytest.approx(20.33)
+    assert means[0]["synthetic"] is False
+    # one seed: its rows, counts still integers
+    assert seed_mean_rows([seed_1]) == seed_1
+    assert isinstance(seed_mean_rows([seed_1])[0]["IDSW"], int)
+    # the goals read the means: IDF1 59.0 > 58.6 but IDSW 59 >= 46
+    goal = goal_checks(seed_mean_rows([[r] for r in (seed_0[0], seed_1[0], seed_2[0])]))
+    assert goal == []  # a lone sequence row without the three variants checks nothing
+    pooled = [[{**r, "sequence": MOT15_COMBINED}] for r in (seed_0[0], seed_1[0], seed_2[0])]
+    (check,) = goal_checks(seed_mean_rows(pooled))
+    assert check["met"] is False and "IDF1 59.0 vs 58.6, IDSW 59.0 vs 46" in check["value"]
+    with pytest.raises(ValueError, match="different rows"):
+        seed_mean_rows([seed_0, seed_1[::-1]])
+    with pytest.raises(ValueError, match="no tables"):
+        seed_mean_rows([])
+    # every seed's pooled rows, with the seed
+    by_seed = pooled_rows_by_seed([4, 5], [seed_0, seed_1])
+    assert [(r["seed"], r["sequence"], r["IDF1"]) for r in by_seed] == [
+        (4, MOT15_COMBINED, 10.0),
+        (5, MOT15_COMBINED, 20.0),
+    ]
+
+
+def test_tracker_seeds_past_the_largest_seed_exit_2(tmp_path, capsys):
+    argv = ["experiment", "cmt-ablation", "--out", str(tmp_path / "out"), "--quick", "--quiet"]
+    assert main([*argv, "--seed", "4294967295", "--tracker-seeds", "2"]) == 2
+    assert "--seed + --tracker-seeds - 1 must be at most 4294967295" in capsys.readouterr().err
+    assert main([*argv, "--tracker-seeds", "0"]) == 2
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_bar_is_the_issue_s():
     """The issue: CMT's IDF1 above the best peer's (norfair 58.6) and IDSW below (46)."""
     assert (BEST_PEER_IDF1, BEST_PEER_IDSW) == (58.6, 46)
@@ -237,17 +285,25 @@ def test_script_runs_the_command(tmp_path):
 @pytest.mark.slow
 def test_quick_run_writes_what_it_prints(tmp_path, capsys):
     out = tmp_path / "cmt"
-    assert main(["experiment", "cmt-ablation", "--out", str(out), "--quick", "--quiet"]) == 0
+    argv = ["experiment", "cmt-ablation", "--out", str(out), "--quick", "--quiet"]
+    assert main([*argv, "--tracker-seeds", "2"]) == 0
     printed = capsys.readouterr().out
     record = json.loads((out / "results.json").read_text())
-    rows = record["rows"]
+    # the table and the goals read the means over the two trackers' seeds
+    assert record["tracker_seeds"] == [0, 1]
+    by_seed = [record["rows_by_seed"][seed] for seed in ("0", "1")]
+    assert record["rows"] == seed_mean_rows(by_seed)
+    assert record["goals"] == goal_checks(record["rows"])
+    table = (out / "table.md").read_text()
+    assert "Mean over the trackers' seeds 0-1" in table and "## Seed by seed" in table
+    assert sum(line.startswith("| 1 | ") for line in table.splitlines()) == 8
+    rows = by_seed[0]  # the result files are the first seed's
     trackers = ["MTb", "MTb+CPD", "CMT", "PHD", "Kalman"]
     assert [(r["sequence"], r["tracker"]) for r in rows] == [
         (sequence, tracker) for sequence in ("TUD-Campus", "video-101") for tracker in trackers
     ]
     assert record["synthetic_seeds_held_out"] == [101]
     assert printed.startswith("| " + " | ".join(TABLE_COLUMNS) + " |")
-    table = (out / "table.md").read_text()
     assert "norfair 2.3.0 (no ReID) | 62.3 | 58.6 | 42.8 | 25 | 47 | 175 | 55.8 / 35" in table
     # every row's scores are those of its result file
     gt = read_mot_file(Path(record["sequences"][1]["folder"]) / "gt" / "gt.txt", "gt")
