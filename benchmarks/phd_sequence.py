@@ -8,7 +8,10 @@ detections of any frame: ``frames_per_s``), and on the slots ``jaxtrack track`` 
 sequence (:func:`~jaxtrack.filters.base.fit_detections`: a power of two, at least 16:
 ``track_frames_per_s``, what a user of the command gets). Every slot carries
 ``births_per_detection`` birth particles and a row of particle x detection pairs, padded or
-not, so the second is slower when the count is not a power of two (PETS09-S2L1: 9 -> 16).
+not, so the second is slower when the count is not a power of two (PETS09-S2L1: 9 -> 16). Then
+the same slots with ``split_capacity`` (``PHDConfig(frame_capacity="split")``: frames that
+fit in half the slots run on that half; ``track_split_frames_per_s``, its compile
+``track_split_compile_s``).
 Prints JSON. Usage: ``python benchmarks/phd_sequence.py [--extraction gmm] [--particles N]``.
 """
 
@@ -50,7 +53,14 @@ def main() -> None:
         extraction=args.extraction,
     )
 
-    def timed(detections):
+    split = phd_filter(
+        args.particles,
+        births_per_detection=args.births_per_detection,
+        extraction=args.extraction,
+        split_capacity=True,
+    )
+
+    def timed(detections, filt=filt):
         """(first call's seconds, median run seconds, the last run's tracks)."""
         track = jax.jit(lambda key: run(filt, key, params, detections)[1].tracks)
         start = time.perf_counter()
@@ -66,6 +76,7 @@ def main() -> None:
     first_call, run_time, tracks = timed(sequence.detections)
     fitted = fit_detections(sequence.detections)
     _, track_run_time, _ = timed(fitted)
+    split_first_call, split_run_time, _ = timed(fitted, split)
     print(
         json.dumps(
             {
@@ -84,6 +95,8 @@ def main() -> None:
                 "track_detection_slots": int(fitted.mask.shape[1]),
                 "track_run_s": track_run_time,
                 "track_frames_per_s": sequence.num_frames / track_run_time,
+                "track_split_frames_per_s": sequence.num_frames / split_run_time,
+                "track_split_compile_s": split_first_call - split_run_time,
                 "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                 "device": str(jax.devices()[0]),
                 "cpu_count": os.cpu_count(),

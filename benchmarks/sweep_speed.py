@@ -20,7 +20,10 @@ one batch and one compile.
 
 Prints one JSON line with both times, the ratio and both throughputs in tracker-frames per
 second. The context learning is not timed.
-Usage: ``python benchmarks/sweep_speed.py [--host-devices N] [--loop-configs 12]``.
+``--frame-capacity split`` runs both with :class:`~jaxtrack.filters.phd_tracker.PHDConfig`'s
+``frame_capacity="split"`` (frames that fit in half the slots run on that half).
+Usage: ``python benchmarks/sweep_speed.py [--host-devices N] [--loop-configs 12]
+[--frame-capacity split]``.
 """
 
 from __future__ import annotations
@@ -55,7 +58,12 @@ from jaxtrack.experiments.magnitudes import (  # noqa: E402
     variant_params,
 )
 from jaxtrack.filters.base import fit_detections, run  # noqa: E402
-from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of  # noqa: E402
+from jaxtrack.filters.phd_tracker import (  # noqa: E402
+    FRAME_CAPACITIES,
+    Context,
+    PHDConfig,
+    phd_filter_of,
+)
 from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
 from jaxtrack.pipelines.sweep import sweep  # noqa: E402
 
@@ -72,7 +80,15 @@ def main() -> None:
         "--loop-configs", type=int, default=12, help="loop configurations timed per variant"
     )
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--frame-capacity",
+        choices=FRAME_CAPACITIES,
+        default="full",
+        help="the tracker's frame_capacity (PHDConfig): 'split' runs frames that fit in half "
+        "the detection slots on that half",
+    )
     args = parser.parse_args()
+    config = CONFIG.replace(frame_capacity=args.frame_capacity)
 
     split = split_halves(args.sequence)
     context = Context.from_learned(learn_split(split, CONFIG, args.seed))
@@ -81,7 +97,7 @@ def main() -> None:
     batched = magnitude_batch(params, CLUTTER_RATES, BIRTH_RATES)
     num_configs = 2 * len(CLUTTER_RATES) * len(BIRTH_RATES)
     num_frames = test.num_frames
-    filt = phd_filter_of(CONFIG)
+    filt = phd_filter_of(config)
     key = jax.random.PRNGKey(args.seed)
 
     start = time.perf_counter()
@@ -134,6 +150,7 @@ def main() -> None:
                 "tracker_runs": num_configs,
                 "num_particles": CONFIG.num_particles,
                 "births_per_detection": CONFIG.births_per_detection,
+                "frame_capacity": args.frame_capacity,
                 "devices": len(jax.devices()),
                 "chunk_size": args.chunk_size,
                 "detection_slots": int(detections.mask.shape[1]),

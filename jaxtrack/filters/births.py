@@ -65,6 +65,7 @@ def draw_births(
     velocity_upper: Float[Array, " 2"],
     measurement_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
+    draw_slots: int | None = None,
 ) -> BirthDraws:
     """Draws birth particles from ``p(x | Z_k)`` (the module's importance density).
 
@@ -78,24 +79,36 @@ def draw_births(
         velocity_upper: upper corner of ``V_v``.
         measurement_noise_std: measurement noise parameters (relative for SDV).
         noise_model: the likelihood's noise model.
+        draw_slots: draw the random numbers for this many slots (static, at least
+            ``max_detections``) and keep the first ``max_detections`` slots' share: a step
+            that works on a frame's first slots only draws what the full-capacity step
+            draws for them. None: ``max_detections``.
 
     Returns:
         The draws (sizes clipped below at :data:`~jaxtrack.models.dynamics.MIN_SIZE`, far in
         the Gaussian's tail) and the parts of their proposal density.
+
+    Raises:
+        ValueError: ``draw_slots`` below ``max_detections``.
     """
     num_slots = measurements.shape[0]
+    drawn = num_slots if draw_slots is None else draw_slots
+    if drawn < num_slots:
+        raise ValueError(f"draw_slots ({drawn}) must be at least the {num_slots} slots")
+    num_births = num_slots * births_per_detection
     key_gauss, key_velocity = jax.random.split(key)
     std = noise_model(measurements[:, 2:], measurement_noise_std)
-    normal = jax.random.normal(key_gauss, (num_slots, births_per_detection, 4), measurements.dtype)
+    normal = jax.random.normal(key_gauss, (drawn, births_per_detection, 4), measurements.dtype)
+    normal = normal[:num_slots]
     measured = (measurements[:, None, :] + std[:, None, :] * normal).reshape(-1, 4)
     measured = measured.at[:, 2:].set(jnp.maximum(measured[:, 2:], MIN_SIZE))
     velocity = jax.random.uniform(
         key_velocity,
-        (num_slots * births_per_detection, 2),
+        (drawn * births_per_detection, 2),
         measurements.dtype,
         minval=velocity_lower,
         maxval=velocity_upper,
-    )
+    )[:num_births]
     states = jnp.zeros((measured.shape[0], 6), measurements.dtype)
     states = states.at[:, MEASURED].set(measured).at[:, VELOCITY].set(velocity)
     return BirthDraws(
@@ -188,6 +201,7 @@ def sample_births(
     started: Bool[Array, ""],
     measurement_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
+    draw_slots: int | None = None,
 ) -> tuple[Float[Array, "num_births 6"], Float[Array, " num_births"]]:
     """Draws one frame's birth particles and weights them by ``gamma / (J p)``.
 
@@ -206,6 +220,7 @@ def sample_births(
         started: False on the first frame.
         measurement_noise_std: measurement noise parameters (relative for SDV).
         noise_model: the likelihood's noise model.
+        draw_slots: slots the random numbers are drawn for (:func:`draw_births`).
 
     Returns:
         ``births_per_detection * max_detections`` states, detection-major, and their
@@ -224,6 +239,7 @@ def sample_births(
         jnp.where(started, birth_upper, initial_upper),
         measurement_noise_std,
         noise_model,
+        draw_slots,
     )
     log_weights = jnp.where(
         started,

@@ -226,6 +226,7 @@ def phd_births(
     started: Bool[Array, ""],
     births_per_detection: int,
     noise_model: NoiseModel = state_dependent_std,
+    draw_slots: int | None = None,
 ) -> tuple[Float[Array, "num_births 6"], Float[Array, " num_births"]]:
     """One frame's measurement-driven births (:func:`~jaxtrack.filters.births.sample_births`).
 
@@ -237,6 +238,8 @@ def phd_births(
         started: False on the first frame (``params.initial_intensity`` is then ``gamma``).
         births_per_detection: particles per detection slot (static, > 0).
         noise_model: the likelihood's noise model.
+        draw_slots: slots the random numbers are drawn for (static; None: every slot of
+            ``measurements``; :func:`~jaxtrack.filters.births.draw_births`).
 
     Returns:
         The birth particles and their log-weights ``log(gamma / (J p))``.
@@ -251,6 +254,7 @@ def phd_births(
         started,
         params.measurement_noise_std,
         noise_model,
+        draw_slots,
     )
 
 
@@ -531,8 +535,24 @@ def phd_step(
     extract: Extractor = partition_estimates,
     label: Callable = label_step,
     expected_birth_mass: bool = False,
+    split_capacity: bool = False,
 ) -> tuple[PHDState, PHDInfo]:
     """One frame of the PHD tracker composed from its stages (the module's steps 1-6).
+
+    **Split capacity.** Every detection slot, padded or not, costs its
+    ``births_per_detection`` birth particles and a row of particle x detection pairs, and a
+    run's capacity is a power of two (:func:`~jaxtrack.filters.base.capacity_for`: 16 slots for
+    PETS09-S2L1's at most 9 detections). With ``split_capacity`` (static), a frame whose real
+    detections all lie in the first half of its ``S`` slots runs its births, update,
+    extraction and labelling on those ``S / 2`` slots (a ``lax.switch`` between the half and
+    the full step, so the step compiles twice); the births' random numbers are drawn for all
+    ``S`` slots and the first half's kept (:func:`~jaxtrack.filters.births.draw_births`'s
+    ``draw_slots``), and the per-slot outputs are padded back as the full step pads them. The
+    result is the full step's up to float32 rounding (the reductions over slots and births
+    run over fewer terms), which a particle filter then carries into its later decisions: a
+    run equals the full step's in distribution, not digit for digit. Under ``vmap`` with
+    detections shared by the batch (sweeps, tuning keys) the switch stays a switch; with
+    batched detections both branches run.
 
     Args:
         key: PRNG key of the frame; split into the motion, birth, resampling and extraction
@@ -552,10 +572,99 @@ def phd_step(
         label: ``(label_state, label_params, estimates) -> (label_state, labels)``
             (:func:`~jaxtrack.association.labelling.label_step`).
         expected_birth_mass: add :func:`expected_birth_mass_term` to the log-likelihood.
+        split_capacity: run frames that fit in half the slots on that half (above);
+            ``births`` must then take ``draw_slots`` (:func:`phd_births` does).
 
     Returns:
         The new state and the frame's :class:`PHDInfo`.
     """
+    frame = functools.partial(
+        _frame_step,
+        predict=predict,
+        births=births,
+        update=update,
+        resample=resample,
+        extract=extract,
+        label=label,
+        expected_birth_mass=expected_birth_mass,
+    )
+    num_slots = detections.mask.shape[0]
+    smaller = [num_slots // 2] if split_capacity and num_slots >= 2 else []
+    if not smaller:
+        return frame(key, state, params, detections)
+    full = jax.eval_shape(frame, key, state, params, detections)
+    if births is not None:
+        births = functools.partial(births, draw_slots=num_slots)
+        frame = functools.partial(frame, births=births)
+    buckets = [*smaller, num_slots]
+
+    def at_capacity(c):
+        def branch(key, state, params, detections):
+            first = jax.tree.map(lambda x: x[:c], detections)
+            new_state, info = frame(key, state, params, first)
+            return new_state, _pad_info(info, full[1], detections)
+
+        return branch
+
+    used = jnp.max(jnp.where(detections.mask, jnp.arange(1, num_slots + 1), 0))
+    index = jnp.searchsorted(jnp.asarray(smaller), used, side="left")
+    branches = [at_capacity(c) for c in buckets]
+    return jax.lax.switch(index, branches, key, state, params, detections)
+
+
+def _pad_info(info: PHDInfo, full: PHDInfo, detections: Detections) -> PHDInfo:
+    """A frame's info on its first slots padded to the full step's shapes, with the values the
+    full step gives padded slots (empty tracks; estimates of zero state and mass, the padded
+    detections' scores, masked out). Fields already of the full shape (e.g. the GMM
+    extractor's cluster slots) are kept."""
+
+    def pad(value, shape, fill):
+        extra = shape[0] - value.shape[0]
+        if extra == 0:
+            return value
+        tail = jnp.broadcast_to(fill[-extra:], (extra, *shape[1:])).astype(value.dtype)
+        return jnp.concatenate([value, tail])
+
+    def pad_tracks(tracks: Tracks, shape: Tracks) -> Tracks:
+        slots = shape.mask.shape[0]
+        return Tracks(
+            boxes=pad(tracks.boxes, shape.boxes.shape, jnp.tile(jnp.asarray(PAD_BOX), (slots, 1))),
+            ids=pad(tracks.ids, shape.ids.shape, jnp.full(slots, -1, tracks.ids.dtype)),
+            scores=pad(tracks.scores, shape.scores.shape, jnp.zeros(slots, tracks.scores.dtype)),
+            mask=pad(tracks.mask, shape.mask.shape, jnp.zeros(slots, bool)),
+        )
+
+    estimates, slots = info.estimates, full.estimates.mask.shape[0]
+    states = estimates.states
+    return info._replace(
+        tracks=pad_tracks(info.tracks, full.tracks),
+        candidates=pad_tracks(info.candidates, full.candidates),
+        estimates=Estimates(
+            states=pad(states, full.estimates.states.shape, jnp.zeros((slots, 6), states.dtype)),
+            masses=pad(
+                estimates.masses, full.estimates.masses.shape, jnp.zeros(slots, states.dtype)
+            ),
+            scores=pad(estimates.scores, full.estimates.scores.shape, detections.scores),
+            mask=pad(estimates.mask, full.estimates.mask.shape, jnp.zeros(slots, bool)),
+        ),
+    )
+
+
+def _frame_step(
+    key: Array,
+    state: PHDState,
+    params: PHDParams,
+    detections: Detections,
+    *,
+    predict: Callable,
+    births: Callable | None,
+    update: Callable,
+    resample: Callable,
+    extract: Extractor,
+    label: Callable,
+    expected_birth_mass: bool,
+) -> tuple[PHDState, PHDInfo]:
+    """:func:`phd_step` on every slot of ``detections`` (its arguments)."""
     key_motion, key_birth, key_resample, key_extract = jax.random.split(key, 4)
     measurements = xywh_to_cxcywh(detections.boxes, jnp)
     particles, log_weights = predict(key_motion, state.particles, state.log_weights, params)
@@ -604,6 +713,7 @@ def phd_filter(
     motion_noise_model: NoiseModel = state_dependent_std,
     measurement_noise_model: NoiseModel = state_dependent_std,
     block_size: int | None = None,
+    split_capacity: bool = False,
 ) -> Filter:
     """Builds the particle PHD tracker from its stages; all arguments are static.
 
@@ -634,6 +744,9 @@ def phd_filter(
         measurement_noise_model: noise model of the likelihood (SDV by default).
         block_size: particles per block of the update (:func:`phd_update`); None for
             :func:`default_block_size`.
+        split_capacity: frames whose detections fit in half the run's slots run on that
+            half (:func:`phd_step`): faster runs, twice the compile; results equal up to
+            float32 rounding. Default False.
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter`.
@@ -678,6 +791,7 @@ def phd_filter(
         extract=extract,
         label=label_step,
         expected_birth_mass=expected_birth_mass,
+        split_capacity=split_capacity,
     )
     init = functools.partial(init_phd, num_particles=num_particles, max_tracks=max_tracks)
     return Filter(init=init, step=step)

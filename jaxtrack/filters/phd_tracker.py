@@ -80,6 +80,11 @@ _PROBABILITY = {"kind": float, "lower": 0.0, "upper": 1.0, "lower_open": True}
 _NOISE = {"kind": tuple, "length": 4, "lower": 0.0, "upper": 10.0, "lower_open": True}
 
 
+#: Values of :attr:`PHDConfig.frame_capacity` (:func:`~jaxtrack.filters.phd.phd_step`'s
+#: ``split_capacity``).
+FRAME_CAPACITIES = ("full", "split")
+
+
 @dataclasses.dataclass(frozen=True)
 class PHDConfig(TrackerConfig):
     """The particle PHD tracker's configuration (``jaxtrack track --config FILE.json``)."""
@@ -126,6 +131,17 @@ class PHDConfig(TrackerConfig):
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
+    frame_capacity: str = setting(
+        "full",
+        Rule(
+            "detection slots of each frame's step: 'full' (the run's capacity, a power of two, "
+            "on every frame) or 'split' (a frame whose detections fit in half the slots runs "
+            "on that half: faster runs, twice the compile, results equal up to float32 "
+            "rounding)",
+            str,
+            choices=FRAME_CAPACITIES,
+        ),
+    )
 
 
 class Variant(NamedTuple):
@@ -242,17 +258,25 @@ def build_phd(
 
 def phd_filter_of(config: PHDConfig) -> Filter:
     """The (cached) filter of a configuration's static settings."""
-    return _phd_filter(config.num_particles, config.births_per_detection, config.extraction)
+    return _phd_filter(
+        config.num_particles,
+        config.births_per_detection,
+        config.extraction,
+        config.frame_capacity == "split",
+    )
 
 
 @functools.lru_cache(maxsize=16)
-def _phd_filter(num_particles: int, births_per_detection: int, extraction: str) -> Filter:
+def _phd_filter(
+    num_particles: int, births_per_detection: int, extraction: str, split_capacity: bool
+) -> Filter:
     return phd_filter(
         num_particles,
         births_per_detection=births_per_detection,
         extraction=extraction,
         max_clusters=GMM_CLUSTERS,
         max_tracks=MAX_TRACKS,
+        split_capacity=split_capacity,
     )
 
 
