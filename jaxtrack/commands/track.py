@@ -18,8 +18,10 @@ births per frame), ``initial_rate`` (the first frame's uniform birth magnitude),
 ``clutter_rate`` (lambda_r), ``detection_prob``, ``survival_prob``, ``motion_noise_std``,
 ``measurement_noise_std``, ``output`` ("offline": confirmed tracks over their whole life,
 gaps of up to ``max_gap`` frames interpolated; "online": the filter's frame-by-frame
-output) and ``max_gap``). Unknown keys, wrong types and out-of-range values are errors
-naming the key.
+output), ``max_gap`` and ``frame_capacity`` ("full", default, or "split": a frame whose
+detections fit in half the run's detection slots runs on that half; faster on long runs and
+sweeps, twice the compile, results equal up to float32 rounding)). Unknown keys, wrong
+types and out-of-range values are errors naming the key.
 
 ``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``
 picks the parts (PHD-context Sec. V): GM (default) learned birth and clutter; A1 learned birth
