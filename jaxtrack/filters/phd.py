@@ -578,16 +578,8 @@ def phd_step(
     Returns:
         The new state and the frame's :class:`PHDInfo`.
     """
-    frame = functools.partial(
-        _frame_step,
-        predict=predict,
-        births=births,
-        update=update,
-        resample=resample,
-        extract=extract,
-        label=label,
-        expected_birth_mass=expected_birth_mass,
-    )
+    stages = _Stages(predict, births, update, resample, extract, label, expected_birth_mass)
+    frame = functools.partial(_frame_step, stages=stages)
     num_slots = detections.mask.shape[0]
     smaller = [num_slots // 2] if split_capacity and num_slots >= 2 else []
     if not smaller:
@@ -595,7 +587,7 @@ def phd_step(
     full = jax.eval_shape(frame, key, state, params, detections)
     if births is not None:
         births = functools.partial(births, draw_slots=num_slots)
-        frame = functools.partial(frame, births=births)
+        frame = functools.partial(_frame_step, stages=stages._replace(births=births))
     buckets = [*smaller, num_slots]
 
     def at_capacity(c):
@@ -650,21 +642,23 @@ def _pad_info(info: PHDInfo, full: PHDInfo, detections: Detections) -> PHDInfo:
     )
 
 
+class _Stages(NamedTuple):
+    """:func:`phd_step`'s stage arguments."""
+
+    predict: Callable
+    births: Callable | None
+    update: Callable
+    resample: Callable
+    extract: Extractor
+    label: Callable
+    expected_birth_mass: bool
+
+
 def _frame_step(
-    key: Array,
-    state: PHDState,
-    params: PHDParams,
-    detections: Detections,
-    *,
-    predict: Callable,
-    births: Callable | None,
-    update: Callable,
-    resample: Callable,
-    extract: Extractor,
-    label: Callable,
-    expected_birth_mass: bool,
+    key: Array, state: PHDState, params: PHDParams, detections: Detections, *, stages: _Stages
 ) -> tuple[PHDState, PHDInfo]:
     """:func:`phd_step` on every slot of ``detections`` (its arguments)."""
+    predict, births, update, resample, extract, label, expected_birth_mass = stages
     key_motion, key_birth, key_resample, key_extract = jax.random.split(key, 4)
     measurements = xywh_to_cxcywh(detections.boxes, jnp)
     particles, log_weights = predict(key_motion, state.particles, state.log_weights, params)

@@ -26,6 +26,15 @@ def _likelihood(z, x, noise_std):
     return value
 
 
+def reference_of_state(key, state, params, boxes, scores, mask, births_per_detection):
+    """:func:`reference_step` from a filter state (its particles and log-weights)."""
+    particles = np.asarray(state.particles)
+    weights = np.exp(np.asarray(state.log_weights))
+    return reference_step(
+        key, particles, weights, params, boxes, scores, mask, births_per_detection
+    )
+
+
 def reference_step(key, particles, weights, params, boxes, scores, mask, births_per_detection):
     """One PHD step with SDV models and uniform intensities; float64 loops.
 

@@ -12,7 +12,7 @@ from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
 from jaxtrack.models import SurvivalMap, constant_std
-from tests.filters.phd_reference import reference_step
+from tests.filters.phd_reference import reference_of_state
 from tests.filters.phd_scenes import padded_detections, walking_scene
 
 WIDTH, HEIGHT = 640.0, 480.0
@@ -80,16 +80,7 @@ def test_step_matches_numpy_reference(score_weight, block):
         frame = jax.tree.map(lambda x: x[0], detections)
         key = jax.random.key(7)
         new_state, info = jax.jit(filt.step)(key, state, params, frame)
-        reference = reference_step(
-            key,
-            np.asarray(state.particles),
-            np.exp(np.asarray(state.log_weights)),
-            params,
-            BOXES,
-            SCORES,
-            MASK,
-            4,
-        )
+        reference = reference_of_state(key, state, params, BOXES, SCORES, MASK, 4)
     np.testing.assert_allclose(info.log_likelihood, reference["log_likelihood"], rtol=1e-5)
     np.testing.assert_allclose(new_state.mass, reference["mass"], rtol=1e-5)
     np.testing.assert_allclose(np.exp(new_state.log_weights), reference["mass"] / 32, rtol=1e-5)

@@ -18,7 +18,7 @@ from jaxtrack.filters.births import draw_births
 from jaxtrack.filters.phd import phd_filter
 from jaxtrack.filters.phd_tracker import PHDConfig, phd_filter_of
 from jaxtrack.types import PAD_BOX, Detections
-from tests.filters.phd_reference import reference_step
+from tests.filters.phd_reference import reference_of_state
 from tests.filters.phd_scenes import walking_scene
 from tests.filters.test_phd import TARGETS, _params, _state_with_targets, _to_float64
 
@@ -54,16 +54,7 @@ def _step(split: bool, last_real: int = 2):
         state = _to_float64(_state_with_targets(filt, jax.random.key(0), TARGETS, 32))
         frame = _to_float64(_frame(boxes, scores, mask))
         new_state, info = jax.jit(filt.step)(jax.random.key(7), state, params, frame)
-        reference = reference_step(
-            jax.random.key(7),
-            np.asarray(state.particles),
-            np.exp(np.asarray(state.log_weights)),
-            params,
-            boxes,
-            scores,
-            mask,
-            4,
-        )
+        reference = reference_of_state(jax.random.key(7), state, params, boxes, scores, mask, 4)
     return new_state, info, reference
 
 
