@@ -36,7 +36,7 @@ def _frame(boxes, scores, mask) -> Detections:
 
 
 @functools.cache
-def _step(split: bool, last_real: int = 2):
+def _step(split: bool, last_real: int = 2, extraction: str = "partition"):
     """One float64 step of the full or split filter from test_phd's state on an 8-slot frame
     whose last real detection is in slot ``last_real``; its outputs and the NumPy reference
     of the full step."""
@@ -49,7 +49,14 @@ def _step(split: bool, last_real: int = 2):
             mask[swap[::-1]],
         )
     with jax.enable_x64(True):
-        filt = phd_filter(32, births_per_detection=4, split_capacity=split)
+        filt = phd_filter(
+            32,
+            births_per_detection=4,
+            split_capacity=split,
+            extraction=extraction,
+            max_clusters=4,
+            em_iterations=2,
+        )
         params = _to_float64(_params(survival_prob=jnp.asarray(0.97)))
         state = _to_float64(_state_with_targets(filt, jax.random.key(0), TARGETS, 32))
         frame = _to_float64(_frame(boxes, scores, mask))
@@ -83,9 +90,12 @@ def test_split_step_matches_the_numpy_reference_of_the_full_step(last_real):
     assert info.estimates.mask.shape == (8,) and info.tracks.mask.shape == (8,)
 
 
-def test_split_step_gives_the_full_step_s_outputs_padded_slots_included():
-    split_state, split_info, _ = _step(True)
-    full_state, full_info, _ = _step(False)
+@pytest.mark.parametrize("extraction", ["partition", "gmm"])
+def test_split_step_gives_the_full_step_s_outputs_padded_slots_included(extraction):
+    """Partition: one estimate per slot, padded back; GMM: cluster slots, whatever the
+    frame's detection slots."""
+    split_state, split_info, _ = _step(True, extraction=extraction)
+    full_state, full_info, _ = _step(False, extraction=extraction)
     for split, full in zip(
         jax.tree.leaves((split_state, split_info)),
         jax.tree.leaves((full_state, full_info)),
@@ -122,7 +132,7 @@ def test_split_run_tracks_like_the_full_run_and_keeps_gradients():
     np.testing.assert_allclose(batched[0], split_value, rtol=1e-9)
     np.testing.assert_allclose(split_value, value, rtol=1e-9)
     np.testing.assert_allclose(split_grad, grad, rtol=1e-7)
-    assert np.isfinite(split_grad) and split_grad != 0
+    assert np.isfinite(float(split_grad)) and float(split_grad) != 0
     np.testing.assert_array_equal(split_tracks.ids, tracks.ids)
     np.testing.assert_allclose(split_tracks.boxes, tracks.boxes, atol=1e-6)
     assert np.asarray(tracks.mask).sum() > 25  # both targets tracked most of the run
