@@ -47,17 +47,14 @@ def main() -> None:
     sequence = load_sequence(args.sequence)
     info = sequence.info
     params = default_phd_params(info.im_width, info.im_height, info.frame_rate)
-    filt = phd_filter(
-        args.particles,
-        births_per_detection=args.births_per_detection,
-        extraction=args.extraction,
-    )
-
-    split = phd_filter(
-        args.particles,
-        births_per_detection=args.births_per_detection,
-        extraction=args.extraction,
-        split_capacity=True,
+    filt, split = (
+        phd_filter(
+            args.particles,
+            births_per_detection=args.births_per_detection,
+            extraction=args.extraction,
+            split_capacity=split_capacity,
+        )
+        for split_capacity in (False, True)
     )
 
     def timed(detections, filt=filt):

@@ -544,14 +544,14 @@ def phd_step(
     run's capacity is a power of two (:func:`~jaxtrack.filters.base.capacity_for`: 16 slots for
     PETS09-S2L1's at most 9 detections). With ``split_capacity`` (static), a frame whose real
     detections all lie in the first half of its ``S`` slots runs its births, update,
-    extraction and labelling on those ``S / 2`` slots (a ``lax.switch`` between the half and
+    extraction and labelling on those ``S / 2`` slots (a ``lax.cond`` between the half and
     the full step, so the step compiles twice); the births' random numbers are drawn for all
     ``S`` slots and the first half's kept (:func:`~jaxtrack.filters.births.draw_births`'s
     ``draw_slots``), and the per-slot outputs are padded back as the full step pads them. The
     result is the full step's up to float32 rounding (the reductions over slots and births
     run over fewer terms), which a particle filter then carries into its later decisions: a
     run equals the full step's in distribution, not digit for digit. Under ``vmap`` with
-    detections shared by the batch (sweeps, tuning keys) the switch stays a switch; with
+    detections shared by the batch (sweeps, tuning keys) the cond stays a cond; with
     batched detections both branches run.
 
     Args:
@@ -581,27 +581,21 @@ def phd_step(
     stages = _Stages(predict, births, update, resample, extract, label, expected_birth_mass)
     frame = functools.partial(_frame_step, stages=stages)
     num_slots = detections.mask.shape[0]
-    smaller = [num_slots // 2] if split_capacity and num_slots >= 2 else []
-    if not smaller:
+    half = num_slots // 2
+    if not split_capacity or half == 0:
         return frame(key, state, params, detections)
-    full = jax.eval_shape(frame, key, state, params, detections)
+    _, full_info = jax.eval_shape(frame, key, state, params, detections)
     if births is not None:
         births = functools.partial(births, draw_slots=num_slots)
         frame = functools.partial(_frame_step, stages=stages._replace(births=births))
-    buckets = [*smaller, num_slots]
 
-    def at_capacity(c):
-        def branch(key, state, params, detections):
-            first = jax.tree.map(lambda x: x[:c], detections)
-            new_state, info = frame(key, state, params, first)
-            return new_state, _pad_info(info, full[1], detections)
-
-        return branch
+    def on_half(key, state, params, detections):
+        first = jax.tree.map(lambda x: x[:half], detections)
+        new_state, info = frame(key, state, params, first)
+        return new_state, _pad_info(info, full_info, detections)
 
     used = jnp.max(jnp.where(detections.mask, jnp.arange(1, num_slots + 1), 0))
-    index = jnp.searchsorted(jnp.asarray(smaller), used, side="left")
-    branches = [at_capacity(c) for c in buckets]
-    return jax.lax.switch(index, branches, key, state, params, detections)
+    return jax.lax.cond(used <= half, on_half, frame, key, state, params, detections)
 
 
 def _pad_info(info: PHDInfo, full: PHDInfo, detections: Detections) -> PHDInfo:
