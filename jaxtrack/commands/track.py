@@ -265,7 +265,9 @@ def track_sequence(
         check_train_frames(train_frames, tracked, info.seq_length)
         with open_sequence_frames(sequence_dir, info, video) as reader:
             seq = load_tracked_sequence(sequence_dir, frames, detections, reader)
-            params, used = streamed_params(config, seq, reader, seed, zones, train_frames)
+            params, used = streamed_params(
+                config, seq, reader, seed, zones, train_frames, blobs=detections == "bs"
+            )
             for value in used.values():
                 print(f"{seq.info.name}: {value}", file=sys.stderr)
             rows, events = track_streamed_events(seq, reader, config, seed, params)

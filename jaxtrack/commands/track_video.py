@@ -365,7 +365,13 @@ def track_span(sequence, reader, config, args, context, variant, used, progress:
         (rows,) = track_sequences([sequence], config, args.seed, [params], progress=progress)
         return rows, None, None
     params, scene = streamed_params(
-        config, sequence, reader, args.seed, args.zones, args.train_frames
+        config,
+        sequence,
+        reader,
+        args.seed,
+        args.zones,
+        args.train_frames,
+        blobs=not args.detections,
     )
     for value in scene.values():
         print(value, file=sys.stderr)

@@ -92,7 +92,9 @@ def frame_tracker_runs(
             for name, config in trackers.items():
                 used: dict[str, str] = {}
                 if tracker_entry(config.tracker).uses_frames:
-                    params, used = streamed_params(config, tracked, reader, seed)
+                    params, used = streamed_params(
+                        config, tracked, reader, seed, blobs=source == "bs"
+                    )
                     begin = time.perf_counter()
                     rows, events = track_streamed_events(tracked, reader, config, seed, params)
                 else:

@@ -120,6 +120,7 @@ class HierarchicalParams(NamedTuple):
             lost)``).
         background: the background model's image, RGB ``uint8`` ``[height, width, 3]``
             (:func:`~jaxtrack.pipelines.background.median_background`).
+        min_score: detections scoring below this are ignored.
     """
 
     low: LowParams
@@ -129,6 +130,7 @@ class HierarchicalParams(NamedTuple):
     max_newborn: Float[Array, ""]
     search_rate: Float[Array, ""]
     background: UInt8[Array, "height width 3"]
+    min_score: Float[Array, ""]
 
 
 class HighState(NamedTuple):
@@ -375,7 +377,7 @@ def hierarchical_step(
         state.low,
         params.low,
         measurements_of(detections.boxes, measurement),
-        detections.mask,
+        detections.mask & (detections.scores >= params.min_score),
         measurement=measurement,
     )
     boxes = low_boxes(low, measurement)

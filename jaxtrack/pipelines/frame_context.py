@@ -4,7 +4,8 @@ A tracker that uses frames may take, as its context, the scene's entry/exit zone
 ``--zones``, else learned on the fly from the PHD tracker's trajectories,
 :func:`~jaxtrack.pipelines.zones.tracker_zones`) or the background model's image (the
 Hierarchical tracker: the span's median image,
-:func:`~jaxtrack.pipelines.background.median_background`). :func:`streamed_params` builds its
+:func:`~jaxtrack.pipelines.background.median_background`, with the span's detections, on
+which it estimates its low level's noise). :func:`streamed_params` builds its
 parameters with that context, so that ``jaxtrack track``, ``jaxtrack track-video`` and the
 experiments run it the same way; :func:`load_tracked_sequence` loads a sequence with the
 detections it is tracked on (its own, a file, or background subtraction on its frames).
@@ -19,6 +20,7 @@ from jaxtrack.configs import TrackerConfig
 from jaxtrack.detect.pipeline import DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
+from jaxtrack.filters.hierarchical_tracker import HierarchicalContext, low_noise
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence, load_sequence, parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.io.video import VideoReader
@@ -34,6 +36,7 @@ def streamed_params(
     seed: int = 0,
     zones: str | None = None,
     train_frames: str | None = None,
+    blobs: bool = False,
 ) -> tuple[Any, dict[str, str]]:
     """A frame tracker's parameters for a sequence (span), and what it used.
 
@@ -45,6 +48,9 @@ def streamed_params(
         zones: a zones file for a tracker that takes zones (default: learned on the fly).
         train_frames: the training span (``"A:B"``) of a tracker that learns from one
             (default: its configuration's share of the tracked span).
+        blobs: the detections are the toolkit's background-subtraction blobs (the
+            Hierarchical tracker keeps its a priori noise on them,
+            :func:`~jaxtrack.filters.hierarchical_tracker.low_noise`).
 
     Returns:
         The parameters, and ``{"zones": ...}``, ``{"background": ...}`` or
@@ -64,10 +70,11 @@ def streamed_params(
         used["training"] = context.description
     elif entry.takes_background:
         span = (seq.first_frame, seq.last_frame)
-        context = median_background(reader, span)
+        context = HierarchicalContext(median_background(reader, span), seq.detections, blobs)
         used["background"] = (
             f"per-pixel median of {BACKGROUND_FRAMES} frames spread over {span[0]}:{span[1]}"
         )
+        used["low_noise"] = low_noise(config, seq.detections, blobs)[1]
     _, params = build_tracker(config, seq.info, context)
     return params, used
 
