@@ -501,6 +501,16 @@ examples:
         files=hierarchical_experiment.FILES,
         scene="scenes",
     ),
+    "hierarchical-noise": Experiment(
+        help=hierarchical_experiment.NOISE_HELP,
+        description=hierarchical_experiment.NOISE_DESCRIPTION,
+        quick_help=hierarchical_experiment.NOISE_QUICK_HELP,
+        sequence=False,
+        add_extras=hierarchical_experiment.add_noise_arguments,
+        run=hierarchical_experiment.run_noise,
+        files=hierarchical_experiment.FILES,
+        scene="scenes",
+    ),
     "fusion": Experiment(
         help=fusion_experiment.HELP,
         description=fusion_experiment.DESCRIPTION,
