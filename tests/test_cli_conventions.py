@@ -36,6 +36,7 @@ WITH_PROGRESS = (
     "experiment compare-trackers",
     "experiment cmt-ablation",
     "experiment hierarchical",
+    "experiment hierarchical-noise",
     "experiment fusion",
     "experiment gradient-tuning",
     "simulate",  # with --video
