@@ -58,6 +58,8 @@ DEFAULT_NOISE: dict[str, tuple[tuple[float, ...], tuple[float, ...], tuple[float
         (0.03, 0.05, 0.03, 0.05, 0.05, 0.05, 0.1),
     ),
 }
+#: Default probability mass of the validation gate (``gate_confidence``).
+GATE_CONFIDENCE = 0.99
 #: Riccati iterations of :func:`steady_state` (converged to float64 precision long before).
 RICCATI_ITERATIONS = 2000
 
@@ -135,7 +137,7 @@ def low_params(
     *,
     confirm_updates: int = 4,
     coast_frames: int = 12,
-    gate_confidence: float = 0.99,
+    gate_confidence: float = GATE_CONFIDENCE,
     msd_confidence: float = 0.99,
 ) -> LowParams:
     """:class:`~jaxtrack.filters.hier_low.LowParams` with thresholds derived from the noise.
@@ -206,7 +208,7 @@ def default_low_params(
     *,
     confirm_updates: int = 4,
     coast_frames: int = 12,
-    gate_confidence: float = 0.99,
+    gate_confidence: float = GATE_CONFIDENCE,
     msd_confidence: float = 0.99,
 ) -> LowParams:
     """:func:`low_params` with the default pedestrian noise :data:`DEFAULT_NOISE`."""

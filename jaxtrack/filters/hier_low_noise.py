@@ -56,7 +56,8 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.stats import chi2, norm
 
-from jaxtrack.filters.hier_low_defaults import steady_state
+from jaxtrack.boxes import iou_matrix, xywh_to_cxcywh
+from jaxtrack.filters.hier_low_defaults import GATE_CONFIDENCE, steady_state
 
 #: Smallest IoU of a link between detections of consecutive frames.
 LINK_IOU = 0.5
@@ -69,9 +70,9 @@ MIN_STD = 0.005
 MAX_STD = 0.5
 #: A new track's standard deviations are at least this times the steady state's.
 SETTLED_MARGIN = 1.5
-#: The low level's default gate probability
-#: (:func:`~jaxtrack.filters.hier_low_defaults.default_low_params`).
-GATE_CONFIDENCE = 0.99
+#: The median absolute deviation of the standard normal (the MAD's consistency constant is
+#: its inverse, 1.4826).
+NORMAL_MAD = norm.ppf(0.75)
 
 
 class BoxNoise(NamedTuple):
@@ -94,21 +95,6 @@ class BoxNoise(NamedTuple):
     calibration: float
 
 
-def centre_size(boxes: np.ndarray) -> np.ndarray:
-    """``(x, y, w, h)`` -> ``(cx, cy, w, h)``."""
-    boxes = np.asarray(boxes, np.float64)
-    return np.concatenate([boxes[..., :2] + boxes[..., 2:] / 2, boxes[..., 2:]], axis=-1)
-
-
-def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU of every ``(x, y, w, h)`` box of ``a`` with every box of ``b``."""
-    lo = np.maximum(a[:, None, :2], b[None, :, :2])
-    hi = np.minimum(a[:, None, :2] + a[:, None, 2:], b[None, :, :2] + b[None, :, 2:])
-    inter = np.prod(np.clip(hi - lo, 0, None), axis=-1)
-    union = np.prod(a[:, 2:], -1)[:, None] + np.prod(b[:, 2:], -1)[None, :] - inter
-    return inter / np.maximum(union, 1e-12)
-
-
 def link_chains(boxes: np.ndarray, mask: np.ndarray, min_iou: float = LINK_IOU) -> np.ndarray:
     """``next[t, i]``: the detection of frame ``t + 1`` linked to detection ``i`` of frame
     ``t`` (mutual best IoU, at least ``min_iou``), -1 when none (and on the last frame)."""
@@ -118,7 +104,7 @@ def link_chains(boxes: np.ndarray, mask: np.ndarray, min_iou: float = LINK_IOU) 
         a, b = np.flatnonzero(mask[t]), np.flatnonzero(mask[t + 1])
         if a.size == 0 or b.size == 0:
             continue
-        iou = _iou(boxes[t, a], boxes[t + 1, b])
+        iou = iou_matrix(boxes[t, a], boxes[t + 1, b])
         best_b, best_a = iou.argmax(1), iou.argmax(0)
         for i, j in enumerate(best_b):
             if best_a[j] == i and iou[i, j] >= min_iou:
@@ -139,7 +125,7 @@ def second_differences(
         min_iou: smallest IoU of a link.
     """
     boxes, mask = np.asarray(boxes, np.float64), np.asarray(mask, bool)
-    z = centre_size(boxes)
+    z = xywh_to_cxcywh(boxes)
     nxt = link_chains(boxes, mask, min_iou)
     num_frames, slots = mask.shape
     prev = np.full_like(nxt, -1)
@@ -161,19 +147,15 @@ def second_differences(
             diff = (z[t + k, fwd[ok]] - here) - (here - z[t - k, back[ok]])
             rows.append(diff / np.maximum(here[:, 3:4], 1.0))
         out[k] = np.concatenate(rows) if rows else np.zeros((0, 4))
-    t_idx, i_idx = np.nonzero(nxt >= 0)
     here = z[t_idx, i_idx]
     steps = (z[t_idx + 1, nxt[t_idx, i_idx]] - here)[:, :2] / np.maximum(here[:, 3:4], 1.0)
     return out, steps
 
 
-def robust_var(x: np.ndarray, axis: int = 0, quantile: float = 0.5) -> np.ndarray:
-    """The variance of the Gaussian whose central ``quantile`` interval holds the same share
-    of ``x`` (along ``axis``) as ``x``'s: ``(Q_quantile(|x - median|) / z)^2`` with ``z`` the
-    normal's ``(1 + quantile) / 2`` point; ``quantile = 0.5`` is ``(1.4826 MAD)^2``."""
+def robust_var(x: np.ndarray, axis: int = 0) -> np.ndarray:
+    """``(1.4826 MAD)^2`` along ``axis`` (the variance of Gaussian data, outliers ignored)."""
     med = np.median(x, axis=axis, keepdims=True)
-    spread = np.quantile(np.abs(x - med), quantile, axis=axis)
-    return (spread / norm.ppf((1.0 + quantile) / 2.0)) ** 2
+    return (np.median(np.abs(x - med), axis=axis) / NORMAL_MAD) ** 2
 
 
 def process_coefficients(k: int) -> np.ndarray:
