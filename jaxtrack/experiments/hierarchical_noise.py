@@ -91,11 +91,12 @@ def development_sequences(data: str | Path, quick: bool = False) -> list[MotSequ
     return [load_sequence(p) for p in folders]
 
 
-def detection_rows(config: HierarchicalConfig, seq: MotSequence):
+def detection_rows(config: HierarchicalConfig, seq: MotSequence, noise=None):
     """The result rows of a Hierarchical variant that does not read the images (``managed``,
-    ``kalman``) on a sequence's detections (blank frames)."""
+    ``kalman``) on a sequence's detections (blank frames), with the low level's ``noise``
+    (:func:`~jaxtrack.filters.hierarchical_tracker.low_noise`; None: the a priori noise)."""
     background = np.zeros((seq.info.im_height, seq.info.im_width, 3), np.uint8)
-    context = HierarchicalContext(background, seq.detections)
+    context = HierarchicalContext(background, noise)
     filt, params = build_hierarchical(config, seq.info, context)
     frames = jnp.zeros((seq.num_frames, 1, 1, 3), jnp.uint8)
     inputs = FrameInputs(seq.detections, frames)
@@ -116,9 +117,13 @@ def run_experiment(
     evaluations: dict[str, list] = {name: [] for name in configs}
     noise: dict[str, str] = {}
     for seq in tqdm(sequences, desc="sequences", unit="seq", disable=not progress):
-        noise[seq.info.name] = low_noise(SETTINGS["estimated"], seq.detections)[1]
         for name, config in configs.items():
-            evaluations[name].append(evaluate_rows(seq, detection_rows(config, seq)))
+            low = None  # the Kalman bank has no low-level noise
+            if name in SETTINGS:
+                low, line = low_noise(config, seq.detections)
+                if name == "estimated":
+                    noise[seq.info.name] = line
+            evaluations[name].append(evaluate_rows(seq, detection_rows(config, seq, low)))
     rows = []
     for name, evals in evaluations.items():
         rows.append({"setting": name, **score_summary(combine_sequences(evals))})

@@ -10,8 +10,8 @@
   :mod:`~jaxtrack.filters.hier_low_noise`; ``noise="default"`` for the a priori one);
 * :func:`build_hierarchical`: the registry entry ``(config, info, context, variant) ->
   (Filter, params)``; the pipelines give a :class:`HierarchicalContext`: the background
-  model's image (:func:`~jaxtrack.pipelines.background.median_background`) and the span's
-  detections.
+  model's image (:func:`~jaxtrack.pipelines.background.median_background`) and the low
+  level's noise for the span (:func:`low_noise`).
 
 Every variant steps on :class:`~jaxtrack.types.FrameInputs` (the ``"kalman"`` one ignores
 the frame), so the three run through the same streamed pipeline and compare on the same
@@ -117,15 +117,12 @@ class HierarchicalContext(NamedTuple):
     Attributes:
         background: the background model's image, RGB ``uint8`` of the sequence's size
             (:func:`~jaxtrack.pipelines.background.median_background`).
-        detections: the span's padded detections (the low level's noise is estimated on
-            them, :mod:`~jaxtrack.filters.hier_low_noise`), or None (a priori noise).
-        blobs: the detections are the toolkit's background-subtraction blobs (``--detections
-            bs``), for which ``noise="auto"`` keeps the a priori noise.
+        noise: the low level's ``(process_std, measurement_std, initial_std)`` for the span
+            (:func:`low_noise`), or None (the a priori noise).
     """
 
     background: np.ndarray
-    detections: Detections | None = None
-    blobs: bool = False
+    noise: tuple[tuple[float, ...], ...] | None = None
 
 
 def low_noise(
@@ -178,11 +175,10 @@ def hierarchical_params(
     config: HierarchicalConfig,
     info: SequenceInfo,
     background: np.ndarray | None = None,
-    detections: Detections | None = None,
-    blobs: bool = False,
+    noise: tuple[tuple[float, ...], ...] | None = None,
 ) -> HierarchicalParams:
     """The default parameters for a sequence: durations in frames at its frame rate, the
-    low level's noise from ``detections`` (:func:`low_noise`; a priori without them).
+    low level's ``noise`` (:func:`low_noise`; None: the a priori noise).
 
     Raises:
         InputError: a background image of another size than the sequence's.
@@ -198,7 +194,7 @@ def hierarchical_params(
         )
     fps = frame_rate(info)
     coast = max(round(COAST_SECONDS * fps), 1)
-    noise, _ = low_noise(config, detections, blobs)
+    noise = noise or DEFAULT_NOISE[config.measurement]
     low = low_params(config.measurement, *noise, coast_frames=coast)
     return HierarchicalParams(
         low=low,
@@ -233,9 +229,9 @@ def build_hierarchical(
     """
     if variant != "GM":
         raise InputError(f"context variant {variant!r} is for the PHD tracker")
-    detections, blobs = None, False
+    noise = None
     if isinstance(context, HierarchicalContext):
-        context, detections, blobs = context
+        context, noise = context
     if context is not None and not isinstance(context, np.ndarray | jnp.ndarray):
         raise InputError("the Hierarchical tracker takes a background image, not a context")
     if config.variant == "kalman":
@@ -243,7 +239,7 @@ def build_hierarchical(
     filt = _hierarchical_filter(
         config.variant, config.max_tracks, config.max_trackers, config.measurement
     )
-    return filt, hierarchical_params(config, info, context, detections, blobs)
+    return filt, hierarchical_params(config, info, context, noise)
 
 
 @functools.lru_cache(maxsize=8)

@@ -70,11 +70,11 @@ def streamed_params(
         used["training"] = context.description
     elif entry.takes_background:
         span = (seq.first_frame, seq.last_frame)
-        context = HierarchicalContext(median_background(reader, span), seq.detections, blobs)
         used["background"] = (
             f"per-pixel median of {BACKGROUND_FRAMES} frames spread over {span[0]}:{span[1]}"
         )
-        used["low_noise"] = low_noise(config, seq.detections, blobs)[1]
+        noise, used["low_noise"] = low_noise(config, seq.detections, blobs)
+        context = HierarchicalContext(median_background(reader, span), noise)
     _, params = build_tracker(config, seq.info, context)
     return params, used
 

@@ -21,7 +21,11 @@ from jaxtrack.experiments.hierarchical_noise import (
     development_folders,
 )
 from jaxtrack.filters.base import run
-from jaxtrack.filters.hierarchical_tracker import HierarchicalContext, build_hierarchical
+from jaxtrack.filters.hierarchical_tracker import (
+    HierarchicalContext,
+    build_hierarchical,
+    low_noise,
+)
 from jaxtrack.io import load_sequence
 from jaxtrack.pipelines.tracking import output_rows
 from jaxtrack.types import FrameInputs
@@ -46,14 +50,14 @@ def test_rows_on_blank_frames_equal_the_rows_on_real_ones(mot15_root):
     """The managed low level's output does not depend on the frames it is given."""
     seq = load_sequence(mot15_root / "KITTI-17", frames="1:40")
     config = SETTINGS["estimated"]
-    rows = detection_rows(config, seq)
+    noise, line = low_noise(config, seq.detections)
+    assert "estimated from" in line
+    rows = detection_rows(config, seq, noise)
     rng = np.random.default_rng(0)
     shape = (seq.num_frames, seq.info.im_height, seq.info.im_width, 3)
     frames = rng.integers(0, 256, shape, dtype=np.uint8)
     background = rng.integers(0, 256, shape[1:], dtype=np.uint8)
-    filt, params = build_hierarchical(
-        config, seq.info, HierarchicalContext(background, seq.detections)
-    )
+    filt, params = build_hierarchical(config, seq.info, HierarchicalContext(background, noise))
     _, info = run(filt, jax.random.key(0), params, FrameInputs(seq.detections, frames))
     expected = output_rows(jax.device_get(info), config, seq.first_frame)
     assert len(rows.frames) > 0

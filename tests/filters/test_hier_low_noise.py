@@ -153,18 +153,22 @@ def test_the_tracker_uses_the_estimate_unless_told_otherwise():
     boxes, mask = drawn_detections(5, num_frames=120, num_targets=1)
     detections = _detections(boxes, mask)
     background = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
-    context = HierarchicalContext(background, detections)
+
+    def context(config):  # what the pipelines give the tracker
+        return HierarchicalContext(background, low_noise(config, detections)[0])
+
     estimated = HierarchicalConfig(variant="managed")
     noise, line = low_noise(estimated, detections)
     assert "estimated from" in line
     expected = estimate_box_noise(detections.boxes, mask, DEFAULT_NOISE["box"])
     assert noise == expected[:3]
-    _, params = build_hierarchical(estimated, INFO, context)
+    _, params = build_hierarchical(estimated, INFO, context(estimated))
     np.testing.assert_allclose(params.low.measurement_std, expected.measurement_std, rtol=1e-6)
+    apriori, ellipse = estimated.replace(noise="default"), estimated.replace(measurement="ellipse")
     for config, ctx in (
-        (estimated.replace(noise="default"), context),
-        (estimated, background),  # a background image alone: no detections, the prior
-        (estimated.replace(measurement="ellipse"), context),
+        (apriori, context(apriori)),
+        (estimated, background),  # a background image alone: no noise given, the prior
+        (ellipse, context(ellipse)),
     ):
         _, params = build_hierarchical(config, INFO, ctx)
         default = DEFAULT_NOISE[config.measurement][1]
@@ -192,5 +196,5 @@ def test_auto_keeps_the_prior_on_the_toolkits_blobs():
     assert noise == DEFAULT_NOISE["box"] and "blobs" in line
     assert "estimated from" in low_noise(auto.replace(noise="estimated"), detections, True)[1]
     background = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
-    _, params = build_hierarchical(auto, INFO, HierarchicalContext(background, detections, True))
+    _, params = build_hierarchical(auto, INFO, HierarchicalContext(background, noise))
     np.testing.assert_allclose(params.low.measurement_std, DEFAULT_NOISE["box"][1], rtol=1e-6)
