@@ -2,7 +2,7 @@
 the sequence runners."""
 
 from jaxtrack.association.estimates import Estimates
-from jaxtrack.filters.base import Filter, run
+from jaxtrack.filters.base import Filter, run, run_batch
 from jaxtrack.filters.extraction import gmm_clusters, measurement_partition
 from jaxtrack.filters.kalman import (
     KalmanInfo,
@@ -53,6 +53,7 @@ __all__ = [
     "resample",
     "residual",
     "run",
+    "run_batch",
     "score_log_ratio",
     "sort_kalman_params",
     "stratified",

@@ -272,27 +272,28 @@ def _chunk_scan(
     return scan
 
 
-def _run_chunks(filt, key_init, frame_keys, params, inputs, frames, chunk_frames, fit, *options):
-    """:func:`run` with ``chunk_frames``: a host loop over the cached, jitted chunk scan.
-
-    Chunk ``k``'s outputs are brought to the host after chunk ``k + 1`` is dispatched, so
-    that chunk ``k + 1``'s inputs (its frames) are prepared while chunk ``k`` runs, and
-    chunk ``k`` has finished when chunk ``k + 2``'s frames are asked for (:data:`FrameSource`)."""
+def _plan(inputs: Detections, chunk_frames: int, fit: bool) -> tuple[Detections, list[Chunk]]:
+    """The host detections of a chunked run (compacted with ``fit``) and its chunks."""
     inputs = jax.tree.map(np.asarray, inputs)
     num_frames, slots = inputs.mask.shape
-    if fit:
-        inputs = _compact(inputs)
-        chunks = plan_chunks(inputs.mask.sum(axis=1), chunk_frames)
-    else:
-        chunks = [
-            Chunk(start, min(start + chunk_frames, num_frames), slots)
-            for start in range(0, num_frames, chunk_frames)
-        ]
     if num_frames == 0:
         raise ValueError("a chunked run needs at least one frame")
-    init, scan_chunk, quick_scan_chunk = _chunk_functions(filt, *options)
-    state = init(key_init, params)
-    outputs, running, frame_size = [], None, None
+    if fit:
+        inputs = _compact(inputs)
+        return inputs, plan_chunks(inputs.mask.sum(axis=1), chunk_frames)
+    chunks = [
+        Chunk(start, min(start + chunk_frames, num_frames), slots)
+        for start in range(0, num_frames, chunk_frames)
+    ]
+    return inputs, chunks
+
+
+def _chunk_calls(inputs: Detections, chunks: list[Chunk], chunk_frames: int, frames):
+    """Per chunk: ``(chunk, window, chunk_inputs, indices, valid, quick)``, the arguments of
+    its compiled call (``window`` indexes the frame keys), the images read from ``frames``
+    (if any) just before the chunk is yielded; ``quick`` for a small crowded chunk."""
+    num_frames = inputs.mask.shape[0]
+    frame_size = None
     for chunk in chunks:
         indices = np.arange(chunk.start, chunk.start + chunk_frames)
         window = np.minimum(indices, max(num_frames - 1, 0))
@@ -303,13 +304,24 @@ def _run_chunks(filt, key_init, frame_keys, params, inputs, frames, chunk_frames
             images, frame_size = _chunk_frames(frames, chunk, chunk_frames, frame_size)
             chunk_inputs = FrameInputs(chunk_inputs, images)
         quick = chunk.crowded and (chunk.stop - chunk.start) * chunk.capacity <= QUICK_COMPILE_WORK
+        yield chunk, window, chunk_inputs, indices, valid, quick
+
+
+def _run_chunks(filt, key_init, frame_keys, params, inputs, frames, chunk_frames, fit, *options):
+    """:func:`run` with ``chunk_frames``: a host loop over the cached, jitted chunk scan.
+
+    Chunk ``k``'s outputs are brought to the host after chunk ``k + 1`` is dispatched, so
+    that chunk ``k + 1``'s inputs (its frames) are prepared while chunk ``k`` runs, and
+    chunk ``k`` has finished when chunk ``k + 2``'s frames are asked for (:data:`FrameSource`)."""
+    inputs, chunks = _plan(inputs, chunk_frames, fit)
+    init, scan_chunk, quick_scan_chunk = _chunk_functions(filt, *options)
+    state = init(key_init, params)
+    outputs, running = [], None
+    for chunk, window, chunk_inputs, indices, valid, quick in _chunk_calls(
+        inputs, chunks, chunk_frames, frames
+    ):
         state, output = (quick_scan_chunk if quick else scan_chunk)(
-            state,
-            params,
-            frame_keys[window],
-            chunk_inputs,
-            indices,
-            valid,
+            state, params, frame_keys[window], chunk_inputs, indices, valid
         )
         if running is not None:
             outputs.append(_host_outputs(*running))
@@ -318,11 +330,100 @@ def _run_chunks(filt, key_init, frame_keys, params, inputs, frames, chunk_frames
     return state, _concatenate(outputs)
 
 
-def _host_outputs(state: Any, output: Any, used: int) -> Any:
-    """A chunk's outputs on the host, its ``used`` real frames only, once the chunk has
-    finished (its final ``state`` is ready)."""
+def run_batch(
+    filt: Filter,
+    keys: Array,
+    params: Any,
+    inputs: Detections,
+    *,
+    chunk_frames: int,
+    group_size: int = 16,
+    fit_capacity: bool = True,
+    checkpoint: bool = False,
+    frame_output: FrameOutput | None = None,
+    frames: FrameSource | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> Any:
+    """A chunked :func:`run` of many configurations at once, each frame chunk read once.
+
+    Configuration ``b`` (``keys[b]``, the ``b``-th entry of every leaf of ``params``) gives
+    what ``run(filt, keys[b], params_b, inputs, chunk_frames=chunk_frames,
+    fit_capacity=fit_capacity, frames=frames)`` gives (the same keys, chunks and capacities;
+    batched and single XLA programs may round differently in float32). The host loop runs
+    over the frame chunks; inside it, the configurations go ``group_size`` at a time through
+    one ``jit(vmap(chunk scan))`` (the last group padded by repeating its last
+    configuration, so every group shares one compile), each group's state carried to the
+    next frame chunk. A chunk's images (``frames``) are thus read once and shared by every
+    configuration: a sweep of a tracker that looks at the images decodes its video once.
+    One device (the default one).
+
+    Args:
+        filt: the filter.
+        keys: one PRNG key per configuration, ``[batch]`` typed keys or ``[batch, 2]`` raw.
+        params: the parameter PyTree with a leading ``batch`` axis on every leaf.
+        inputs: padded detections ``[num_frames, max_detections]``, shared by all.
+        chunk_frames: frames per compiled call (> 0).
+        group_size: configurations per compiled call (> 0).
+        fit_capacity, checkpoint, frame_output, frames: as :func:`run`.
+        progress: called with the number of frames done after each frame chunk.
+
+    Returns:
+        The per-frame outputs, stacked as ``[batch, num_frames, ...]`` (NumPy arrays).
+
+    Raises:
+        ValueError: a chunk length or group size that is not positive, no frames, or
+            ``inputs`` that are not :class:`~jaxtrack.types.Detections`.
+        InputError: keys and parameters of different batch sizes; bad images (as :func:`run`).
+    """
+    if chunk_frames <= 0 or group_size <= 0:
+        raise ValueError(
+            f"chunk_frames and group_size must be positive, got {chunk_frames}, {group_size}"
+        )
+    if not isinstance(inputs, Detections):
+        raise ValueError("run_batch takes Detections; give the images as frames=")
+    batch = int(np.shape(keys)[0])
+    sizes = {int(np.shape(leaf)[0]) for leaf in jax.tree.leaves(params)}
+    if sizes != {batch}:
+        raise InputError(f"{batch} keys but parameters with batch sizes {sorted(sizes)}")
+    num_frames = int(np.shape(inputs.mask)[0])
+    key_init, key_frames = jax.vmap(jax.random.split, out_axes=1)(keys)
+    frame_keys = jax.vmap(lambda k: jax.random.split(k, num_frames))(key_frames)
+    group_size = min(group_size, batch)
+    groups = [
+        np.minimum(np.arange(start, start + group_size), batch - 1)
+        for start in range(0, batch, group_size)
+    ]
+    params = jax.tree.map(np.asarray, params)
+    group_params = [jax.tree.map(lambda x, g=g: x[g], params) for g in groups]
+    inputs, chunks = _plan(inputs, chunk_frames, fit_capacity)
+    init, scan_chunk, quick_scan_chunk = _chunk_functions(filt, checkpoint, frame_output, True)
+    states = [init(key_init[g], p) for g, p in zip(groups, group_params, strict=True)]
+    outputs: list[list[Any]] = [[] for _ in groups]
+    running: list[Any] = [None] * len(groups)
+    for chunk, window, chunk_inputs, indices, valid, quick in _chunk_calls(
+        inputs, chunks, chunk_frames, frames
+    ):
+        for k, (g, p) in enumerate(zip(groups, group_params, strict=True)):
+            states[k], output = (quick_scan_chunk if quick else scan_chunk)(
+                states[k], p, frame_keys[g][:, window], chunk_inputs, indices, valid
+            )
+            if running[k] is not None:
+                outputs[k].append(_host_outputs(*running[k], axis=1))
+            running[k] = (states[k], output, chunk.stop - chunk.start)
+        if progress is not None:
+            progress(chunk.stop - chunk.start)
+    for k in range(len(groups)):
+        outputs[k].append(_host_outputs(*running[k], axis=1))
+    joined = [_concatenate(parts, axis=1) for parts in outputs]
+    stacked = _concatenate(joined, axis=0)
+    return jax.tree.map(lambda x: x[:batch], stacked)
+
+
+def _host_outputs(state: Any, output: Any, used: int, axis: int = 0) -> Any:
+    """A chunk's outputs on the host, its ``used`` real frames (along ``axis``) only, once
+    the chunk has finished (its final ``state`` is ready)."""
     jax.block_until_ready(state)
-    return jax.tree.map(lambda x: np.asarray(x)[:used], output)
+    return jax.tree.map(lambda x: np.take(np.asarray(x), np.arange(used), axis=axis), output)
 
 
 def _chunk_frames(
@@ -391,27 +492,39 @@ def _fit_slots(inputs: Detections, capacity: int) -> Detections:
     )
 
 
-def _concatenate(outputs: list[Any]) -> Any:
-    """Per-chunk outputs concatenated over frames; axes that differ between chunks (those
-    that follow the detection capacity) are padded with zeros to the largest."""
+def _concatenate(outputs: list[Any], axis: int = 0) -> Any:
+    """Per-chunk outputs concatenated along ``axis`` (frames); the other axes that differ
+    between chunks (those that follow the detection capacity) are padded with zeros to the
+    largest."""
 
     def join(*xs):
         shape = np.max([x.shape for x in xs], axis=0)
         padded = [
             np.pad(
-                x, [(0, 0)] + [(0, int(n - m)) for n, m in zip(shape[1:], x.shape[1:], strict=True)]
+                x,
+                [
+                    (0, 0) if k == axis else (0, int(n - m))
+                    for k, (n, m) in enumerate(zip(shape, x.shape, strict=True))
+                ],
             )
             for x in xs
         ]
-        return np.concatenate(padded)
+        return np.concatenate(padded, axis=axis)
 
     return jax.tree.map(join, *outputs)
 
 
 @functools.lru_cache(maxsize=16)
-def _chunk_functions(filt: Filter, checkpoint: bool, frame_output: FrameOutput | None):
+def _chunk_functions(
+    filt: Filter, checkpoint: bool, frame_output: FrameOutput | None, batched: bool = False
+):
     """Jitted ``init`` and chunk scan of a filter, and the chunk scan compiled quickly
-    (:data:`QUICK_COMPILE_WORK`); cached, so that calls share compiles."""
+    (:data:`QUICK_COMPILE_WORK`); cached, so that calls share compiles. ``batched``: all
+    three vmapped over the keys, parameters and state (the chunk's inputs shared)."""
     scan = _chunk_scan(filt, checkpoint, frame_output)
+    init = filt.init
+    if batched:
+        scan = jax.vmap(scan, in_axes=(0, 0, 0, None, None, None))
+        init = jax.vmap(init)
     quick = jax.jit(scan, compiler_options={"xla_backend_optimization_level": 0})
-    return jax.jit(filt.init), jax.jit(scan), quick
+    return jax.jit(init), jax.jit(scan), quick

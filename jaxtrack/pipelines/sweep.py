@@ -43,13 +43,20 @@ from jaxtyping import Array, ArrayLike
 from tqdm import tqdm
 
 from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import Filter, fit_detections, run
-from jaxtrack.filters.registry import properties_of
-from jaxtrack.io import MotTable
+from jaxtrack.filters.base import Filter, fit_detections, run, run_batch
+from jaxtrack.filters.registry import build_tracker, properties_of, tracker_entry, writes_events
+from jaxtrack.io import MotSequence, MotTable
+from jaxtrack.io.frame_stream import FrameStream
+from jaxtrack.io.video import VideoReader
 from jaxtrack.metrics.evaluate import SUMMARY_KEYS, EvalConfig, evaluate_sequence
 from jaxtrack.parameters import leaf_values, replace_leaves
+from jaxtrack.pipelines.events import event_outputs, merge_identities
+from jaxtrack.pipelines.frame_context import streamed_params
+from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES
+from jaxtrack.pipelines.tracking import check_tracking_memory, output_rows, track_outputs
 from jaxtrack.types import Detections
 
 #: Parameter names of the magnitudes ``lambda_r`` (clutter) and ``lambda_s`` (birth).
@@ -330,6 +337,113 @@ def sweep(
         updates=swept,
         scores=score_arrays if scores else {},
         log_likelihood=np.asarray(log_likelihood),
+        rows=rows,
+    )
+
+
+def sweep_frames(
+    seq: MotSequence,
+    video: VideoReader,
+    config: TrackerConfig,
+    updates: Mapping[str, ArrayLike] | None = None,
+    *,
+    params: Any = None,
+    seed: int = 0,
+    chunk_size: int = 16,
+    chunk_frames: int = STREAM_CHUNK_FRAMES,
+    eval_config: EvalConfig | None = None,
+    progress: bool = False,
+) -> SweepResult:
+    """Runs and scores a tracker that looks at the images (CMT, hierarchical, fusion) for a
+    batch of configurations, its video decoded once.
+
+    Configuration ``b`` gives what ``jaxtrack track`` gives with it:
+    :func:`~jaxtrack.pipelines.stream.track_streamed` ``(seq, video, config, seed,
+    params_b, chunk_frames)`` (the same key ``PRNGKey(seed)`` for every configuration, i.e.
+    common random numbers; the same chunks and detection capacities; the same result rows,
+    identities merged for a tracker that re-associates them), up to float32 rounding of
+    the batched program (:func:`~jaxtrack.filters.base.run_batch`). The frames are streamed
+    in chunks of ``chunk_frames`` (decoded ahead in a background thread); each chunk runs
+    ``chunk_size`` configurations per compiled, vmapped call, so a sweep holds all the
+    configurations' states but only a few chunks of images, and compiles once. One device
+    (the default one); rows are scored against ``seq.gt_table`` when the sequence has one.
+
+    Args:
+        seq: the loaded sequence (or span); its ``seqinfo.ini`` size is the frames' size.
+        video: its open frames (:func:`~jaxtrack.io.video.open_sequence_frames`), left open.
+        config: the tracker's configuration (its registry entry must use frames).
+        updates: ``{parameter name: values[batch, ...]}`` over the base parameters
+            (:func:`batch_params`); None: ``params`` is already batched.
+        params: the base parameters (default: those ``jaxtrack track`` builds for the
+            sequence, :func:`~jaxtrack.pipelines.frame_context.streamed_params`: zones
+            learned on the fly, the background image, the fusion context), or, without
+            ``updates``, a batched PyTree (e.g. for trackers without named parameters).
+        seed: PRNG seed of every configuration.
+        chunk_size: configurations per compiled call.
+        chunk_frames: frames per compiled call.
+        eval_config: evaluation settings.
+        progress: a progress bar over the frames.
+
+    Returns:
+        The :class:`SweepResult` (``log_likelihood`` NaN: these trackers report none).
+
+    Raises:
+        InputError: a tracker that reads no frames, frames of another size than the
+            sequence's, bad updates or batch, a chunk size that is not positive.
+        ResourceError: ``chunk_size`` configurations at once would need more memory than
+            the machine has.
+    """
+    if not tracker_entry(config.tracker).uses_frames:
+        raise InputError(f"the {config.tracker} tracker reads no frames; use sweep")
+    if chunk_size <= 0 or chunk_frames <= 0:
+        raise InputError(
+            f"chunk_size and chunk_frames must be positive, got {chunk_size}, {chunk_frames}"
+        )
+    if (video.width, video.height) != (seq.info.im_width, seq.info.im_height):
+        raise InputError(
+            f"{video.path}: frames are {video.width}x{video.height} but {seq.info.name} is "
+            f"{seq.info.im_width}x{seq.info.im_height}"
+        )
+    filt, _ = build_tracker(config, seq.info)
+    base = streamed_params(config, seq, video, seed)[0] if params is None else params
+    if updates is None:
+        batched, swept = jax.tree.map(np.asarray, base), {}
+    else:
+        batched = batch_params(base, updates)
+        swept = {name: np.asarray(v) for name, v in updates.items()}
+    batch = _batch_size(batched)
+    check_tracking_memory([seq], config, chunk_frames, min(chunk_size, batch))
+    keys = jnp.broadcast_to(jax.random.PRNGKey(seed), (batch, 2))
+    frame_output = event_outputs if writes_events(config) else track_outputs
+    bar = tqdm(total=seq.num_frames, desc="sweep", unit="frame", disable=not progress)
+    with bar, FrameStream(video, seq.first_frame, seq.last_frame, chunk_frames) as frames:
+        outputs = run_batch(
+            filt,
+            keys,
+            batched,
+            seq.detections,
+            chunk_frames=chunk_frames,
+            group_size=chunk_size,
+            frame_output=frame_output,
+            frames=frames,
+            progress=bar.update,
+        )
+    span = (seq.first_frame, seq.last_frame)
+    gt = seq.gt_table.frame_span(*span) if seq.gt_table is not None else None
+    rows, scores = [], []
+    for b in range(batch):
+        output = jax.tree.map(lambda x, b=b: x[b], outputs)
+        if writes_events(config):
+            output = merge_identities(output)
+        rows.append(output_rows(output, config, seq.first_frame))
+        if gt is not None:
+            scores.append(evaluate_sequence(gt, rows[-1], span, eval_config).summary())
+    return SweepResult(
+        updates=swept,
+        scores={name: np.asarray([s[name] for s in scores]) for name in SUMMARY_KEYS}
+        if scores
+        else {},
+        log_likelihood=np.full(batch, np.nan),
         rows=rows,
     )
 

@@ -127,15 +127,19 @@ def warn_if_no_tracks(seq: MotSequence, rows: MotTable, config: TrackerConfig) -
 
 
 def check_tracking_memory(
-    sequences: Sequence[MotSequence], config: TrackerConfig, chunk_frames: int = 128
+    sequences: Sequence[MotSequence],
+    config: TrackerConfig,
+    chunk_frames: int = 128,
+    configurations: int = 1,
 ) -> None:
     """Refuses, before any work, a run whose estimated peak memory the machine lacks.
 
     For each sequence, the tracker's estimate (the registry's ``memory``, no compile) at the
     largest chunk capacity :func:`~jaxtrack.filters.base.plan_chunks` gives it, over its
-    frames, plus, for a tracker that uses frames, the images its stream holds
-    (:func:`~jaxtrack.io.frame_stream.stream_bytes` at the ``seqinfo.ini`` size), is compared
-    with :func:`~jaxtrack.resources.available_memory_bytes`.
+    frames, times ``configurations`` run at once (a sweep's group), plus, for a tracker that
+    uses frames, the images its stream holds (:func:`~jaxtrack.io.frame_stream.stream_bytes`
+    at the ``seqinfo.ini`` size, shared by the configurations), is compared with
+    :func:`~jaxtrack.resources.available_memory_bytes`.
 
     Raises:
         ResourceError: naming the sequence, the bytes needed and available, and the options
@@ -150,10 +154,12 @@ def check_tracking_memory(
             if entry.uses_frames
             else 0
         )
+        run_bytes = entry.memory(config, capacity, chunk_frames).run_bytes(seq.num_frames)
         check_memory(
-            entry.memory(config, capacity, chunk_frames).run_bytes(seq.num_frames) + images,
+            configurations * run_bytes + images,
             f"tracking {seq.info.name} ({seq.num_frames} frames, up to {capacity} detection "
-            f"slots) with the {config.tracker} tracker",
+            f"slots) with the {config.tracker} tracker"
+            + (f", {configurations} configurations at once" if configurations > 1 else ""),
             "--config num_particles or births_per_detection, or a shorter --frames span",
         )
 
