@@ -8,13 +8,14 @@ sweep.
   the offline output rows included. The first run compiles; ``frames_per_s`` is the best of
   ``--repeats`` runs after it, ``first_run_s`` the compiling run and ``compile_s`` their
   difference.
-* ``sweep_64_seconds``: 64 CMT configurations (a grid over the SDV motion-noise scale and
-  the appearance weight) over ``--sweep-frames`` frames of PETS09-S2L1 in one call of
-  ``jit(vmap(run))`` (:func:`jaxtrack.filters.base.run` unchunked on
-  :class:`~jaxtrack.types.FrameInputs`, the frames shared by every configuration, the
-  detections at the capacity ``jaxtrack track`` gives the sequence), after a call that
-  compiles (``sweep_compile_s``). :func:`jaxtrack.pipelines.sweep.sweep` is not used: it
-  takes detections only (no frames), so it cannot run a tracker that looks at the images.
+* ``sweep_64_seconds``: 64 CMT configurations (a grid of 8 SDV motion-noise scales x 8
+  appearance weights, :func:`sweep_grid`) over PETS09-S2L1 (``--sweep-frames``, default
+  all 795) with :func:`jaxtrack.pipelines.sweep.sweep_frames`: the video decoded once, all 64
+  configurations in one vmapped call per chunk of 32 frames (``--sweep-group``), every
+  configuration scored (MOTA, IDF1, ...); compile, decoding and scoring included. Each
+  configuration gives what ``jaxtrack track --tracker cmt`` gives with it (same key, zones,
+  chunks). ``sweep_loop_s_per_configuration`` is ``run_s`` (one configuration tracked alone,
+  decoding included) for comparison.
 
 Prints one JSON object on its last line. The goal is ``frames_per_s >= 25`` on 2 CPU cores
 (``taskset -c 0,1``); timings on a shared machine vary with its other load
@@ -27,27 +28,28 @@ import json
 import os
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from timing import timed, video_run_parser
 
-from jaxtrack.filters.base import fit_detections, run
 from jaxtrack.filters.cmt_tracker import CMTConfig
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io import load_sequence
-from jaxtrack.io.video import VideoReader, open_sequence_frames
+from jaxtrack.io.video import open_sequence_frames
 from jaxtrack.pipelines.stream import track_streamed
-from jaxtrack.pipelines.sweep import batch_params
-from jaxtrack.pipelines.tracking import track_outputs
+from jaxtrack.pipelines.sweep import sweep_frames
 from jaxtrack.pipelines.zones import tracker_zones
-from jaxtrack.types import FrameInputs
 
 SWEEP_SIZE = (8, 8)
 
 
 def main() -> None:
     parser = video_run_parser(__doc__.split("\n")[0])
-    parser.add_argument("--sweep-frames", type=int, default=32, help="frames of the sweep")
+    parser.add_argument(
+        "--sweep-frames", type=int, default=0, help="frames of the sweep (default 0: all)"
+    )
+    parser.add_argument(
+        "--sweep-group", type=int, default=64, help="configurations per vmapped call (default 64)"
+    )
     parser.add_argument("--no-sweep", action="store_true", help="skip the sweep")
     args = parser.parse_args()
 
@@ -81,7 +83,7 @@ def main() -> None:
         "goal_met": seq.num_frames / best >= 25,
     }
     if not args.no_sweep:
-        result.update(sweep_timing(args, config, params, seq))
+        result.update(sweep_timing(args, config, params, seq, best))
     result["cpu_count"] = os.cpu_count()
     result["cpu_affinity"] = len(os.sched_getaffinity(0))
     result["load_average"] = [round(x, 2) for x in os.getloadavg()]
@@ -89,43 +91,57 @@ def main() -> None:
     print(json.dumps(result))
 
 
-def sweep_timing(args, config: CMTConfig, params, seq) -> dict:
-    """64 configurations of CMT over the first ``--sweep-frames`` frames in one vmapped call."""
-    count = min(args.sweep_frames, seq.num_frames)
-    filt, _ = build_tracker(config, seq.info)
-    detections = jax.tree.map(lambda x: x[:count], fit_detections(seq.detections))
-    with VideoReader(args.video) as reader:
-        frames = np.stack([reader.read(k + 1) for k in range(count)])
-    inputs = FrameInputs(detections, frames)
-    scales = np.geomspace(0.5, 2.0, SWEEP_SIZE[0])
-    weights = np.linspace(0.0, 2.0, SWEEP_SIZE[1])
+def sweep_grid() -> tuple[np.ndarray, np.ndarray]:
+    """The 8 motion-noise scales (``2^(k/3)``, 0.5-2.5) and 8 appearance weights (0-1.75 in
+    steps of 0.25) of the sweep: both contain the defaults (scale 1, weight 1)."""
+    scales = 2.0 ** ((np.arange(SWEEP_SIZE[0]) - 3) / 3)
+    weights = np.arange(SWEEP_SIZE[1]) / 4
+    return scales, weights
+
+
+def sweep_timing(args, config: CMTConfig, params, seq, track_s: float) -> dict:
+    """64 configurations of CMT over the first ``--sweep-frames`` frames, scored."""
+    count = seq.num_frames if args.sweep_frames == 0 else min(args.sweep_frames, seq.num_frames)
+    span = load_sequence(args.sequence, (1, count))
+    scales, weights = sweep_grid()
     grid_scale, grid_weight = (g.ravel() for g in np.meshgrid(scales, weights, indexing="ij"))
-    batched = batch_params(
-        params,
-        {
-            "motion_noise_std": np.asarray(params.mixture.motion_noise_std)[None]
-            * grid_scale[:, None],
-            "appearance_weight": grid_weight,
-        },
-    )
-
-    @jax.jit
-    def sweep(batched_params, inputs):
-        def one(p):
-            return run(filt, jax.random.PRNGKey(0), p, inputs, frame_output=track_outputs)[1]
-
-        return jax.vmap(one)(batched_params)
-
-    compile_s, _ = timed(lambda: jax.block_until_ready(sweep(batched, inputs)))
-    run_s, outputs = timed(lambda: jax.block_until_ready(sweep(batched, inputs)))
-    tracked = np.asarray(jnp.sum(outputs.tracks.mask, axis=(1, 2)))
+    updates = {
+        "motion_noise_std": np.asarray(params.mixture.motion_noise_std)[None] * grid_scale[:, None],
+        "appearance_weight": grid_weight,
+    }
+    with open_sequence_frames(args.sequence, span.info, args.video) as reader:
+        run_s, result = timed(
+            lambda: sweep_frames(
+                span,
+                reader,
+                config,
+                updates,
+                params=params,
+                chunk_size=args.sweep_group,
+                progress=True,
+            )
+        )
+    idf1 = result.scores["IDF1"]
+    best = int(np.argmax(idf1))
     return {
         "sweep_configurations": int(grid_scale.size),
         "sweep_frames": count,
+        "sweep_group": args.sweep_group,
         "sweep_64_seconds": round(run_s, 2),
-        "sweep_compile_s": round(compile_s - run_s, 2),
         "sweep_frames_per_s_per_configuration": round(count * grid_scale.size / run_s, 2),
-        "sweep_boxes_min_max": [int(tracked.min()), int(tracked.max())],
+        "sweep_loop_s_per_configuration": round(track_s * count / seq.num_frames, 2),
+        "sweep_idf1_min_max_pct": [
+            round(100 * float(idf1.min()), 1),
+            round(100 * float(idf1.max()), 1),
+        ],
+        "sweep_best_idf1": {
+            "IDF1_pct": round(100 * float(idf1[best]), 1),
+            "motion_noise_scale": round(float(grid_scale[best]), 3),
+            "appearance_weight": round(float(grid_weight[best]), 3),
+        },
+        "sweep_default_idf1_pct": round(
+            100 * float(idf1[np.flatnonzero((grid_scale == 1) & (grid_weight == 1))[0]]), 1
+        ),
     }
 
 

@@ -99,6 +99,24 @@ def track_streamed_events(
     return streamed_rows(outputs, seq, config, events)[:2]
 
 
+def check_frame_tracker(
+    seq: MotSequence, video: VideoReader, config: TrackerConfig, instead: str
+) -> None:
+    """Refuses a tracker that reads no frames (naming the function to use ``instead``) and
+    frames of another size than the sequence's ``seqinfo.ini`` says.
+
+    Raises:
+        InputError: naming the tracker, or the video and both sizes.
+    """
+    if not tracker_entry(config.tracker).uses_frames:
+        raise InputError(f"the {config.tracker} tracker reads no frames; use {instead}")
+    if (video.width, video.height) != (seq.info.im_width, seq.info.im_height):
+        raise InputError(
+            f"{video.path}: frames are {video.width}x{video.height} but {seq.info.name} is "
+            f"{seq.info.im_width}x{seq.info.im_height}"
+        )
+
+
 class StreamedRows(NamedTuple):
     """What :func:`streamed_rows` makes of a run: the result rows, the event rows (or
     None) and the per-frame outputs with merged identities merged (for drawing)."""
@@ -152,13 +170,7 @@ def streamed_outputs(
     Raises:
         InputError, ResourceError, FileFormatError: as :func:`track_streamed`.
     """
-    if not tracker_entry(config.tracker).uses_frames:
-        raise InputError(f"the {config.tracker} tracker reads no frames; use track_sequences")
-    if (video.width, video.height) != (seq.info.im_width, seq.info.im_height):
-        raise InputError(
-            f"{video.path}: frames are {video.width}x{video.height} but {seq.info.name} is "
-            f"{seq.info.im_width}x{seq.info.im_height}"
-        )
+    check_frame_tracker(seq, video, config, "track_sequences")
     check_tracking_memory([seq], config, chunk_frames)
     filt, default_params = build_tracker(config, seq.info)
     with FrameStream(video, seq.first_frame, seq.last_frame, chunk_frames) as frames:

@@ -47,7 +47,7 @@ from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, fit_detections, run, run_batch
-from jaxtrack.filters.registry import build_tracker, properties_of, tracker_entry, writes_events
+from jaxtrack.filters.registry import build_tracker, properties_of, writes_events
 from jaxtrack.io import MotSequence, MotTable
 from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
@@ -55,7 +55,7 @@ from jaxtrack.metrics.evaluate import SUMMARY_KEYS, EvalConfig, evaluate_sequenc
 from jaxtrack.parameters import leaf_values, replace_leaves
 from jaxtrack.pipelines.events import event_outputs, merge_identities
 from jaxtrack.pipelines.frame_context import streamed_params
-from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES
+from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES, check_frame_tracker
 from jaxtrack.pipelines.tracking import check_tracking_memory, output_rows, track_outputs
 from jaxtrack.types import Detections
 
@@ -393,16 +393,10 @@ def sweep_frames(
         ResourceError: ``chunk_size`` configurations at once would need more memory than
             the machine has.
     """
-    if not tracker_entry(config.tracker).uses_frames:
-        raise InputError(f"the {config.tracker} tracker reads no frames; use sweep")
+    check_frame_tracker(seq, video, config, "sweep")
     if chunk_size <= 0 or chunk_frames <= 0:
         raise InputError(
             f"chunk_size and chunk_frames must be positive, got {chunk_size}, {chunk_frames}"
-        )
-    if (video.width, video.height) != (seq.info.im_width, seq.info.im_height):
-        raise InputError(
-            f"{video.path}: frames are {video.width}x{video.height} but {seq.info.name} is "
-            f"{seq.info.im_width}x{seq.info.im_height}"
         )
     filt, _ = build_tracker(config, seq.info)
     base = streamed_params(config, seq, video, seed)[0] if params is None else params
