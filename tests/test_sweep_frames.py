@@ -13,6 +13,7 @@ from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import run, run_batch
 from jaxtrack.filters.cmt_tracker import CMTConfig
+from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
 from jaxtrack.filters.kalman_tracker import KalmanConfig
 from jaxtrack.filters.phd_tracker import PHDConfig
@@ -137,18 +138,35 @@ def test_cmt_sweep_gives_what_track_gives_with_each_configuration(walk):
     assert np.all(np.isnan(result.log_likelihood))
 
 
-def test_hierarchical_sweep_merges_identities_as_track_does(walk):
-    """A tracker without named parameters: a batched PyTree given directly."""
+def test_hierarchical_sweep_by_name_merges_identities_as_track_does(walk):
+    """A named parameter of the hierarchical tracker: ``min_score`` 0 is ``jaxtrack
+    track``'s run (identities merged as it merges them), 2 ignores every detection."""
     folder, seq = walk
     config = HierarchicalConfig()
     with VideoReader(folder) as reader:
+        result = sweep_frames(
+            seq, reader, config, {"min_score": np.array([0.0, 2.0], np.float32)}, chunk_frames=16
+        )
+        rows = track_streamed(seq, reader, config, 0, chunk_frames=16)
+    assert len(rows.frames) > 20
+    assert_same_rows(result.rows[0], rows)
+    assert len(result.rows[1].frames) == 0
+
+
+def test_fusion_sweep_takes_a_batched_pytree(walk):
+    """Without ``updates``, ``params`` is the batch: the fusion tracker's default gate (as
+    ``jaxtrack track`` learns and builds it) and a gate no IoU passes (nothing voted in)."""
+    folder, seq = walk
+    config = FusionConfig(max_targets=8)
+    with VideoReader(folder) as reader:
         params, _ = streamed_params(config, seq, reader)
-        batched = jax.tree.map(lambda x: np.stack([np.asarray(x)] * 2), params)
+        batched = batch_params(params, {"gate": np.array([params.gate, 1.5], np.float32)})
         result = sweep_frames(seq, reader, config, params=batched, chunk_frames=16)
         rows = track_streamed(seq, reader, config, 0, params, chunk_frames=16)
-    for got in result.rows:
-        assert_same_rows(got, rows)
-    assert len(rows.frames) > 0
+    assert len(rows.frames) > 20
+    assert_same_rows(result.rows[0], rows)
+    assert len(result.rows[1].frames) == 0
+    assert result.updates == {}
 
 
 def test_sweep_frames_refuses_what_it_cannot_run(walk):

@@ -33,7 +33,7 @@ from jaxtrack.filters.base import Filter
 from jaxtrack.filters.fusion import FUSIONS, MEMBERS, SIGNATURE_PATCH, FusionParams, fusion_filter
 from jaxtrack.filters.fusion_classifier import CLASSIFIER_PATCH_SHAPE, classifier_params
 from jaxtrack.filters.fusion_voting import SHARE, Thresholds
-from jaxtrack.parameters import frozen_properties
+from jaxtrack.parameters import ParameterProperties, frozen_properties
 from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
 from jaxtrack.types import SequenceInfo
 
@@ -230,5 +230,26 @@ def fusion_memory_estimate(
 
 
 def fusion_properties(params: Any) -> Any:
-    """The parameter-properties tree: every parameter frozen (thresholds and learned models)."""
-    return frozen_properties(params)
+    """The parameter-properties tree: every parameter frozen (thresholds and learned
+    models); named, for sweeps (:func:`~jaxtrack.pipelines.sweep.sweep_frames`): ``gate``
+    (detection assignment), ``psr_min`` (classifier response), ``occlusion_q``,
+    ``signature_rate``, ``reid_radius``, ``reid_gate``, ``th_init`` and ``th_term`` (``[3]``:
+    active, inactive and zone regions; a sweep overrides the calibrated values) and the
+    classifier's ``learning_rate`` (the configuration key)."""
+    props = frozen_properties(params)
+    names = (
+        "gate",
+        "psr_min",
+        "occlusion_q",
+        "signature_rate",
+        "reid_radius",
+        "reid_gate",
+        "th_init",
+        "th_term",
+    )
+    return props._replace(
+        **{name: ParameterProperties(trainable=False, name=name) for name in names},
+        classifier=props.classifier._replace(
+            learning_rate=ParameterProperties(trainable=False, name="learning_rate")
+        ),
+    )

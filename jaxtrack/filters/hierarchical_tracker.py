@@ -39,7 +39,7 @@ from jaxtrack.filters.hierarchical import HierarchicalParams, hierarchical_filte
 from jaxtrack.filters.kalman import KALMAN_PRESETS, kalman_filter
 from jaxtrack.filters.kalman_tracker import MAX_TRACKS as KALMAN_TRACKS
 from jaxtrack.filters.kalman_tracker import kalman_memory_estimate
-from jaxtrack.parameters import frozen_properties
+from jaxtrack.parameters import ParameterProperties, frozen_properties
 from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
 from jaxtrack.types import Detections, SequenceInfo
 
@@ -282,5 +282,31 @@ def hierarchical_memory_estimate(
 
 def hierarchical_properties(params: Any) -> Any:
     """The parameter-properties tree: every parameter frozen (the tracker is not tuned by
-    gradient: its decisions are thresholds)."""
-    return frozen_properties(params)
+    gradient: its decisions are thresholds); named, for sweeps
+    (:func:`~jaxtrack.pipelines.sweep.sweep_frames`): the low level's ``process_std``,
+    ``measurement_std``, ``gate`` (MSD gate), ``confirm_ratio``, ``confirm_msd`` and
+    ``remove_ratio``; the high level's ``gate_sigmas`` (appearance gate, Sec. 5.4),
+    ``max_lost`` and ``search_rate``; and ``min_score`` (the configuration key)."""
+    props = frozen_properties(params)
+
+    def named(name: str) -> ParameterProperties:
+        return ParameterProperties(trainable=False, name=name)
+
+    low = {
+        name: named(name)
+        for name in (
+            "process_std",
+            "measurement_std",
+            "gate",
+            "confirm_ratio",
+            "confirm_msd",
+            "remove_ratio",
+        )
+    }
+    return props._replace(
+        low=props.low._replace(**low),
+        appearance=props.appearance._replace(gate_sigmas=named("gate_sigmas")),
+        max_lost=named("max_lost"),
+        search_rate=named("search_rate"),
+        min_score=named("min_score"),
+    )
