@@ -18,7 +18,12 @@ from typing import Any, NamedTuple
 import numpy as np
 from jaxtyping import Array
 
-from jaxtrack.filters.hier_events import EVENT_NAMES, label_exits
+from jaxtrack.filters.hier_events import (
+    EVENT_NAMES,
+    MIN_GROUP_SECONDS,
+    drop_short_groups,
+    label_exits,
+)
 from jaxtrack.metrics.events import EventRows
 from jaxtrack.types import MotTable, Tracks
 
@@ -109,16 +114,22 @@ def merge_identities(outputs: Any) -> Any:
     )
 
 
-def event_rows(outputs: EventOutputs, rows: MotTable, first_frame: int) -> EventRows:
+def event_rows(
+    outputs: EventOutputs, rows: MotTable, first_frame: int, frame_rate: float | None = None
+) -> EventRows:
     """The event state of every result row.
 
     Args:
         outputs: the run's :class:`EventOutputs`, stacked over frames.
         rows: the written results (:func:`~jaxtrack.pipelines.tracking.output_rows`).
         first_frame: MOT frame number of the run's first frame.
+        frame_rate: frames per second of the sequence (None: 25), for the shortest group
+            episode reported (:data:`~jaxtrack.filters.hier_events.MIN_GROUP_SECONDS`).
 
     Returns:
-        One row per result row, sorted by frame then identity; exits labelled.
+        One row per result row, sorted by frame then identity; group episodes shorter than
+        half a second dropped (:func:`~jaxtrack.filters.hier_events.drop_short_groups`);
+        exits labelled.
     """
     events = np.asarray(outputs.events)
     ids = np.asarray(outputs.event_ids)
@@ -133,7 +144,9 @@ def event_rows(outputs: EventOutputs, rows: MotTable, first_frame: int) -> Event
         np.int64,
     )
     last_frame = first_frame + num_frames - 1
-    codes = label_exits(frames, identities, _filled(identities, codes), last_frame)
+    min_frames = max(1, round(MIN_GROUP_SECONDS * (frame_rate or 25.0)))
+    codes = drop_short_groups(frames, identities, _filled(identities, codes), min_frames)
+    codes = label_exits(frames, identities, codes, last_frame)
     names = np.asarray(EVENT_NAMES, dtype=object)[codes] if codes.size else np.array([], object)
     return EventRows(frames.astype(np.int64), identities.astype(np.int64), names)
 

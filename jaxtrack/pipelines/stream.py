@@ -142,7 +142,8 @@ def streamed_rows(
     warn_if_no_tracks(seq, rows, config)
     if not (events and writes_events(config)):
         return StreamedRows(rows, None, outputs)
-    return StreamedRows(rows, event_rows(outputs, rows, seq.first_frame), outputs)
+    written = event_rows(outputs, rows, seq.first_frame, seq.info.frame_rate)
+    return StreamedRows(rows, written, outputs)
 
 
 def streamed_outputs(

@@ -19,6 +19,7 @@ from jaxtrack.filters.hier_events import (
     EventParams,
     collision_map,
     default_event_params,
+    drop_short_groups,
     event_step,
     is_group_birth,
     label_exits,
@@ -236,3 +237,45 @@ def test_label_exits():
     np.testing.assert_array_equal(out, expected)
     # with the sequence ending on frame 6, id 1 no longer leaves early: nothing changes.
     np.testing.assert_array_equal(label_exits(frames, ids, events, 6, 4), events)
+
+
+def drop_short_oracle(codes: list[int], k: int) -> list[int]:
+    """One identity, frame order: a slow loop over runs (fill short breaks, then drop short
+    group runs), written independently of the vectorised run finding."""
+    out = list(codes)
+    for inside in (False, True):
+        grouped = [c in (GROUPING, GROUPED) for c in out]
+        t = 0
+        while t < len(out):
+            u = t
+            while u < len(out) and grouped[u] == grouped[t]:
+                u += 1
+            between = t > 0 and u < len(out)
+            if grouped[t] == inside and u - t < k and (inside or between):
+                fill = out[t - 1] if t > 0 else SINGLE
+                for v in range(t, u):
+                    out[v] = fill
+            t = u
+    return out
+
+
+def test_drop_short_groups_against_a_loop():
+    # id 1: a 2-frame flicker while entering, a real group with a 1-frame break, a 2-frame
+    # flicker at its end; id 2 (rows out of order): a short group at its start.
+    g, d, s, p, e = GROUPING, GROUPED, SINGLE, SPLITTING, ENTERING
+    one = [e, e, e, g, g, s, s, s, s, g, d, d, p, d, d, d, s, s, s, s, g, g]
+    two = [g, g, s, s, s, s]
+    frames = np.r_[np.arange(1, 23), np.arange(6, 0, -1)]
+    ids = np.r_[np.ones(22, int), np.full(6, 2)]
+    events = np.r_[one, two[::-1]]
+    out = drop_short_groups(frames, ids, events, min_frames=3)
+    expected_one = [e, e, e, e, e, s, s, s, s, g, d, d, d, d, d, d, s, s, s, s, s, s]
+    assert out[:22].tolist() == expected_one == drop_short_oracle(one, 3)
+    assert out[22:][::-1].tolist() == [s, s, s, s, s, s] == drop_short_oracle(two, 3)
+    np.testing.assert_array_equal(drop_short_groups(frames, ids, events, 1), events)
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        codes = rng.choice([SINGLE, GROUPING, GROUPED, SPLITTING], size=30, p=[0.4, 0.2, 0.3, 0.1])
+        k = int(rng.integers(1, 6))
+        got = drop_short_groups(np.arange(30), np.zeros(30, int), codes, k)
+        assert got.tolist() == drop_short_oracle(codes.tolist(), k)

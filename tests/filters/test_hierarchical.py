@@ -140,10 +140,20 @@ def test_event_rows_follow_the_results_and_label_exits():
         np.zeros((7, 4)),
         np.ones(7),
     )
-    events = event_rows(outputs, rows, first_frame=11)
+    # at 1 frame/s half a second is under a frame: every group episode is kept
+    events = event_rows(outputs, rows, first_frame=11, frame_rate=1.0)
     keys = zip(events.frames.tolist(), events.ids.tolist(), strict=True)
     got = dict(zip(keys, events.names, strict=True))
     assert got[(11, 3)] == "single" and got[(13, 3)] == "grouping"
+    # at 25 frames/s (the default) identity 3's 2-frame group is shorter than half a
+    # second: dropped (drop_short_groups), the rest unchanged
+    default = event_rows(outputs, rows, first_frame=11)
+    keys = zip(default.frames.tolist(), default.ids.tolist(), strict=True)
+    dropped = dict(zip(keys, default.names, strict=True))
+    assert dropped[(13, 3)] == dropped[(14, 3)] == "single"
+    assert {k: v for k, v in dropped.items() if k[1] == 4} == {
+        k: v for k, v in got.items() if k[1] == 4
+    }
     # identity 4's row before its tracker existed takes its first state; its track ends on
     # frame 12 before the span's end (14): exiting
     assert got[(10, 4)] == "exiting" and got[(12, 4)] == "exiting"
