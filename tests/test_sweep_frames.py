@@ -20,7 +20,7 @@ from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.filters.registry import build_tracker
 from jaxtrack.io.video import VideoReader
 from jaxtrack.pipelines.frame_context import streamed_params
-from jaxtrack.pipelines.stream import track_streamed
+from jaxtrack.pipelines.stream import track_streamed, track_streamed_events
 from jaxtrack.pipelines.sweep import batch_params, sweep_frames
 from jaxtrack.pipelines.tracking import track_outputs
 from jaxtrack.types import Detections, MotTable, SequenceInfo
@@ -147,10 +147,14 @@ def test_hierarchical_sweep_by_name_merges_identities_as_track_does(walk):
         result = sweep_frames(
             seq, reader, config, {"min_score": np.array([0.0, 2.0], np.float32)}, chunk_frames=16
         )
-        rows = track_streamed(seq, reader, config, 0, chunk_frames=16)
+        rows, events = track_streamed_events(seq, reader, config, 0, chunk_frames=16)
     assert len(rows.frames) > 20
     assert_same_rows(result.rows[0], rows)
     assert len(result.rows[1].frames) == 0
+    # the event rows RES.events.csv would hold, per configuration
+    for got, want in zip(result.events[0], events, strict=True):
+        np.testing.assert_array_equal(got, want)
+    assert len(result.events[1].frames) == 0
 
 
 def test_fusion_sweep_takes_a_batched_pytree(walk):
@@ -167,6 +171,7 @@ def test_fusion_sweep_takes_a_batched_pytree(walk):
     assert_same_rows(result.rows[0], rows)
     assert len(result.rows[1].frames) == 0
     assert result.updates == {}
+    assert result.events is None
 
 
 def test_sweep_frames_refuses_what_it_cannot_run(walk):

@@ -286,7 +286,8 @@ def hierarchical_properties(params: Any) -> Any:
     (:func:`~jaxtrack.pipelines.sweep.sweep_frames`): the low level's ``process_std``,
     ``measurement_std``, ``gate`` (MSD gate), ``confirm_ratio``, ``confirm_msd`` and
     ``remove_ratio``; the high level's ``gate_sigmas`` (appearance gate, Sec. 5.4),
-    ``max_lost`` and ``search_rate``; and ``min_score`` (the configuration key)."""
+    ``max_lost`` and ``search_rate``; the event machine's ``min_overlap`` (collision); and
+    ``min_score`` (the configuration key)."""
     props = frozen_properties(params)
 
     def named(name: str) -> ParameterProperties:
@@ -306,6 +307,7 @@ def hierarchical_properties(params: Any) -> Any:
     return props._replace(
         low=props.low._replace(**low),
         appearance=props.appearance._replace(gate_sigmas=named("gate_sigmas")),
+        events=props.events._replace(min_overlap=named("min_overlap")),
         max_lost=named("max_lost"),
         search_rate=named("search_rate"),
         min_score=named("min_score"),

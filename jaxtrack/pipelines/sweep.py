@@ -52,8 +52,9 @@ from jaxtrack.io import MotSequence, MotTable
 from jaxtrack.io.frame_stream import FrameStream
 from jaxtrack.io.video import VideoReader
 from jaxtrack.metrics.evaluate import SUMMARY_KEYS, EvalConfig, evaluate_sequence
+from jaxtrack.metrics.events import EventRows
 from jaxtrack.parameters import leaf_values, replace_leaves
-from jaxtrack.pipelines.events import event_outputs, merge_identities
+from jaxtrack.pipelines.events import event_outputs, event_rows, merge_identities
 from jaxtrack.pipelines.frame_context import streamed_params
 from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES, check_frame_tracker
 from jaxtrack.pipelines.tracking import check_tracking_memory, output_rows, track_outputs
@@ -75,12 +76,16 @@ class SweepResult(NamedTuple):
         log_likelihood: the PHD measurement log-likelihood summed over frames, ``[batch]``
             (NaN for filters that do not report one).
         rows: the scored output rows of each configuration.
+        events: for a tracker that writes events (:func:`sweep_frames` of the hierarchical
+            tracker), each configuration's event rows, as ``RES.events.csv`` holds them;
+            None otherwise.
     """
 
     updates: dict[str, np.ndarray]
     scores: dict[str, np.ndarray]
     log_likelihood: np.ndarray
     rows: list[MotTable]
+    events: list[EventRows] | None = None
 
 
 def product_grid(axes: Mapping[str, ArrayLike]) -> dict[str, np.ndarray]:
@@ -385,7 +390,8 @@ def sweep_frames(
         progress: a progress bar over the frames.
 
     Returns:
-        The :class:`SweepResult` (``log_likelihood`` NaN: these trackers report none).
+        The :class:`SweepResult` (``log_likelihood`` NaN: these trackers report none;
+        ``events``: the hierarchical tracker's event rows per configuration).
 
     Raises:
         InputError: a tracker that reads no frames, frames of another size than the
@@ -424,12 +430,14 @@ def sweep_frames(
         )
     span = (seq.first_frame, seq.last_frame)
     gt = seq.gt_table.frame_span(*span) if seq.gt_table is not None else None
-    rows, scores = [], []
+    rows, scores, events = [], [], []
     for b in range(batch):
         output = jax.tree.map(lambda x, b=b: x[b], outputs)
         if writes_events(config):
             output = merge_identities(output)
         rows.append(output_rows(output, config, seq.first_frame))
+        if writes_events(config):
+            events.append(event_rows(output, rows[-1], seq.first_frame, seq.info.frame_rate))
         if gt is not None:
             scores.append(evaluate_sequence(gt, rows[-1], span, eval_config).summary())
     return SweepResult(
@@ -439,6 +447,7 @@ def sweep_frames(
         else {},
         log_likelihood=np.full(batch, np.nan),
         rows=rows,
+        events=events if writes_events(config) else None,
     )
 
 
