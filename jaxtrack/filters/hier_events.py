@@ -196,9 +196,7 @@ def label_exits(
     out = np.array(events, copy=True)
     frames, ids = np.asarray(frames), np.asarray(ids)
     alone = np.isin(out, (SINGLE, ENTERING))
-    for identity in np.unique(ids):
-        rows = np.flatnonzero(ids == identity)
-        rows = rows[np.argsort(frames[rows], kind="stable")]
+    for rows in _identity_rows(frames, ids):
         end = frames[rows[-1]]
         if end >= last_frame:
             continue
@@ -233,9 +231,7 @@ def drop_short_groups(
     if min_frames <= 1:
         return out
     frames, ids = np.asarray(frames), np.asarray(ids)
-    for identity in np.unique(ids):
-        rows = np.flatnonzero(ids == identity)
-        rows = rows[np.argsort(frames[rows], kind="stable")]
+    for rows in _identity_rows(frames, ids):
         for inside in (False, True):  # first fill short breaks, then drop short groups
             grouped = np.isin(out[rows], (GROUPING, GROUPED))
             edges = np.flatnonzero(np.diff(grouped.astype(np.int8))) + 1
@@ -247,3 +243,10 @@ def drop_short_groups(
                     continue  # a break must lie between two group runs
                 out[rows[start:stop]] = out[rows[start - 1]] if start > 0 else SINGLE
     return out
+
+
+def _identity_rows(frames: np.ndarray, ids: np.ndarray):
+    """Each identity's row indices, in frame order (identities in increasing order)."""
+    for identity in np.unique(ids):
+        rows = np.flatnonzero(ids == identity)
+        yield rows[np.argsort(frames[rows], kind="stable")]

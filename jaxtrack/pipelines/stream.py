@@ -94,9 +94,14 @@ def track_streamed_events(
     Raises:
         InputError, ResourceError, FileFormatError: as :func:`track_streamed`.
     """
-    frame_output = event_outputs if writes_events(config) else track_outputs
-    outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames, frame_output)
+    outputs = streamed_outputs(seq, video, config, seed, params, chunk_frames, rows_output(config))
     return streamed_rows(outputs, seq, config, events)[:2]
+
+
+def rows_output(config: TrackerConfig) -> FrameOutput:
+    """The per-frame output :func:`streamed_rows` needs of the configuration's tracker: the
+    event outputs for a tracker that ``writes_events``, else the tracks and candidates."""
+    return event_outputs if writes_events(config) else track_outputs
 
 
 def check_frame_tracker(
@@ -127,19 +132,20 @@ class StreamedRows(NamedTuple):
 
 
 def streamed_rows(
-    outputs: Any, seq: MotSequence, config: TrackerConfig, events: bool = True
+    outputs: Any, seq: MotSequence, config: TrackerConfig, events: bool = True, warn: bool = True
 ) -> StreamedRows:
     """The result rows of a streamed run's per-frame outputs and, for a tracker that
     ``writes_events`` (with ``events``), the event state of every row.
 
     For such a tracker the identities its re-associations merged are merged first
-    (:func:`~jaxtrack.pipelines.events.merge_identities`); a sequence with detections but
-    no rows warns (:func:`~jaxtrack.pipelines.tracking.warn_if_no_tracks`).
+    (:func:`~jaxtrack.pipelines.events.merge_identities`); with ``warn``, a sequence with
+    detections but no rows warns (:func:`~jaxtrack.pipelines.tracking.warn_if_no_tracks`).
     """
     if writes_events(config):
         outputs = merge_identities(jax.device_get(outputs))
     rows = output_rows(outputs, config, seq.first_frame)
-    warn_if_no_tracks(seq, rows, config)
+    if warn:
+        warn_if_no_tracks(seq, rows, config)
     if not (events and writes_events(config)):
         return StreamedRows(rows, None, outputs)
     written = event_rows(outputs, rows, seq.first_frame, seq.info.frame_rate)

@@ -54,10 +54,14 @@ from jaxtrack.io.video import VideoReader
 from jaxtrack.metrics.evaluate import SUMMARY_KEYS, EvalConfig, evaluate_sequence
 from jaxtrack.metrics.events import EventRows
 from jaxtrack.parameters import leaf_values, replace_leaves
-from jaxtrack.pipelines.events import event_outputs, event_rows, merge_identities
 from jaxtrack.pipelines.frame_context import streamed_params
-from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES, check_frame_tracker
-from jaxtrack.pipelines.tracking import check_tracking_memory, output_rows, track_outputs
+from jaxtrack.pipelines.stream import (
+    STREAM_CHUNK_FRAMES,
+    check_frame_tracker,
+    rows_output,
+    streamed_rows,
+)
+from jaxtrack.pipelines.tracking import check_tracking_memory
 from jaxtrack.types import Detections
 
 #: Parameter names of the magnitudes ``lambda_r`` (clutter) and ``lambda_s`` (birth).
@@ -337,10 +341,9 @@ def sweep(
             log_likelihood.append(chunk_log_likelihood[b])
             if gt is not None:
                 scores.append(evaluate_sequence(gt, config_rows, span, eval_config).summary())
-    score_arrays = {name: np.asarray([s[name] for s in scores]) for name in SUMMARY_KEYS}
     return SweepResult(
         updates=swept,
-        scores=score_arrays if scores else {},
+        scores=_score_arrays(scores),
         log_likelihood=np.asarray(log_likelihood),
         rows=rows,
     )
@@ -414,7 +417,6 @@ def sweep_frames(
     batch = _batch_size(batched)
     check_tracking_memory([seq], config, chunk_frames, min(chunk_size, batch))
     keys = jnp.broadcast_to(jax.random.PRNGKey(seed), (batch, 2))
-    frame_output = event_outputs if writes_events(config) else track_outputs
     bar = tqdm(total=seq.num_frames, desc="sweep", unit="frame", disable=not progress)
     with bar, FrameStream(video, seq.first_frame, seq.last_frame, chunk_frames) as frames:
         outputs = run_batch(
@@ -424,7 +426,7 @@ def sweep_frames(
             seq.detections,
             chunk_frames=chunk_frames,
             group_size=chunk_size,
-            frame_output=frame_output,
+            frame_output=rows_output(config),
             frames=frames,
             progress=bar.update,
         )
@@ -432,19 +434,15 @@ def sweep_frames(
     gt = seq.gt_table.frame_span(*span) if seq.gt_table is not None else None
     rows, scores, events = [], [], []
     for b in range(batch):
-        output = jax.tree.map(lambda x, b=b: x[b], outputs)
-        if writes_events(config):
-            output = merge_identities(output)
-        rows.append(output_rows(output, config, seq.first_frame))
-        if writes_events(config):
-            events.append(event_rows(output, rows[-1], seq.first_frame, seq.info.frame_rate))
+        # a configuration with no rows is a sweep's answer, not a mistake: no warning
+        made = streamed_rows(jax.tree.map(lambda x, b=b: x[b], outputs), seq, config, warn=False)
+        rows.append(made.rows)
+        events.append(made.events)
         if gt is not None:
-            scores.append(evaluate_sequence(gt, rows[-1], span, eval_config).summary())
+            scores.append(evaluate_sequence(gt, made.rows, span, eval_config).summary())
     return SweepResult(
         updates=swept,
-        scores={name: np.asarray([s[name] for s in scores]) for name in SUMMARY_KEYS}
-        if scores
-        else {},
+        scores=_score_arrays(scores),
         log_likelihood=np.full(batch, np.nan),
         rows=rows,
         events=events if writes_events(config) else None,
@@ -483,6 +481,13 @@ def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
             check_vma=False,
         )
     )
+
+
+def _score_arrays(scores: list[dict[str, float]]) -> dict[str, np.ndarray]:
+    """Per-configuration summaries as ``{name: [batch]}`` (empty without scores)."""
+    if not scores:
+        return {}
+    return {name: np.asarray([s[name] for s in scores]) for name in SUMMARY_KEYS}
 
 
 def _put(value: np.ndarray, sharding: NamedSharding) -> jax.Array:
