@@ -24,8 +24,26 @@ exiting the scene, driven by a **collision map** of the current estimates.
 
   A group tracker goes through the same machine (it collides with the trackers of its
   members, so it is ``GROUPING`` while they are alive).
+* **Lost trackers** (a departure; in :func:`~jaxtrack.filters.hierarchical.hierarchical_step`):
+  a tracker whose low-level track is lost is propagated by its motion model for up to
+  ``max_lost`` frames, and that extrapolated box drifts. In the collision map the event
+  machine reads, the other trackers do not collide with a lost one (a group *birth* still
+  counts it: a blob that swallowed two trackers is a group). Development scenes (synthetic
+  video seeds 0-2), event precision / recall over the four kinds: detections 0.65 / 0.81 ->
+  0.66 / 0.82, blobs 0.24 / 0.54 -> 0.27 / 0.70.
 * **Exiting** is known only once a track has ended: :func:`label_exits` relabels the end of
   each track that stops before the sequence's end, host-side, after tracking.
+* **Zones** (a departure, host-side like the exits): a track that ends away from every
+  entry/exit zone was lost, not gone; one that starts away from every zone was found
+  again, not born. The zones are learned from the run's own output rows
+  (:func:`rows_at_zones`: :func:`~jaxtrack.context.zones.learn_zones` on the tracks' start
+  and end foot points, the clusters inside the hull of the others dropped, as the fusion
+  tracker's zones); only a track ending in a zone is labelled exiting, and a track starting
+  outside every zone loses its online ``ENTERING`` rows (:func:`unlabel_entries`). Without
+  zones (too few track ends) every end is an exit, as before. Development scenes, with the
+  lost-tracker change: detections 0.66 / 0.82 -> 0.75 / 0.81 (exit precision 0.69 -> 0.91),
+  blobs 0.27 / 0.70 -> 0.30 / 0.70 (0.26 -> 0.34); a foot point within 3 % of the image
+  diagonal of a zone instead of inside it: 0.74 / 0.82 and 0.29 / 0.70.
 * **Short episodes** (a departure from the paper, host-side like the exits,
   :func:`drop_short_groups`): the collision map of jittering estimates flickers, and every
   flicker is a group and a split the paper's machine reports. In the written events, a run
@@ -52,6 +70,9 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
+
+from jaxtrack.context.activity import foot_points
+from jaxtrack.context.zones import learn_zones, trajectory_endpoints
 
 #: Event codes (values of the per-tracker state); ``EVENT_NAMES[code]`` is the code's name.
 SINGLE, GROUPING, GROUPED, SPLITTING, ENTERING, EXITING = range(6)
@@ -175,13 +196,15 @@ def label_exits(
     events: np.ndarray,
     last_frame: int,
     exiting_frames: int = DEFAULT_EXITING_FRAMES,
+    at_zone: np.ndarray | None = None,
 ) -> np.ndarray:
     """Marks the end of each track that leaves before the sequence's end as ``EXITING``.
 
     Host-side, after tracking. For each identity whose last row is on frame ``L <
-    last_frame`` and is ``SINGLE`` or ``ENTERING`` there, the trailing run of its ``SINGLE`` /
-    ``ENTERING`` rows with frames in ``L - exiting_frames < f <= L`` becomes ``EXITING``. A
-    track that ends in a group (grouping, grouped, splitting) is not exiting.
+    last_frame`` and is ``SINGLE`` or ``ENTERING`` there (and, with ``at_zone``, lies in an
+    entry/exit zone), the trailing run of its ``SINGLE`` / ``ENTERING`` rows with frames in
+    ``L - exiting_frames < f <= L`` becomes ``EXITING``. A track that ends in a group
+    (grouping, grouped, splitting) is not exiting, nor one lost away from every zone.
 
     Args:
         frames: ``[N]`` 1-based frame of each output row.
@@ -189,6 +212,8 @@ def label_exits(
         events: ``[N]`` state code of each row.
         last_frame: the sequence's last frame.
         exiting_frames: length of the exit window, frames (>= 1).
+        at_zone: ``[N]`` whether each row's foot point lies in an entry/exit zone
+            (:func:`rows_at_zones`); None: every row does.
 
     Returns:
         A relabelled copy of ``events``.
@@ -198,13 +223,74 @@ def label_exits(
     alone = np.isin(out, (SINGLE, ENTERING))
     for rows in _identity_rows(frames, ids):
         end = frames[rows[-1]]
-        if end >= last_frame:
+        if end >= last_frame or (at_zone is not None and not at_zone[rows[-1]]):
             continue
         for row in rows[::-1]:
             if not alone[row] or frames[row] <= end - exiting_frames:
                 break
             out[row] = EXITING
     return out
+
+
+def unlabel_entries(
+    frames: np.ndarray, ids: np.ndarray, events: np.ndarray, at_zone: np.ndarray
+) -> np.ndarray:
+    """Turns the ``ENTERING`` rows of each track that starts away from every entry/exit
+    zone into ``SINGLE`` (host-side, after tracking; module docstring, "Zones").
+
+    Args:
+        frames: ``[N]`` 1-based frame of each row (one row per identity and frame).
+        ids: ``[N]`` identity of each row.
+        events: ``[N]`` state codes.
+        at_zone: ``[N]`` whether each row's foot point lies in an entry/exit zone
+            (:func:`rows_at_zones`).
+
+    Returns:
+        A relabelled copy of ``events``.
+    """
+    out = np.array(events, copy=True)
+    for rows in _identity_rows(np.asarray(frames), np.asarray(ids)):
+        if not at_zone[rows[0]]:
+            out[rows[out[rows] == ENTERING]] = SINGLE
+    return out
+
+
+def rows_at_zones(
+    frames: np.ndarray,
+    ids: np.ndarray,
+    boxes: np.ndarray,
+    span: tuple[int, int],
+    image_size: tuple[float, float],
+) -> np.ndarray | None:
+    """Whether each output row's foot point lies in an entry/exit zone learned from the
+    output itself (module docstring, "Zones").
+
+    The zones are :func:`~jaxtrack.context.zones.learn_zones`'s (default parameters) on the
+    rows' own trajectories over ``span``: clusters of at least three track starts and ends,
+    those inside the hull of the others dropped (a person cannot come or go in the middle of
+    the scene).
+
+    Args:
+        frames: ``[N]`` 1-based frame of each row.
+        ids: ``[N]`` identity of each row.
+        boxes: ``[N, 4]`` ``(x, y, w, h)``.
+        span: ``(first, last)`` frames of the run.
+        image_size: ``(width, height)`` in pixels.
+
+    Returns:
+        ``[N]`` booleans, or None when no zone was found (too few track ends to cluster):
+        then every place counts as a zone.
+    """
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    if not trajectory_endpoints(frames, ids, boxes, span).points.shape[0]:
+        return None
+    learned = learn_zones(frames, ids, boxes, span, *image_size)
+    zones = np.asarray(learned.scene.boxes, np.float64).reshape(-1, 4)
+    if not zones.shape[0]:
+        return None
+    feet = foot_points(boxes)[:, None, :]
+    inside = (feet >= zones[None, :, :2]) & (feet <= zones[None, :, :2] + zones[None, :, 2:])
+    return np.any(np.all(inside, axis=-1), axis=-1)
 
 
 def drop_short_groups(

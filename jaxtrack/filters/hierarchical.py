@@ -25,7 +25,9 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
    its mean histograms; otherwise its appearance is frozen.
 6. **Events** (Sec. 5.5, :mod:`~jaxtrack.filters.hier_events`): each tracker's state
    (single, grouping, grouped, splitting, entering) from the collision map of the
-   estimates; exits are labelled offline (:func:`~jaxtrack.filters.hier_events.label_exits`).
+   estimates, in which a lost tracker's extrapolated box collides with no one (a group
+   birth still counts it); entries and exits are labelled offline at learned zones
+   (:func:`~jaxtrack.filters.hier_events.label_exits`).
 
 The output (:class:`HierarchicalInfo`) is that of the other trackers: ``tracks`` are the
 high-level trackers whose low-level track is confirmed and measured on the frame (posterior
@@ -444,8 +446,16 @@ def hierarchical_step(
         params.appearance,
         num_current=NUM_CURRENT,
     )
+    # A lost tracker's box is its motion model's extrapolation (up to `max_lost` frames):
+    # the others do not collide with it in the event machine (hier_events, "Lost trackers").
     events = event_step(
-        high.event, collisions, high.group, alive, high.age, high.reassociated, params.events
+        high.event,
+        collisions & following[None, :],
+        high.group,
+        alive,
+        high.age,
+        high.reassociated,
+        params.events,
     )
     high = high._replace(event=jnp.where(alive, events, 0))
     shown = following & measured[slot] & low.confirmed[slot]

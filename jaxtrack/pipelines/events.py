@@ -23,6 +23,8 @@ from jaxtrack.filters.hier_events import (
     MIN_GROUP_SECONDS,
     drop_short_groups,
     label_exits,
+    rows_at_zones,
+    unlabel_entries,
 )
 from jaxtrack.metrics.events import EventRows
 from jaxtrack.types import MotTable, Tracks
@@ -115,7 +117,11 @@ def merge_identities(outputs: Any) -> Any:
 
 
 def event_rows(
-    outputs: EventOutputs, rows: MotTable, first_frame: int, frame_rate: float | None = None
+    outputs: EventOutputs,
+    rows: MotTable,
+    first_frame: int,
+    frame_rate: float | None = None,
+    image_size: tuple[float, float] | None = None,
 ) -> EventRows:
     """The event state of every result row.
 
@@ -125,11 +131,16 @@ def event_rows(
         first_frame: MOT frame number of the run's first frame.
         frame_rate: frames per second of the sequence (None: 25), for the shortest group
             episode reported (:data:`~jaxtrack.filters.hier_events.MIN_GROUP_SECONDS`).
+        image_size: ``(width, height)`` of the frames, for the entry/exit zones learned from
+            the rows (:func:`~jaxtrack.filters.hier_events.rows_at_zones`); None: no zones
+            (every track end is an exit, every start an entry).
 
     Returns:
         One row per result row, sorted by frame then identity; group episodes shorter than
         half a second dropped (:func:`~jaxtrack.filters.hier_events.drop_short_groups`);
-        exits labelled.
+        with ``image_size``, entries of tracks that start away from every zone dropped
+        (:func:`~jaxtrack.filters.hier_events.unlabel_entries`); exits labelled (with
+        ``image_size``, of tracks that end in a zone).
     """
     events = np.asarray(outputs.events)
     ids = np.asarray(outputs.event_ids)
@@ -146,7 +157,13 @@ def event_rows(
     last_frame = first_frame + num_frames - 1
     min_frames = max(1, round(MIN_GROUP_SECONDS * (frame_rate or 25.0)))
     codes = drop_short_groups(frames, identities, _filled(identities, codes), min_frames)
-    codes = label_exits(frames, identities, codes, last_frame)
+    at_zone = None
+    if image_size is not None:
+        boxes = rows.boxes[order]
+        at_zone = rows_at_zones(frames, identities, boxes, (first_frame, last_frame), image_size)
+    if at_zone is not None:
+        codes = unlabel_entries(frames, identities, codes, at_zone)
+    codes = label_exits(frames, identities, codes, last_frame, at_zone=at_zone)
     names = np.asarray(EVENT_NAMES, dtype=object)[codes] if codes.size else np.array([], object)
     return EventRows(frames.astype(np.int64), identities.astype(np.int64), names)
 

@@ -148,7 +148,8 @@ def streamed_rows(
         warn_if_no_tracks(seq, rows, config)
     if not (events and writes_events(config)):
         return StreamedRows(rows, None, outputs)
-    written = event_rows(outputs, rows, seq.first_frame, seq.info.frame_rate)
+    size = (seq.info.im_width, seq.info.im_height)
+    written = event_rows(outputs, rows, seq.first_frame, seq.info.frame_rate, size)
     return StreamedRows(rows, written, outputs)
 
 

@@ -1,5 +1,6 @@
 """Event management of the Hierarchical tracker: collision map, group births, the state
-machine (every transition on hand-made scenes) and the offline exit labelling."""
+machine (every transition on hand-made scenes) and the offline exit labelling (with zones
+learned from drawn walks whose entries and exits are known)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,8 @@ from jaxtrack.filters.hier_events import (
     event_step,
     is_group_birth,
     label_exits,
+    rows_at_zones,
+    unlabel_entries,
 )
 
 
@@ -237,6 +240,62 @@ def test_label_exits():
     np.testing.assert_array_equal(out, expected)
     # with the sequence ending on frame 6, id 1 no longer leaves early: nothing changes.
     np.testing.assert_array_equal(label_exits(frames, ids, events, 6, 4), events)
+
+
+def walks():
+    """Rows of six people crossing a 640 x 480 image from the left edge to the right one
+    (frames 20k+10 .. 20k+73) and of two fragments: id 7 starts at x = 320 (frame 50) and
+    walks out on the right, id 8 walks in from the left and ends at x = 320 (frame 70)."""
+    frames, ids, boxes = [], [], []
+    for k in range(6):
+        for step in range(64):
+            frames.append(20 * k + 10 + step)
+            ids.append(k + 1)
+            boxes.append((10.0 * step - 10, 260.0 + 5 * k, 20.0, 50.0))
+    for step in range(33):
+        frames.append(50 + step)
+        ids.append(7)
+        boxes.append((310.0 + 10 * step, 272.0, 20.0, 50.0))
+    for step in range(33):
+        frames.append(38 + step)
+        ids.append(8)
+        boxes.append((10.0 * step - 10, 268.0, 20.0, 50.0))
+    return np.array(frames), np.array(ids), np.array(boxes)
+
+
+def test_zones_learned_from_the_rows_mark_the_edges_not_the_middle():
+    frames, ids, boxes = walks()
+    at_zone = rows_at_zones(frames, ids, boxes, (1, 200), (640, 480))
+    first = {i: np.flatnonzero(ids == i)[0] for i in range(1, 9)}
+    last = {i: np.flatnonzero(ids == i)[-1] for i in range(1, 9)}
+    assert all(at_zone[first[i]] and at_zone[last[i]] for i in range(1, 7))
+    assert not at_zone[first[7]] and at_zone[last[7]]  # starts in the middle
+    assert at_zone[first[8]] and not at_zone[last[8]]  # ends in the middle
+    # mid-walk rows are in no zone
+    assert not at_zone[(ids == 1) & (frames == 40)].any()
+    # no track starts or ends inside the run (one track spanning it): no zones, None
+    whole = ids == 1
+    assert rows_at_zones(frames[whole], ids[whole], boxes[whole], (10, 73), (640, 480)) is None
+
+
+def test_zones_gate_entries_and_exits():
+    frames, ids, boxes = walks()
+    at_zone = rows_at_zones(frames, ids, boxes, (1, 200), (640, 480))
+    order = np.lexsort((ids, frames))
+    frames, ids, at_zone = frames[order], ids[order], at_zone[order]
+    events = np.full(len(ids), SINGLE)
+    for i in range(1, 9):  # every track enters for its first 5 frames, as online
+        events[np.flatnonzero(ids == i)[:5]] = ENTERING
+    entries = unlabel_entries(frames, ids, events, at_zone)
+    assert (entries[ids == 7] == SINGLE).all()  # born in the middle: not entering
+    for i in (1, 2, 3, 4, 5, 6, 8):
+        np.testing.assert_array_equal(entries[ids == i], events[ids == i])
+    exits = label_exits(frames, ids, entries, last_frame=200, exiting_frames=4, at_zone=at_zone)
+    for i in (1, 2, 3, 4, 5, 6, 7):
+        assert (exits[ids == i][-4:] == EXITING).all() and (exits[ids == i][:-4] != EXITING).all()
+    assert not (exits[ids == 8] == EXITING).any()  # lost in the middle: not exiting
+    # without zones, every track end is an exit
+    assert (label_exits(frames, ids, entries, 200, 4)[ids == 8][-4:] == EXITING).all()
 
 
 def drop_short_oracle(codes: list[int], k: int) -> list[int]:

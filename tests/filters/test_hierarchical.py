@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from jaxtrack.filters.base import run
-from jaxtrack.filters.hier_events import ENTERING, EXITING, GROUPING, SINGLE
+from jaxtrack.filters.hier_events import ENTERING, EXITING, GROUPED, GROUPING, SINGLE
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig, build_hierarchical
 from jaxtrack.pipelines.events import (
     EventOutputs,
@@ -32,14 +32,14 @@ HIDDEN = range(18, 40)
 BACKGROUND = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
 
 
-def occlusion_scene(reappearing_colours=None, num_slots=4):
+def occlusion_scene(reappearing_colours=None, num_slots=4, lower_y=72.0):
     """Target 0 walks right and is not detected in :data:`HIDDEN` frames (and not drawn);
-    target 1 walks left below it. From the first frame after the gap target 0 wears
-    ``reappearing_colours`` (default: its own)."""
+    target 1 walks left below it (top edge at ``lower_y``). From the first frame after the
+    gap target 0 wears ``reappearing_colours`` (default: its own)."""
     frames, kept = [], []
     for t in range(NUM_FRAMES):
         image = BACKGROUND.copy()
-        truth = [(10.0 + 1.5 * t, 20.0, 16.0, 36.0), (130.0 - 1.5 * t, 72.0, 16.0, 36.0)]
+        truth = [(10.0 + 1.5 * t, 20.0, 16.0, 36.0), (130.0 - 1.5 * t, lower_y, 16.0, 36.0)]
         shown = [t not in HIDDEN, True]
         colours = list(COLOURS)
         if reappearing_colours is not None and t > HIDDEN[-1]:
@@ -103,6 +103,24 @@ def test_lost_tracker_is_dropped_after_max_lost_frames():
     lost_frames = np.asarray(info.high_lost).sum(axis=0)
     assert lost_frames.max() == 5  # lost for 5 frames, then dropped
     assert (np.asarray(info.merged) >= 0).sum() == 0
+
+
+def test_a_lost_trackers_extrapolated_box_makes_no_group():
+    # target 1 walks at the height of target 0's path: while target 0 is hidden, its lost
+    # tracker's extrapolated box overlaps target 1's from about frame 35 on.
+    inputs = occlusion_scene(lower_y=40.0)
+    info, _ = tracked("full", inputs)
+    boxes, lost = np.asarray(info.high_boxes), np.asarray(info.high_lost)
+    shown, events = np.asarray(info.tracks.mask), np.asarray(info.events)
+    overlapping = 0
+    for t in HIDDEN:
+        low, high = boxes[t, :, :2], boxes[t, :, :2] + boxes[t, :, 2:]
+        sides = np.minimum(high[:, None], high[None]) - np.maximum(low[:, None], low[None])
+        touching = np.all(sides > 0, axis=-1) & lost[t][None, :] & shown[t][:, None]
+        overlapping += int(touching.any())
+        # the shown tracker is single, not grouping with a box no detection supports
+        assert not np.isin(events[t][shown[t]], (GROUPING, GROUPED)).any(), t
+    assert overlapping >= 3  # the case arises
 
 
 def _outputs(ids, merged, events=None):
