@@ -13,7 +13,9 @@ span) and learns, as the paper's Sec. 2.3 and 3 describe:
 * the **local motion models** (:func:`~jaxtrack.context.motion_models.fit_motion_models` on
   their tracklets);
 * the **voting thresholds** per region, calibrated on the detections the tracker runs on
-  against the ground truth (:func:`~jaxtrack.filters.fusion_voting.region_thresholds`);
+  against the ground truth (:func:`~jaxtrack.filters.fusion_voting.region_thresholds`; a
+  detection gap is a stretch of a target without a detection at IoU >= the tracker's
+  support gate, :data:`~jaxtrack.filters.fusion_tracker.GATE`);
   without ground truth, or when the span has no false-positive run or no detection gap, the
   paper's thresholds for PETS 2009.
 
@@ -33,6 +35,7 @@ from jaxtrack.context.zones import SceneZones, learn_zones
 from jaxtrack.detect.sequence import video_sequence
 from jaxtrack.errors import InputError
 from jaxtrack.filters.fusion_tracker import (
+    GATE,
     PAPER_TH_INIT,
     PAPER_TH_TERM,
     FusionConfig,
@@ -137,7 +140,7 @@ def _thresholds(detections, gt, scene, share, notes: list[str]) -> Thresholds:
         return paper
     try:
         runs = false_positive_runs(detections, gt)
-        gaps = detection_gaps(detections, gt)
+        gaps = detection_gaps(detections, gt, match_iou=GATE)
         found = region_thresholds(runs, gaps, scene, share)
     except InputError as err:
         notes.append(f"the paper's thresholds ({err})")

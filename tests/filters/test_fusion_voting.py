@@ -104,6 +104,31 @@ def test_detection_gaps_of_the_true_target_only():
     np.testing.assert_array_equal(gaps.points, [[125.0, 200.0], [125.0, 200.0]])
 
 
+def test_detection_gaps_at_the_support_gate():
+    # a target whose box in frames 4-6 is shifted by 20 px: IoU 30 / 70 = 0.43, below 0.5
+    # (a gap of 3 at 0.5) but inside the tracker's gate of 0.3 (no gap there)
+    gt = _table([[f, 1, *PERSON, 1] for f in range(1, 11)])
+    det = _table([[f, -1, PERSON[0] + 20 * (f in (4, 5, 6)), *PERSON[1:], 1] for f in range(1, 11)])
+    assert detection_gaps(det, gt).lengths.tolist() == [3]
+    assert detection_gaps(det, gt, match_iou=0.3).lengths.tolist() == []
+
+
+def test_the_fusion_context_calibrates_gaps_at_the_trackers_gate():
+    from jaxtrack.pipelines.fusion_context import _thresholds
+
+    # shifted (IoU 0.43) in frames 4-6, missed in frames 8-9; one lone false positive
+    shifted = (4, 5, 6)
+    gt = _table([[f, 1, *PERSON, 1] for f in range(1, 13)])
+    rows = [[f, -1, PERSON[0] + 20 * (f in shifted), *PERSON[1:], 1] for f in range(1, 13)]
+    det = _table([row for row in rows if row[0] not in (8, 9)] + [[2, -1, 500, 50, 30, 60, 1]])
+    scene = SceneZones(np.zeros((0, 4), np.float32), np.ones((8, 8), bool), 100.0)
+    assert calibrate_term(detection_gaps(det, gt).lengths) == 4  # gaps 3 and 2 at IoU 0.5
+    notes = []
+    found = _thresholds(det, gt, scene, 0.99, notes)
+    assert found.term.tolist() == [3, 3, 3]  # the gap of 2 alone: the shifted boxes support
+    assert "1 detection gaps" in notes[0]
+
+
 def test_calibrate_init_exact_on_known_runs():
     det, gt = _scene_pair()
     lengths = false_positive_runs(det, gt).lengths  # 1, 1, 2, 3, 3, 7
