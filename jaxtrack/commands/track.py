@@ -153,6 +153,7 @@ from jaxtrack.io import (
 from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import VideoReader, find_frame_source, open_sequence_frames
 from jaxtrack.limits import FRAME_NUMBER
+from jaxtrack.metrics.events import onset_summary
 from jaxtrack.pipelines.frame_context import load_tracked_sequence, streamed_params
 from jaxtrack.pipelines.stream import track_streamed_events
 from jaxtrack.pipelines.tracking import (
@@ -283,7 +284,8 @@ def track_sequence(
         variant = "UM"
     _write(out_path, rows, config, seed, seq, context_path, variant, used)
     if events is not None:
-        print(f"  events: {write_events(events_path(out_path), events)}", file=sys.stderr)
+        written = write_events(events_path(out_path), events)
+        print(f"  events: {written} ({onset_summary(events)})", file=sys.stderr)
     return len(rows.frames), seq.num_frames
 
 

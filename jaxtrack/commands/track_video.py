@@ -53,6 +53,7 @@ from jaxtrack.io.events import events_path, write_events
 from jaxtrack.io.video import FrameWriter, VideoReader, annotate_frame
 from jaxtrack.limits import FRAME_RATE
 from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.metrics.events import onset_summary
 from jaxtrack.pipelines.events import event_outputs
 from jaxtrack.pipelines.frame_context import streamed_params
 from jaxtrack.pipelines.stream import streamed_outputs, streamed_rows
@@ -278,7 +279,8 @@ def run(args: argparse.Namespace) -> int:
         elapsed = time.perf_counter() - start
         write_results(args.out, rows.frames, rows.ids, rows.boxes, rows.confs)
         if events is not None:
-            print(f"  events: {write_events(events_path(args.out), events)}")
+            written = write_events(events_path(args.out), events)
+            print(f"  events: {written} ({onset_summary(events)})")
         if tracker_entry(config.tracker).takes_context:
             used["variant"] = variant or "UM"
         if args.context:

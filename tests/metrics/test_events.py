@@ -16,6 +16,7 @@ from jaxtrack.metrics.events import (
     EventRows,
     gt_collisions,
     matched_identities,
+    onset_summary,
     predicted_onsets,
     score_events,
     scripted_onsets,
@@ -47,6 +48,7 @@ def test_predicted_onsets_by_hand():
     np.testing.assert_array_equal(onsets["split"], [[15, 7], [18, 7]])
     np.testing.assert_array_equal(onsets["entry"], [[10, 7]])
     np.testing.assert_array_equal(onsets["exit"], [[20, 7]])
+    assert onset_summary(rows) == "onsets: 3 group, 2 split, 1 entry, 1 exit"
 
 
 def collisions_loop(gt: MotTable) -> np.ndarray:
