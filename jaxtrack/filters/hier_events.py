@@ -75,7 +75,8 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.context.activity import foot_points
-from jaxtrack.context.zones import learn_zones, trajectory_endpoints
+from jaxtrack.context.zones import learn_zones, zone_distance
+from jaxtrack.errors import InputError
 
 #: Event codes (values of the per-tracker state); ``EVENT_NAMES[code]`` is the code's name.
 SINGLE, GROUPING, GROUPED, SPLITTING, ENTERING, EXITING = range(6)
@@ -285,15 +286,14 @@ def rows_at_zones(
         then every place counts as a zone.
     """
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
-    if not trajectory_endpoints(frames, ids, boxes, span).points.shape[0]:
+    try:
+        zones = learn_zones(frames, ids, boxes, span, *image_size).scene.boxes
+    except InputError:  # no track starts or ends inside the span
         return None
-    learned = learn_zones(frames, ids, boxes, span, *image_size)
-    zones = np.asarray(learned.scene.boxes, np.float64).reshape(-1, 4)
-    if not zones.shape[0]:
+    if not len(zones):
         return None
-    feet = foot_points(boxes)[:, None, :]
-    inside = (feet >= zones[None, :, :2]) & (feet <= zones[None, :, :2] + zones[None, :, 2:])
-    return np.any(np.all(inside, axis=-1), axis=-1)
+    # in a zone as the fusion tracker's regions read it (fusion_voting.point_regions)
+    return np.asarray(zone_distance(zones, foot_points(boxes))) == 0.0
 
 
 def drop_short_groups(
