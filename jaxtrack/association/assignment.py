@@ -2,10 +2,31 @@
 
 from __future__ import annotations
 
+import functools
+import itertools
+
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from jaxtyping import Array, Bool, Float, Int
+
+#: Largest ambiguous part solved by enumeration: ``SMALL_SIDE`` slots of one side matched
+#: (or not) into ``LARGE_SIDE`` slots of the other, every partial injection listed.
+SMALL_SIDE = 4
+LARGE_SIDE = 8
+
+
+def _partial_injections(small: int, large: int) -> np.ndarray:
+    """Every partial injection of ``small`` slots into ``large`` ones (-1: unmatched)."""
+    rows = []
+    for size in range(small + 1):
+        for chosen in itertools.combinations(range(small), size):
+            for target in itertools.permutations(range(large), size):
+                row = np.full(small, -1)
+                row[list(chosen)] = target
+                rows.append(row)
+    return np.asarray(rows, np.int32)
 
 
 def gated_assignment(
@@ -13,15 +34,27 @@ def gated_assignment(
 ) -> Int[Array, " num_rows"]:
     """Minimum-cost one-to-one matching restricted to the allowed pairs.
 
-    Runs the Hungarian algorithm (``optax.assignment.hungarian_algorithm``) on the cost with
-    forbidden pairs priced above any sum of allowed costs, then drops the forbidden pairs it
-    had to use. Among matchings of maximum size over allowed pairs, the result has minimum
-    cost.
+    Among matchings of maximum size over the allowed pairs, the result has minimum cost.
 
-    When the allowed pairs already form a matching (no row and no column with two allowed
-    pairs: separated targets, the usual frame), that matching is the only one of maximum
-    size and is returned without the Hungarian algorithm's iterations (``lax.cond``; under
-    ``vmap`` both branches run).
+    A frame's gate is sparse, so the problem is solved in parts:
+
+    1. an *isolated pair* (the row's only allowed column, whose only allowed row it is) is in
+       every maximum matching and is taken as it is; rows without an allowed pair stay
+       unmatched;
+    2. the rest (the ambiguous rows and the columns they may take) is compacted; when one
+       side has at most :data:`SMALL_SIDE` members and the other at most :data:`LARGE_SIDE`
+       (over 99 % of the frames of MOT15 sequences), every partial injection of the small
+       side into the large one (3,393 for 4 into 8) is scored at once by two matrix
+       products: the largest number of allowed pairs, then the lowest cost (ties: the first
+       listed);
+    3. otherwise the whole problem goes to the Hungarian algorithm
+       (``optax.assignment.hungarian_algorithm``, forbidden pairs priced above any sum of
+       allowed costs). It runs only when needed: under ``vmap`` (sweeps), when some member
+       of the batch needs it (a one-trip ``while_loop``, where ``lax.cond`` would run both
+       branches for every member).
+
+    The Hungarian algorithm's iterations are a loop of small kernels per augmenting step;
+    in a 28-configuration sweep of PETS09-S2L1 they took about a fifth of the PHD step.
 
     Args:
         cost: pair costs, finite where allowed.
@@ -30,14 +63,93 @@ def gated_assignment(
     Returns:
         For each row, the matched column, or -1.
     """
-    unambiguous = jnp.all(jnp.sum(allowed, axis=0) <= 1) & jnp.all(jnp.sum(allowed, axis=1) <= 1)
-    return jax.lax.cond(unambiguous, _allowed_pairs, _hungarian, cost, allowed)
+    num_rows, num_cols = cost.shape
+    if num_rows == 0 or num_cols == 0:
+        return jnp.full(num_rows, -1, jnp.int32)
+    row_degree = jnp.sum(allowed, axis=1)
+    col_degree = jnp.sum(allowed, axis=0)
+    isolated = allowed & (row_degree[:, None] == 1) & (col_degree[None, :] == 1)
+    paired = jnp.any(isolated, axis=1)
+    matches = jnp.where(paired, jnp.argmax(isolated, axis=1), -1).astype(jnp.int32)
+
+    open_rows = (row_degree > 0) & ~paired
+    open_cols = jnp.any(allowed & open_rows[:, None], axis=0)
+    num_open_rows, num_open_cols = jnp.sum(open_rows), jnp.sum(open_cols)
+    rows_small = (num_open_rows <= SMALL_SIDE) & (num_open_cols <= LARGE_SIDE)
+    cols_small = (num_open_cols <= SMALL_SIDE) & (num_open_rows <= LARGE_SIDE)
+
+    # The open part as a SMALL_SIDE x LARGE_SIDE problem: its rows first when they fit the
+    # small side, else its columns (the transposed problem).
+    def first(mask, size):
+        """Indices of the first ``size`` members of ``mask`` and which of them exist."""
+        index = jnp.nonzero(mask, size=size, fill_value=0)[0]
+        return index, jnp.arange(size) < jnp.sum(mask)
+
+    rows_s, rows_s_ok = first(open_rows, SMALL_SIDE)
+    rows_l, rows_l_ok = first(open_rows, LARGE_SIDE)
+    cols_s, cols_s_ok = first(open_cols, SMALL_SIDE)
+    cols_l, cols_l_ok = first(open_cols, LARGE_SIDE)
+    small_ok = jnp.where(rows_small, rows_s_ok, cols_s_ok)
+    large_ok = jnp.where(rows_small, cols_l_ok, rows_l_ok)
+    sub_allowed = jnp.where(
+        rows_small, allowed[rows_s][:, cols_l], allowed.T[cols_s][:, rows_l]
+    ) & (small_ok[:, None] & large_ok[None, :])
+    sub_cost = jnp.where(
+        sub_allowed, jnp.where(rows_small, cost[rows_s][:, cols_l], cost.T[cols_s][:, rows_l]), 0
+    )
+    candidates, one_hot, sizes = (jnp.asarray(t) for t in _candidate_table())
+    # Per candidate, by matrix products with its pair indicator: the forbidden pairs it uses
+    # and the cost of its pairs. Then the largest size, the lowest cost, the first index
+    # (plain reductions: XLA's argmin is a slow variadic reduction on CPU).
+    forbidden_used = one_hot @ (~sub_allowed).reshape(-1).astype(cost.dtype)
+    total = one_hot @ sub_cost.reshape(-1).astype(cost.dtype)
+    size = jnp.where(forbidden_used == 0, sizes, -1)
+    key = jnp.where(size == jnp.max(size), total, jnp.inf)
+    position = jnp.arange(candidates.shape[0])
+    best = jnp.min(jnp.where(key == jnp.min(key), position, candidates.shape[0]))
+    chosen = candidates[best]
+    linked = small_ok & (chosen >= 0)
+    target = jnp.maximum(chosen, 0)
+    to_row = jnp.where(rows_small, rows_s, rows_l[target])
+    to_col = jnp.where(rows_small, cols_l[target], cols_s)
+    enumerated = matches.at[jnp.where(linked, to_row, num_rows)].set(
+        to_col.astype(jnp.int32), mode="drop"
+    )
+    return _when(~(rows_small | cols_small), _hungarian, enumerated, cost, allowed)
 
 
-def _allowed_pairs(cost: Array, allowed: Array) -> Array:
-    """Each row's only allowed column (the allowed pairs form a matching), or -1."""
-    del cost
-    return jnp.where(jnp.any(allowed, axis=1), jnp.argmax(allowed, axis=1), -1).astype(jnp.int32)
+@functools.cache
+def _candidate_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Partial injections of :data:`SMALL_SIDE` into :data:`LARGE_SIDE` slots, their pair
+    indicators ``[candidates, SMALL_SIDE * LARGE_SIDE]`` and their sizes."""
+    candidates = _partial_injections(SMALL_SIDE, LARGE_SIDE)
+    one_hot = np.zeros((candidates.shape[0], SMALL_SIDE * LARGE_SIDE), np.float32)
+    for slot in range(SMALL_SIDE):
+        taken = candidates[:, slot] >= 0
+        one_hot[np.nonzero(taken)[0], slot * LARGE_SIDE + candidates[taken, slot]] = 1.0
+    return candidates, one_hot, (candidates >= 0).sum(axis=1).astype(np.int32)
+
+
+def _when(needed: Array, solve, fallback: Array, *args) -> Array:
+    """``solve(*args)`` where ``needed``, else ``fallback``; computed only if needed.
+
+    A ``while_loop`` of at most one trip: unbatched it is a conditional; under ``vmap`` the
+    batched loop runs its body once if any member needs it (and keeps the others'
+    ``fallback``), where a batched ``lax.cond`` would run ``solve`` for every member always.
+    """
+
+    def body(state):
+        running, _ = state
+        # The inputs are made to depend on the loop's state: XLA hoists loop-invariant work
+        # out of a while loop, which would run `solve` unconditionally again.
+        varying = jnp.where(running, 0, 1).astype(jnp.int32)
+        inputs = [
+            x + varying.astype(x.dtype) if x.dtype != bool else x ^ (varying > 0) for x in args
+        ]
+        return jnp.asarray(False), solve(*inputs)
+
+    _, result = jax.lax.while_loop(lambda state: state[0], body, (needed, fallback))
+    return result
 
 
 def _hungarian(cost: Array, allowed: Array) -> Array:
