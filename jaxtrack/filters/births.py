@@ -28,7 +28,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from jaxtrack.context.intensity import Intensity, log_intensity
-from jaxtrack.models.dynamics import MEASURED, MIN_SIZE, VELOCITY
+from jaxtrack.models.dynamics import MIN_SIZE, VELOCITY
 from jaxtrack.models.noise import NoiseModel, state_dependent_std
 
 #: Log-weight standing for "no mass" (finite, so that gradients and differences stay finite).
@@ -109,8 +109,9 @@ def draw_births(
         minval=velocity_lower,
         maxval=velocity_upper,
     )[:num_births]
-    states = jnp.zeros((measured.shape[0], 6), measurements.dtype)
-    states = states.at[:, MEASURED].set(measured).at[:, VELOCITY].set(velocity)
+    # (y1, vy1, y2, vy2, w, h) stacked as rows, then transposed (see phd_step's join).
+    y1, y2, width, height = (measured[:, i] for i in range(4))
+    states = jnp.stack([y1, velocity[:, 0], y2, velocity[:, 1], width, height], axis=0).T
     return BirthDraws(
         states=states,
         log_mixture=log_mixture_density(measured, measurements, std, mask),

@@ -660,7 +660,10 @@ def _frame_step(
         born, birth_log_weights = births(
             key_birth, measurements, detections.mask, params, state.started
         )
-        particles = jnp.concatenate([particles, born])
+        # Joined as [6, n] rows and transposed back: XLA cancels the transposes of the
+        # predicted and born states (both built as rows), where a join along the particle
+        # axis of [n, 6] arrays fuses their formulas into a slow per-element select.
+        particles = jnp.concatenate([particles.T, born.T], axis=1).T
         log_weights = jnp.concatenate([log_weights, birth_log_weights])
     updated = update(
         params, measurements, detections.scores, detections.mask, particles, log_weights
