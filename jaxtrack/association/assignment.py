@@ -66,13 +66,43 @@ def gated_assignment(
     num_rows, num_cols = cost.shape
     if num_rows == 0 or num_cols == 0:
         return jnp.full(num_rows, -1, jnp.int32)
+    return _solve(cost, allowed)
+
+
+@jax.custom_batching.custom_vmap
+def _solve(cost: Array, allowed: Array) -> Array:
+    """One problem: the usual frame has no open part, and its matching is the isolated pairs
+    (the open part is solved only when there is one)."""
+    matches, open_rows = _isolated_pairs(allowed)
+    return _when(jnp.any(open_rows), _open_part, matches, cost, allowed)
+
+
+@_solve.def_vmap
+def _solve_batch(axis_size: int, in_batched: list[bool], cost: Array, allowed: Array):
+    """A batch (a sweep's configurations): some member nearly always has an open part, so
+    it is solved for all without the conditional (which would cost more than it saves)."""
+    cost, allowed = (
+        x if batched else jnp.broadcast_to(x, (axis_size, *x.shape))
+        for x, batched in zip((cost, allowed), in_batched, strict=True)
+    )
+    return jax.vmap(_open_part)(cost, allowed), True
+
+
+def _isolated_pairs(allowed: Array) -> tuple[Array, Array]:
+    """Each row's isolated pair's column (or -1), and the open rows (allowed pairs, none
+    isolated)."""
     row_degree = jnp.sum(allowed, axis=1)
     col_degree = jnp.sum(allowed, axis=0)
     isolated = allowed & (row_degree[:, None] == 1) & (col_degree[None, :] == 1)
     paired = jnp.any(isolated, axis=1)
     matches = jnp.where(paired, jnp.argmax(isolated, axis=1), -1).astype(jnp.int32)
+    return matches, (row_degree > 0) & ~paired
 
-    open_rows = (row_degree > 0) & ~paired
+
+def _open_part(cost: Array, allowed: Array) -> Array:
+    """:func:`gated_assignment` when some rows are open (steps 2 and 3)."""
+    num_rows = cost.shape[0]
+    matches, open_rows = _isolated_pairs(allowed)
     open_cols = jnp.any(allowed & open_rows[:, None], axis=0)
     num_open_rows, num_open_cols = jnp.sum(open_rows), jnp.sum(open_cols)
     rows_small = (num_open_rows <= SMALL_SIDE) & (num_open_cols <= LARGE_SIDE)

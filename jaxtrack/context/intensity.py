@@ -87,7 +87,9 @@ def log_density(intensity: Intensity, x: Float[Array, "*batch dim"]) -> Float[Ar
     # Dead components are masked by `alive` (a per-component test), not by testing each
     # point x component value for finiteness: one pass fewer over the pairs.
     top = jnp.max(jnp.where(alive, log_components, -1e30), axis=-1, keepdims=True)
-    total = jnp.sum(jnp.where(alive, jnp.exp(log_components - top), 0.0), axis=-1)
+    # exp of -inf (not of a huge value masked afterwards) where a component is dead: the
+    # masked branch then has a zero derivative instead of 0 * inf.
+    total = jnp.sum(jnp.exp(jnp.where(alive, log_components - top, -jnp.inf)), axis=-1)
     has_gaussian = jnp.any(alive) & (intensity.uniform_weight < 1)
     gaussian_share = jnp.where(has_gaussian, 1 - intensity.uniform_weight, 1.0)
     safe_total = jnp.where(has_gaussian, total, 1.0)
