@@ -66,7 +66,9 @@ def gated_assignment(
     num_rows, num_cols = cost.shape
     if num_rows == 0 or num_cols == 0:
         return jnp.full(num_rows, -1, jnp.int32)
-    return _solve(cost, allowed)
+    # A matching has no derivative; stopping it lets reverse-mode differentiation of a
+    # tracker pass the while loops and the custom_vmap rule below (not differentiable).
+    return _solve(jax.lax.stop_gradient(cost), allowed)
 
 
 @jax.custom_batching.custom_vmap

@@ -77,12 +77,22 @@ def log_volume(intensity: Intensity) -> Float[Array, ""]:
     return jnp.sum(jnp.log(intensity.upper - intensity.lower))
 
 
+#: Mixtures with at least this many component slots are evaluated by
+#: :func:`log_normal_quadratic` (one matrix product of ``dim (dim + 3) / 2 + 1`` features
+#: per point); smaller ones (UM's single dead slot) by :func:`log_normal_components`, whose
+#: work and memory grow with the components, not with the features.
+QUADRATIC_MIN_COMPONENTS = 8
+
+
 def log_density(intensity: Intensity, x: Float[Array, "*batch dim"]) -> Float[Array, "*batch"]:
     """``log p(x)`` of the normalised density (PHD-context eq. 21), for a batch of points."""
     log_uniform = jnp.log(intensity.uniform_weight) - log_volume(intensity)
     alive = intensity.weights > 0
     safe_weights = jnp.where(alive, intensity.weights, 1.0)
-    log_gauss = log_normal_quadratic(x, intensity.means, intensity.covs, alive)
+    if intensity.means.shape[0] >= QUADRATIC_MIN_COMPONENTS:
+        log_gauss = log_normal_quadratic(x, intensity.means, intensity.covs, alive)
+    else:
+        log_gauss = log_normal_components(x, intensity.means, intensity.covs)
     log_components = jnp.log(safe_weights) + log_gauss
     # Dead components are masked by `alive` (a per-component test), not by testing each
     # point x component value for finiteness: one pass fewer over the pairs.
