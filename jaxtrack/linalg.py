@@ -42,11 +42,21 @@ def cholesky(a: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
 def solve_lower(lower: Float[Array, "... n n"], b: Float[Array, "... n"]) -> Float[Array, "... n"]:
     """``x`` with ``lower @ x = b`` (forward substitution); batch axes broadcast."""
     n = lower.shape[-1]
+    return jnp.stack(forward_substitution(lower, [b[..., i] for i in range(n)]), -1)
+
+
+def forward_substitution(lower: Float[Array, "... n n"], b: list[Array]) -> list[Array]:
+    """:func:`solve_lower` with ``b`` and ``x`` as lists of their ``n`` components.
+
+    Each component broadcasts against ``lower[..., i, k]`` (e.g. ``[points, components]``
+    arrays against ``[components, n, n]`` factors); the components are not stacked, so XLA
+    can fuse the whole substitution into one loop over the broadcast shape.
+    """
     x: list[Array] = []
-    for i in range(n):
+    for i, b_i in enumerate(b):
         partial = sum(lower[..., i, k] * x[k] for k in range(i))
-        x.append((b[..., i] - partial) / lower[..., i, i])
-    return jnp.stack(x, -1)
+        x.append((b_i - partial) / lower[..., i, i])
+    return x
 
 
 def solve_upper_transposed(

@@ -76,7 +76,7 @@ def _solve(cost: Array, allowed: Array) -> Array:
     """One problem: the usual frame has no open part, and its matching is the isolated pairs
     (the open part is solved only when there is one)."""
     matches, open_rows = _isolated_pairs(allowed)
-    return _when(jnp.any(open_rows), _open_part, matches, cost, allowed)
+    return _when(jnp.any(open_rows), _open_part, matches, cost, allowed, matches, open_rows)
 
 
 @_solve.def_vmap
@@ -87,7 +87,7 @@ def _solve_batch(axis_size: int, in_batched: list[bool], cost: Array, allowed: A
         x if batched else jnp.broadcast_to(x, (axis_size, *x.shape))
         for x, batched in zip((cost, allowed), in_batched, strict=True)
     )
-    return jax.vmap(_open_part)(cost, allowed), True
+    return jax.vmap(lambda c, a: _open_part(c, a, *_isolated_pairs(a)))(cost, allowed), True
 
 
 def _isolated_pairs(allowed: Array) -> tuple[Array, Array]:
@@ -101,10 +101,10 @@ def _isolated_pairs(allowed: Array) -> tuple[Array, Array]:
     return matches, (row_degree > 0) & ~paired
 
 
-def _open_part(cost: Array, allowed: Array) -> Array:
-    """:func:`gated_assignment` when some rows are open (steps 2 and 3)."""
+def _open_part(cost: Array, allowed: Array, matches: Array, open_rows: Array) -> Array:
+    """:func:`gated_assignment` when some rows are open (steps 2 and 3), from the isolated
+    pairs' ``matches`` and the ``open_rows`` (:func:`_isolated_pairs`)."""
     num_rows = cost.shape[0]
-    matches, open_rows = _isolated_pairs(allowed)
     open_cols = jnp.any(allowed & open_rows[:, None], axis=0)
     num_open_rows, num_open_cols = jnp.sum(open_rows), jnp.sum(open_cols)
     rows_small = (num_open_rows <= SMALL_SIDE) & (num_open_cols <= LARGE_SIDE)

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from jaxtrack.linalg import cholesky, solve_lower
+from jaxtrack.linalg import cholesky, forward_substitution, solve_lower
 
 
 class Intensity(NamedTuple):
@@ -142,11 +142,17 @@ def sample(key, intensity: Intensity, num_samples: int) -> Float[Array, "num_sam
 
 def log_normal(x, mean, cov):
     """``log N(x; mean, cov)`` for a point or a batch of points ``x[..., dim]``."""
-    dim = mean.shape[-1]
     chol = cholesky(cov)
-    solved = solve_lower(chol, x - mean)
-    log_det = 2 * jnp.sum(jnp.log(jnp.diagonal(chol)))
-    return -0.5 * (jnp.sum(solved**2, axis=-1) + log_det + dim * jnp.log(2 * jnp.pi))
+    return _log_gaussian(jnp.sum(solve_lower(chol, x - mean) ** 2, axis=-1), chol)
+
+
+def _log_gaussian(squares: Array, chol: Array) -> Array:
+    """``log N`` from the squared Mahalanobis distances and the covariance's Cholesky
+    factor(s) ``[..., dim, dim]`` (one log-determinant per factor, broadcast on the last
+    axis of ``squares``)."""
+    dim = chol.shape[-1]
+    log_det = 2 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
+    return -0.5 * (squares + log_det + dim * jnp.log(2 * jnp.pi))
 
 
 def log_normal_quadratic(
@@ -202,9 +208,7 @@ def log_normal_quadratic(
     )
     y = x - center
     features = jnp.concatenate([y[..., rows] * y[..., cols], y, jnp.ones_like(y[..., :1])], -1)
-    squares = jnp.maximum(features @ coefficients.T, 0.0)
-    log_det = 2 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
-    return -0.5 * (squares + log_det + dim * jnp.log(2 * jnp.pi))
+    return _log_gaussian(jnp.maximum(features @ coefficients.T, 0.0), chol)
 
 
 def log_normal_components(
@@ -222,25 +226,10 @@ def log_normal_components(
     magnitude sweep's learned birth density (64 components at 512 birth particles, 28
     configurations under ``vmap``) that array was the largest single cost of the step.
     """
-    dim = means.shape[-1]
     chol = cholesky(covs)
-    solved: list[Array] = []
-    for i in range(dim):
-        partial = sum(chol[:, i, k] * solved[k] for k in range(i))
-        solved.append((x[..., i, None] - means[:, i] - partial) / chol[:, i, i])
-    squares = sum(s**2 for s in solved)
-    log_det = 2 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=-2, axis2=-1)), axis=-1)
-    return -0.5 * (squares + log_det + dim * jnp.log(2 * jnp.pi))
-
-
-def _logsumexp_or_neg_inf(values):
-    """logsumexp over the last axis that returns -inf (with zero gradient) when all are -inf."""
-    finite = jnp.isfinite(values)
-    top = jnp.max(jnp.where(finite, values, -1e30), axis=-1, keepdims=True)
-    total = jnp.sum(jnp.where(finite, jnp.exp(values - top), 0.0), axis=-1)
-    any_finite = jnp.any(finite, axis=-1)
-    safe_total = jnp.where(any_finite, total, 1.0)
-    return jnp.where(any_finite, jnp.log(safe_total) + top[..., 0], -jnp.inf)
+    differences = [x[..., i, None] - means[:, i] for i in range(means.shape[-1])]
+    solved = forward_substitution(chol, differences)
+    return _log_gaussian(sum(s**2 for s in solved), chol)
 
 
 #: Frame rate assumed when a sequence does not give one.
