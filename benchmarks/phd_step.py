@@ -56,7 +56,13 @@ import numpy as np
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import log_intensity
 from jaxtrack.filters import PHDParams, default_phd_params, phd_filter, resample
-from jaxtrack.filters.phd import default_block_size, phd_births, phd_update, predict
+from jaxtrack.filters.phd import (
+    default_block_size,
+    join_particles,
+    phd_births,
+    phd_update,
+    predict,
+)
 from jaxtrack.types import Detections
 
 try:
@@ -154,7 +160,7 @@ def jax_recursion(num_particles: int, block_size: int | None = None) -> Callable
         born, birth_log_weights = births(
             key_birth, measurements, frame.mask, params, jnp.asarray(True)
         )
-        predicted = jnp.concatenate([survivors, born])
+        predicted = join_particles(survivors, born)
         updated = update(
             params,
             measurements,

@@ -66,7 +66,7 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_r
     params = phd_params(PHDConfig(), campus.info)
     updates = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
     key = jax.random.PRNGKey(3)
-    # chunk_size 4: two chunks, the second padded with a repeated configuration.
+    # chunk_size 4: the six configurations as two chunks of three.
     result = sweep(
         small_filter,
         params,
@@ -216,3 +216,22 @@ def test_sharded_sweep_on_four_devices_equals_unsharded(mot15_root):
     np.testing.assert_allclose(*report["hota"], atol=1e-9)
     np.testing.assert_allclose(*report["log_likelihood"], rtol=1e-5)
     assert len(set(report["mota"][0])) > 1
+
+
+def test_chunks_are_even_and_padding_is_least():
+    from jaxtrack.pipelines.sweep import _chunking
+
+    assert _chunking(162, 28, 1) == (6, 27)  # not five of 28 and a sixth padded by six
+    assert _chunking(6, 4, 1) == (2, 3)
+    assert _chunking(7, 4, 1) == (2, 4)  # the second chunk padded by one
+    assert _chunking(5, 16, 1) == (1, 5)
+    assert _chunking(6, 3, 4) == (2, 4)  # multiples of the devices
+    assert _chunking(162, 28, 4) == (6, 28)
+    for batch in range(1, 60):
+        for size in range(1, 20):
+            for devices in (1, 2, 4):
+                num_chunks, chunk = _chunking(batch, size, devices)
+                largest = -(-size // devices) * devices
+                assert chunk % devices == 0 and chunk <= largest
+                assert num_chunks == -(-batch // largest)
+                assert num_chunks * chunk >= batch > (num_chunks - 1) * chunk

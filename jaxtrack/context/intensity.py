@@ -26,7 +26,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from jaxtrack.linalg import cholesky, forward_substitution, solve_lower
+from jaxtrack.linalg import (
+    cholesky,
+    cholesky_loop,
+    forward_substitution,
+    solve_lower,
+    solve_lower_loop,
+)
 
 
 class Intensity(NamedTuple):
@@ -183,9 +189,11 @@ def log_normal_quadratic(
     substitution in each of its passes (XLA fuses elementwise producers into every consumer).
     """
     dim = means.shape[-1]
-    chol = cholesky(covs)
+    # The factors and coefficients depend on the parameters alone (computed once per run):
+    # as loops, they compile to a few kernels instead of about a hundred.
+    chol = cholesky_loop(covs)
     eye = jnp.eye(dim, dtype=covs.dtype)
-    inverse_t = solve_lower(chol[:, None], eye)  # [K, dim, dim]: row j is L^-1 e_j
+    inverse_t = solve_lower_loop(chol[:, None], eye)  # [K, dim, dim]: row j is L^-1 e_j
     precision = jnp.einsum("kie,kle->kil", inverse_t, inverse_t)  # L^-T L^-1
     counted = jnp.ones(means.shape[0], bool) if alive is None else alive
     count = jnp.sum(counted)
@@ -226,7 +234,7 @@ def log_normal_components(
     magnitude sweep's learned birth density (64 components at 512 birth particles, 28
     configurations under ``vmap``) that array was the largest single cost of the step.
     """
-    chol = cholesky(covs)
+    chol = cholesky_loop(covs)  # of the parameters alone: computed once per run
     differences = [x[..., i, None] - means[:, i] for i in range(means.shape[-1])]
     solved = forward_substitution(chol, differences)
     return _log_gaussian(sum(s**2 for s in solved), chol)

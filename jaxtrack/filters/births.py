@@ -28,6 +28,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from jaxtrack.context.intensity import Intensity, log_intensity
+from jaxtrack.filters import draws
 from jaxtrack.models.dynamics import MIN_SIZE, VELOCITY
 from jaxtrack.models.noise import NoiseModel, state_dependent_std
 
@@ -56,6 +57,20 @@ def velocity_bounds(intensity: Intensity) -> tuple[Float[Array, " 2"], Float[Arr
     return intensity.lower[jnp.array(VELOCITY)], intensity.upper[jnp.array(VELOCITY)]
 
 
+def birth_requests(
+    key: Array, draw_slots: int, births_per_detection: int, dtype=jnp.float32
+) -> list:
+    """The random numbers :func:`draw_births` draws from ``key``: ``key`` split in two, the
+    Gaussian draws ``normal(k1, (draw_slots, J, 4))`` and the velocities' unit draws
+    ``uniform(k2, (draw_slots J, 2))`` (scaled to the velocity range by :func:`draw_births`,
+    as ``jax.random.uniform(k2, ..., minval, maxval)`` scales them)."""
+    key_gauss, key_velocity = jax.random.split(key)
+    return [
+        draws.normal(key_gauss, (draw_slots, births_per_detection, 4), dtype),
+        draws.uniform(key_velocity, (draw_slots * births_per_detection, 2), dtype=dtype),
+    ]
+
+
 def draw_births(
     key: Array,
     measurements: Float[Array, "max_detections 4"],
@@ -66,6 +81,7 @@ def draw_births(
     measurement_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
     draw_slots: int | None = None,
+    random: tuple[Array, Array] | None = None,
 ) -> BirthDraws:
     """Draws birth particles from ``p(x | Z_k)`` (the module's importance density).
 
@@ -83,6 +99,8 @@ def draw_births(
             ``max_detections``) and keep the first ``max_detections`` slots' share: a step
             that works on a frame's first slots only draws what the full-capacity step
             draws for them. None: ``max_detections``.
+        random: the random numbers :func:`birth_requests` asks ``key`` for, already drawn
+            (:func:`jaxtrack.filters.draws.draw`); None: drawn here.
 
     Returns:
         The draws (sizes clipped below at :data:`~jaxtrack.models.dynamics.MIN_SIZE`, far in
@@ -96,19 +114,18 @@ def draw_births(
     if drawn < num_slots:
         raise ValueError(f"draw_slots ({drawn}) must be at least the {num_slots} slots")
     num_births = num_slots * births_per_detection
-    key_gauss, key_velocity = jax.random.split(key)
+    if random is None:
+        random = draws.draw(birth_requests(key, drawn, births_per_detection, measurements.dtype))
+    normal, unit = random
     std = noise_model(measurements[:, 2:], measurement_noise_std)
-    normal = jax.random.normal(key_gauss, (drawn, births_per_detection, 4), measurements.dtype)
     normal = normal[:num_slots]
     measured = (measurements[:, None, :] + std[:, None, :] * normal).reshape(-1, 4)
     measured = measured.at[:, 2:].set(jnp.maximum(measured[:, 2:], MIN_SIZE))
-    velocity = jax.random.uniform(
-        key_velocity,
-        (drawn * births_per_detection, 2),
-        measurements.dtype,
-        minval=velocity_lower,
-        maxval=velocity_upper,
-    )[:num_births]
+    # jax.random.uniform(key_velocity, shape, minval=lower, maxval=upper), the same
+    # arithmetic on the same unit draws.
+    velocity = jnp.maximum(
+        velocity_lower, unit[:num_births] * (velocity_upper - velocity_lower) + velocity_lower
+    )
     # (y1, vy1, y2, vy2, w, h) stacked as rows, then transposed (see phd_step's join).
     y1, y2, width, height = (measured[:, i] for i in range(4))
     states = jnp.stack([y1, velocity[:, 0], y2, velocity[:, 1], width, height], axis=0).T
@@ -208,6 +225,7 @@ def sample_births(
     measurement_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
     draw_slots: int | None = None,
+    random: tuple[Array, Array] | None = None,
 ) -> tuple[Float[Array, "num_births 6"], Float[Array, " num_births"]]:
     """Draws one frame's birth particles and weights them by ``gamma / (J p)``.
 
@@ -227,6 +245,7 @@ def sample_births(
         measurement_noise_std: measurement noise parameters (relative for SDV).
         noise_model: the likelihood's noise model.
         draw_slots: slots the random numbers are drawn for (:func:`draw_births`).
+        random: :func:`draw_births`'s random numbers, already drawn (None: drawn there).
 
     Returns:
         ``births_per_detection * max_detections`` states, detection-major, and their
@@ -246,6 +265,7 @@ def sample_births(
         measurement_noise_std,
         noise_model,
         draw_slots,
+        random,
     )
     log_weights = jnp.where(
         started,

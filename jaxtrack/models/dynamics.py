@@ -55,6 +55,7 @@ def sample_constant_velocity(
     states: Float[Array, "num_particles 6"],
     noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
+    normal: Float[Array, "num_particles 4"] | None = None,
 ) -> Float[Array, "num_particles 6"]:
     """Draws ``x_k ~ f(. | x_{k-1})`` for every particle (PHD-context eq. 9 proposal, T = 1).
 
@@ -64,12 +65,14 @@ def sample_constant_velocity(
         noise_std: ``(std_1, std_2, std_w, std_h)`` of ``n`` (relative for SDV), positive.
         noise_model: :func:`~jaxtrack.models.noise.state_dependent_std` (SDV, default) or
             :func:`~jaxtrack.models.noise.constant_std`.
+        normal: the standard normal draws, already drawn from ``key`` (None: drawn here).
 
     Returns:
         The predicted states; widths and heights are clipped below at
         :data:`MIN_SIZE` pixels.
     """
-    normal = jax.random.normal(key, (states.shape[0], 4), states.dtype)
+    if normal is None:
+        normal = jax.random.normal(key, (states.shape[0], 4), states.dtype)
     scaled = noise_model(states[:, SIZE], noise_std) * normal
     # G x + B n written out per component (T = 1): the same sums as the matrix products
     # with transition_matrix() and noise_gain(), without a matrix product or a scatter.

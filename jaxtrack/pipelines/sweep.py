@@ -270,8 +270,10 @@ def sweep(
         first_frame: 1-based frame number of time index 0.
         output: ``"offline"`` (default, as ``jaxtrack track``) or ``"online"``.
         max_gap: longest gap filled by the offline output.
-        chunk_size: configurations per compiled call (rounded up to a multiple of the number
-            of devices); the last chunk is padded by repeating its last configuration.
+        chunk_size: the most configurations per compiled call: the batch is shared evenly
+            among the fewest chunks of at most this size (rounded up to a multiple of the
+            number of devices; 162 configurations at 28: six chunks of 27), the last chunk
+            padded by repeating its last configuration.
         devices: devices to shard the batch over (default: all, ``jax.devices()``).
         eval_config: evaluation settings.
         progress: show a progress bar over the chunks.
@@ -301,8 +303,7 @@ def sweep(
 
     devices = list(jax.devices() if devices is None else devices)
     mesh = Mesh(np.asarray(devices), ("batch",))
-    chunk = -(-chunk_size // len(devices)) * len(devices)
-    num_chunks = -(-batch // chunk)
+    num_chunks, chunk = _chunking(batch, chunk_size, len(devices))
     order = np.minimum(np.arange(num_chunks * chunk), batch - 1)
     compiled = _sweep_function(filt, mesh, key_impl)
     replicated = NamedSharding(mesh, PartitionSpec())
@@ -481,6 +482,16 @@ def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
             check_vma=False,
         )
     )
+
+
+def _chunking(batch: int, chunk_size: int, num_devices: int) -> tuple[int, int]:
+    """``(number of chunks, configurations per chunk)``: the fewest chunks of at most
+    ``chunk_size`` (rounded up to a multiple of ``num_devices``), sized evenly so that the
+    padding of the last chunk (compute spent on repeated configurations) is the least."""
+    largest = -(-chunk_size // num_devices) * num_devices
+    num_chunks = -(-batch // largest)
+    chunk = -(-batch // num_chunks)
+    return num_chunks, -(-chunk // num_devices) * num_devices
 
 
 def _score_arrays(scores: list[dict[str, float]]) -> dict[str, np.ndarray]:

@@ -1,0 +1,126 @@
+"""Several ``jax.random`` draws of one step from one Threefry evaluation, bit for bit.
+
+A PHD step draws three arrays of random numbers (the survivors' motion noise, the births'
+measurement noise and their velocities), each with its own key. ``jax.random`` evaluates the
+Threefry-2x32 hash once per call, and on CPU each evaluation is a rolled loop of five
+iterations of about sixteen small kernels: at tracking sizes (2048 particles) the three
+loops were half of the kernels a frame runs, each costing a fixed launch overhead whatever
+its size. :func:`draw` evaluates the hash once for every request (the keys broadcast per
+element: the hash is elementwise in its key and counter words) and converts the bits as
+``jax.random.normal`` and ``jax.random.uniform`` do, so each array equals the separate
+call's bit for bit (tested) and tracking results do not change.
+
+That equality rests on ``jax.random``'s documented bit layout for Threefry keys under
+``jax_threefry_partitionable`` (the default since JAX 0.5: the bits of element ``i`` of a
+draw hash the 64-bit counter ``i`` with the key, and a 32-bit draw is the xor of the two
+output words). For any other key implementation or setting, :func:`draw` makes the separate
+``jax.random`` calls instead.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.extend.random import threefry2x32_p
+from jaxtyping import Array
+
+_FLOAT32_ONE_BITS = np.array(1.0, np.float32).view(np.uint32)
+_NORMAL_LOW = np.nextafter(np.float32(-1.0), np.float32(0.0))
+
+
+class Request(NamedTuple):
+    """One draw: ``jax.random.normal(key, shape, dtype)`` (``minval`` and ``maxval`` None) or
+    ``jax.random.uniform(key, shape, dtype, minval, maxval)``."""
+
+    key: Array
+    shape: tuple[int, ...]
+    minval: Array | float | None = None
+    maxval: Array | float | None = None
+    dtype: jnp.dtype = jnp.float32
+
+
+def normal(key: Array, shape: tuple[int, ...], dtype=jnp.float32) -> Request:
+    """A request for ``jax.random.normal(key, shape, dtype)``."""
+    return Request(key, tuple(shape), dtype=jnp.dtype(dtype))
+
+
+def uniform(
+    key: Array, shape: tuple[int, ...], minval=0.0, maxval=1.0, dtype=jnp.float32
+) -> Request:
+    """A request for ``jax.random.uniform(key, shape, dtype, minval, maxval)``."""
+    return Request(key, tuple(shape), minval, maxval, jnp.dtype(dtype))
+
+
+def draw(requests: list[Request]) -> list[Array]:
+    """The requested arrays, from one evaluation of the Threefry hash when the keys allow.
+
+    Args:
+        requests: from :func:`normal` and :func:`uniform`; keys typed (``jax.random.key``)
+            or raw (``jax.random.PRNGKey``), unbatched inside the traced function (``vmap``
+            over keys is fine).
+
+    Returns:
+        One array per request, equal to the separate ``jax.random`` call's. Requests of
+        float32 with Threefry keys share one evaluation; others (e.g. float64, whose draws
+        take 64 bits each) are drawn by ``jax.random``.
+    """
+    if not all(_merges(r.key) and r.dtype == jnp.float32 for r in requests):
+        return [_separate(r) for r in requests]
+    sizes = [math.prod(r.shape) for r in requests]
+    words = [(_key_words(r.key), n) for r, n in zip(requests, sizes, strict=True)]
+    key_hi = jnp.concatenate([jnp.full(n, w[0], jnp.uint32) for w, n in words])
+    key_lo = jnp.concatenate([jnp.full(n, w[1], jnp.uint32) for w, n in words])
+    # Element i of a draw hashes the 64-bit counter i: high word 0 below 2^32 elements.
+    count_lo = jnp.asarray(np.concatenate([np.arange(n, dtype=np.uint32) for n in sizes]))
+    count_hi = jnp.zeros_like(count_lo)
+    bits_hi, bits_lo = threefry2x32_p.bind(key_hi, key_lo, count_hi, count_lo)
+    bits = bits_hi ^ bits_lo
+    out = []
+    start = 0
+    for request, size in zip(requests, sizes, strict=True):
+        out.append(_convert(bits[start : start + size].reshape(request.shape), request))
+        start += size
+    return out
+
+
+def _convert(bits: Array, request: Request) -> Array:
+    """``jax.random.uniform``'s conversion of 32 random bits (and ``normal``'s on top)."""
+    mantissa = jax.lax.shift_right_logical(bits, jnp.uint32(32 - 23))
+    floats = jax.lax.bitcast_convert_type(
+        jax.lax.bitwise_or(mantissa, jnp.uint32(_FLOAT32_ONE_BITS)), jnp.float32
+    ) - jnp.float32(1.0)
+    if request.minval is None:
+        low, high = jnp.float32(_NORMAL_LOW), jnp.float32(1.0)
+    else:
+        low = jnp.asarray(request.minval, jnp.float32)
+        high = jnp.asarray(request.maxval, jnp.float32)
+    scaled = jnp.maximum(low, floats * (high - low) + low)
+    if request.minval is None:
+        return jnp.float32(np.sqrt(2)) * jax.lax.erf_inv(scaled)
+    return scaled
+
+
+def _merges(key: Array) -> bool:
+    if not jax.config.jax_threefry_partitionable or (key.ndim != 0 and key.shape != (2,)):
+        return False
+    if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+        return key.ndim == 0 and str(jax.random.key_impl(key)) == "threefry2x32"
+    return key.dtype == jnp.uint32 and jax.config.jax_default_prng_impl == "threefry2x32"
+
+
+def _key_words(key: Array) -> Array:
+    if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+        return jax.random.key_data(key)
+    return key
+
+
+def _separate(request: Request) -> Array:
+    if request.minval is None:
+        return jax.random.normal(request.key, request.shape, request.dtype)
+    return jax.random.uniform(
+        request.key, request.shape, request.dtype, request.minval, request.maxval
+    )
