@@ -11,6 +11,8 @@ import numpy as np
 import optax
 from jaxtyping import Array, Bool, Float, Int
 
+from jaxtrack.control import when
+
 #: Largest ambiguous part solved by enumeration: ``SMALL_SIDE`` slots of one side matched
 #: (or not) into ``LARGE_SIDE`` slots of the other, every partial injection listed.
 SMALL_SIDE = 4
@@ -76,7 +78,7 @@ def _solve(cost: Array, allowed: Array) -> Array:
     """One problem: the usual frame has no open part, and its matching is the isolated pairs
     (the open part is solved only when there is one)."""
     matches, open_rows = _isolated_pairs(allowed)
-    return _when(jnp.any(open_rows), _open_part, matches, cost, allowed, matches, open_rows)
+    return when(jnp.any(open_rows), _open_part, matches, cost, allowed, matches, open_rows)
 
 
 @_solve.def_vmap
@@ -147,7 +149,7 @@ def _open_part(cost: Array, allowed: Array, matches: Array, open_rows: Array) ->
     enumerated = matches.at[jnp.where(linked, to_row, num_rows)].set(
         to_col.astype(jnp.int32), mode="drop"
     )
-    return _when(~(rows_small | cols_small), _hungarian, enumerated, cost, allowed)
+    return when(~(rows_small | cols_small), _hungarian, enumerated, cost, allowed)
 
 
 @functools.cache
@@ -160,28 +162,6 @@ def _candidate_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         taken = candidates[:, slot] >= 0
         one_hot[np.nonzero(taken)[0], slot * LARGE_SIDE + candidates[taken, slot]] = 1.0
     return candidates, one_hot, (candidates >= 0).sum(axis=1).astype(np.int32)
-
-
-def _when(needed: Array, solve, fallback: Array, *args) -> Array:
-    """``solve(*args)`` where ``needed``, else ``fallback``; computed only if needed.
-
-    A ``while_loop`` of at most one trip: unbatched it is a conditional; under ``vmap`` the
-    batched loop runs its body once if any member needs it (and keeps the others'
-    ``fallback``), where a batched ``lax.cond`` would run ``solve`` for every member always.
-    """
-
-    def body(state):
-        running, _ = state
-        # The inputs are made to depend on the loop's state: XLA hoists loop-invariant work
-        # out of a while loop, which would run `solve` unconditionally again.
-        varying = jnp.where(running, 0, 1).astype(jnp.int32)
-        inputs = [
-            x + varying.astype(x.dtype) if x.dtype != bool else x ^ (varying > 0) for x in args
-        ]
-        return jnp.asarray(False), solve(*inputs)
-
-    _, result = jax.lax.while_loop(lambda state: state[0], body, (needed, fallback))
-    return result
 
 
 def _hungarian(cost: Array, allowed: Array) -> Array:

@@ -25,8 +25,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.extend.random import threefry2x32_p
 from jaxtyping import Array
+
+from jaxtrack.control import materialise
 
 _FLOAT32_ONE_BITS = np.array(1.0, np.float32).view(np.uint32)
 _NORMAL_LOW = np.nextafter(np.float32(-1.0), np.float32(0.0))
@@ -77,14 +78,52 @@ def draw(requests: list[Request]) -> list[Array]:
     # Element i of a draw hashes the 64-bit counter i: high word 0 below 2^32 elements.
     count_lo = jnp.asarray(np.concatenate([np.arange(n, dtype=np.uint32) for n in sizes]))
     count_hi = jnp.zeros_like(count_lo)
-    bits_hi, bits_lo = threefry2x32_p.bind(key_hi, key_lo, count_hi, count_lo)
+    bits_hi, bits_lo = threefry2x32(key_hi, key_lo, count_hi, count_lo)
     bits = bits_hi ^ bits_lo
-    out = []
-    start = 0
-    for request, size in zip(requests, sizes, strict=True):
-        out.append(_convert(bits[start : start + size].reshape(request.shape), request))
-        start += size
-    return out
+
+    def convert(bits):
+        out = []
+        start = 0
+        for request, size in zip(requests, sizes, strict=True):
+            out.append(_convert(bits[start : start + size].reshape(request.shape), request))
+            start += size
+        return out
+
+    # Written once: fused into their consumers, the normals' inverse error function would
+    # run once per state component a draw enters (6 per particle for 4 draws).
+    return materialise(convert, bits)
+
+
+_ROTATIONS = np.array([[13, 15, 26, 6], [17, 29, 16, 24]], np.uint32)
+
+
+def threefry2x32(key_hi: Array, key_lo: Array, count_hi: Array, count_lo: Array):
+    """The Threefry-2x32 hash (20 rounds), as ``jax.extend.random.threefry2x32_p``: the same
+    output words (tested), written as a loop over its five groups of four rounds that
+    carries only the two state words.
+
+    JAX's CPU lowering carries the three key words too and rotates them every group: with
+    a key per element (one evaluation for several draws) that is three full-size copies per
+    group, 13 small kernels per group in all. Here the group's key words are chosen by
+    selects on the group index inside the fused round.
+    """
+    keys = (key_hi, key_lo, key_hi ^ key_lo ^ jnp.uint32(0x1BD11BDA))
+
+    def rotate_left(x, r):
+        return jax.lax.shift_left(x, r) | jax.lax.shift_right_logical(x, jnp.uint32(32) - r)
+
+    def group(g, state):
+        x0, x1 = state
+        rotations = jnp.where(g % 2 == 0, _ROTATIONS[0], _ROTATIONS[1])
+        for r in range(4):
+            x0 = x0 + x1
+            x1 = rotate_left(x1, rotations[r]) ^ x0
+        phase = g % 3
+        first = jnp.where(phase == 0, keys[1], jnp.where(phase == 1, keys[2], keys[0]))
+        second = jnp.where(phase == 0, keys[2], jnp.where(phase == 1, keys[0], keys[1]))
+        return x0 + first, x1 + second + jnp.asarray(g + 1).astype(jnp.uint32)
+
+    return jax.lax.fori_loop(0, 5, group, (count_hi + keys[0], count_lo + keys[1]))
 
 
 def _convert(bits: Array, request: Request) -> Array:

@@ -205,8 +205,7 @@ def test_single_linear_gaussian_target_tracks_the_kalman_filter():
         survival_prob=jnp.asarray(1.0),
         clutter_intensity=_params().clutter_intensity._replace(magnitude=jnp.asarray(0.0)),
     )
-    state = filt.init(jax.random.key(0), params)
-    state = state._replace(
+    initial = filt.init(jax.random.key(0), params)._replace(
         particles=jnp.asarray(rng.multivariate_normal(prior_mean, prior_cov, num_particles)),
         log_weights=jnp.full(num_particles, -np.log(num_particles)),
         mass=jnp.asarray(1.0),
@@ -214,19 +213,30 @@ def test_single_linear_gaussian_target_tracks_the_kalman_filter():
     boxes = cxcywh_to_xywh(measurements)
     detections = padded_detections([[tuple(b)] for b in boxes], 2)
     step = jax.jit(filt.step)
-    errors = []
-    for k in range(len(measurements)):
-        frame = jax.tree.map(lambda x, k=k: x[k], detections)
-        state, info = step(jax.random.key(k + 1), state, params, frame)
-        kf_std = np.sqrt(np.diag(kf_covs[k]))
-        posterior_mean = np.asarray(info.estimates.states[0], np.float64)
-        particles = np.asarray(state.particles, np.float64)
-        errors.append((posterior_mean - kf_means[k]) / kf_std)
-        # Monte Carlo tolerances (4000 particles; an effective sample size of a few hundred
-        # after weighting gives a standard error near 0.05-0.1 KF standard deviations).
-        assert np.all(np.abs(errors[-1]) < 0.35), k
-        assert np.all(np.abs(particles.mean(0) - kf_means[k]) < 0.4 * kf_std), k
-        np.testing.assert_allclose(particles.std(0), kf_std, rtol=0.3)
-        np.testing.assert_allclose(state.mass, 1.0, rtol=1e-5)
-        assert bool(info.estimates.mask[0])
+    kf_std = np.sqrt(np.diagonal(kf_covs, axis1=1, axis2=2))
+    # Four independent runs (keys 1.., 101.., 201.., 301..): one run's error is correlated
+    # from frame to frame (resampling carries it), so a single run's worst frame depends on
+    # its draws; the runs' mean error has half the Monte Carlo spread of one run and is held
+    # to the same bounds.
+    errors, particle_errors = [], []
+    for run in range(4):
+        state = initial
+        run_errors, run_particle_errors = [], []
+        for k in range(len(measurements)):
+            frame = jax.tree.map(lambda x, k=k: x[k], detections)
+            state, info = step(jax.random.key(100 * run + k + 1), state, params, frame)
+            posterior_mean = np.asarray(info.estimates.states[0], np.float64)
+            particles = np.asarray(state.particles, np.float64)
+            run_errors.append((posterior_mean - kf_means[k]) / kf_std[k])
+            run_particle_errors.append((particles.mean(0) - kf_means[k]) / kf_std[k])
+            np.testing.assert_allclose(particles.std(0), kf_std[k], rtol=0.3)
+            np.testing.assert_allclose(state.mass, 1.0, rtol=1e-5)
+            assert bool(info.estimates.mask[0])
+        errors.append(run_errors)
+        particle_errors.append(run_particle_errors)
+    # Monte Carlo tolerances (4000 particles; an effective sample size of a few hundred
+    # after weighting gives a standard error near 0.05-0.1 KF standard deviations per run).
+    assert np.all(np.abs(np.mean(errors, axis=0)) < 0.35)
+    assert np.all(np.abs(np.mean(particle_errors, axis=0)) < 0.4)
     assert np.mean(np.abs(errors)) < 0.1
+    assert np.max(np.abs(errors)) < 0.6  # no run strays far

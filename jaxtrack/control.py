@@ -1,0 +1,55 @@
+"""Control flow that XLA compiles the way a step needs (pure JAX, no dependencies)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array
+
+
+def when(needed: Array, solve, fallback: Any, *args: Array) -> Any:
+    """``solve(*args)`` where ``needed``, else ``fallback``; computed only if needed.
+
+    A ``while_loop`` of at most one trip: unbatched it is a conditional; under ``vmap`` the
+    batched loop runs its body once if any member needs it (and keeps the others'
+    ``fallback``), where a batched ``lax.cond`` would run ``solve`` for every member always.
+    Its outputs are written to memory once: XLA does not fuse a loop's body into the
+    loop's consumers (see :func:`materialise`).
+
+    Args:
+        needed: scalar bool (per member under ``vmap``).
+        solve: ``(*args) -> PyTree`` with ``fallback``'s structure, shapes and dtypes.
+        fallback: the result where not needed.
+        *args: arrays for ``solve``.
+    """
+
+    def body(state):
+        running, _ = state
+        # The inputs are made to depend on the loop's state: XLA hoists loop-invariant work
+        # out of a while loop, which would run `solve` unconditionally again.
+        varying = jnp.where(running, 0, 1).astype(jnp.int32)
+        inputs = [
+            x + varying.astype(x.dtype) if x.dtype != bool else x ^ (varying > 0) for x in args
+        ]
+        return jnp.asarray(False), solve(*inputs)
+
+    _, result = jax.lax.while_loop(lambda state: state[0], body, (needed, fallback))
+    return result
+
+
+def materialise(compute, *args: Array) -> Any:
+    """``compute(*args)``, written to memory once instead of fused into its consumers.
+
+    XLA fuses cheap elementwise producers into every consumer, so an array that several
+    fusions read (e.g. normal draws, whose inverse error function is dozens of operations,
+    read once per state component they enter) is recomputed in each. Computed in a one-trip
+    loop (:func:`when`, under a condition XLA cannot evaluate at compile time) it is written
+    once. The first argument must be an unsigned or signed integer array (it decides the
+    condition: ``(args[0].flat[0] | 1) != 0``, always true).
+    """
+    fallback = jax.eval_shape(compute, *args)
+    fallback = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), fallback)
+    always = (jnp.ravel(args[0])[0] | 1) != 0
+    return when(always, compute, fallback, *args)
