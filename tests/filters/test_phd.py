@@ -219,12 +219,12 @@ def test_single_linear_gaussian_target_tracks_the_kalman_filter():
     # its draws; the runs' mean error has half the Monte Carlo spread of one run and is held
     # to the same bounds.
     errors, particle_errors = [], []
-    for run in range(4):
+    for repeat in range(4):
         state = initial
         run_errors, run_particle_errors = [], []
         for k in range(len(measurements)):
             frame = jax.tree.map(lambda x, k=k: x[k], detections)
-            state, info = step(jax.random.key(100 * run + k + 1), state, params, frame)
+            state, info = step(jax.random.key(100 * repeat + k + 1), state, params, frame)
             posterior_mean = np.asarray(info.estimates.states[0], np.float64)
             particles = np.asarray(state.particles, np.float64)
             run_errors.append((posterior_mean - kf_means[k]) / kf_std[k])
