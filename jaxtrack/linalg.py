@@ -78,6 +78,7 @@ def solve_spd(a: Float[Array, "... n n"], b: Float[Array, "... n"]) -> Float[Arr
     return solve_upper_transposed(lower, solve_lower(lower, b))
 
 
+@jax.jit
 def cholesky_loop(a: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
     """:func:`cholesky` as a loop over the columns (``lax.fori_loop``): the same arithmetic
     (the columns not yet computed are zeros in the sums), equal up to float32 rounding (XLA
@@ -87,7 +88,8 @@ def cholesky_loop(a: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
     covariances): XLA gives the unrolled form's chain of dependent divisions and square roots
     a kernel each, about 60 kernels per mixture, and every kernel costs compile time (about
     15 ms each on 2 cores); the loop compiles to a handful. Inside a per-frame step, prefer
-    :func:`cholesky` (no loop overhead).
+    :func:`cholesky` (no loop overhead). Jitted, so that eager calls reuse one compile per
+    shape (inside another ``jit`` it is inlined).
     """
     n = a.shape[-1]
     index = jnp.arange(n)
@@ -104,6 +106,7 @@ def cholesky_loop(a: Float[Array, "... n n"]) -> Float[Array, "... n n"]:
     return jax.lax.fori_loop(0, n, column, jnp.zeros_like(a))
 
 
+@jax.jit
 def solve_lower_loop(
     lower: Float[Array, "... n n"], b: Float[Array, "... n"]
 ) -> Float[Array, "... n"]:
