@@ -121,11 +121,8 @@ def draw_births(
     normal = normal[:num_slots]
     measured = (measurements[:, None, :] + std[:, None, :] * normal).reshape(-1, 4)
     measured = measured.at[:, 2:].set(jnp.maximum(measured[:, 2:], MIN_SIZE))
-    # jax.random.uniform(key_velocity, shape, minval=lower, maxval=upper), the same
-    # arithmetic on the same unit draws.
-    velocity = jnp.maximum(
-        velocity_lower, unit[:num_births] * (velocity_upper - velocity_lower) + velocity_lower
-    )
+    # jax.random.uniform(key_velocity, shape, minval=lower, maxval=upper) on the unit draws.
+    velocity = draws.scale_uniform(unit[:num_births], velocity_lower, velocity_upper)
     # (y1, vy1, y2, vy2, w, h) stacked as rows, then transposed (see phd_step's join).
     y1, y2, width, height = (measured[:, i] for i in range(4))
     states = jnp.stack([y1, velocity[:, 0], y2, velocity[:, 1], width, height], axis=0).T

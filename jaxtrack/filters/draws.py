@@ -8,7 +8,9 @@ loops were half of the kernels a frame runs, each costing a fixed launch overhea
 its size. :func:`draw` evaluates the hash once for every request (the keys broadcast per
 element: the hash is elementwise in its key and counter words) and converts the bits as
 ``jax.random.normal`` and ``jax.random.uniform`` do, so each array equals the separate
-call's bit for bit (tested) and tracking results do not change.
+call's bit for bit (tested). The arrays are written to memory once
+(:func:`~jaxtrack.control.materialise`), which changes how XLA fuses the arithmetic that
+reads them: a tracker's results then differ from the separate calls' at float32 rounding.
 
 That equality rests on ``jax.random``'s documented bit layout for Threefry keys under
 ``jax_threefry_partitionable`` (the default since JAX 0.5: the bits of element ``i`` of a
@@ -137,10 +139,16 @@ def _convert(bits: Array, request: Request) -> Array:
     else:
         low = jnp.asarray(request.minval, jnp.float32)
         high = jnp.asarray(request.maxval, jnp.float32)
-    scaled = jnp.maximum(low, floats * (high - low) + low)
+    scaled = scale_uniform(floats, low, high)
     if request.minval is None:
         return jnp.float32(np.sqrt(2)) * jax.lax.erf_inv(scaled)
     return scaled
+
+
+def scale_uniform(unit: Array, low, high) -> Array:
+    """Unit draws in ``[0, 1)`` scaled to ``[low, high)`` with ``jax.random.uniform``'s
+    arithmetic (``max(low, u (high - low) + low)``)."""
+    return jnp.maximum(low, unit * (high - low) + low)
 
 
 def _merges(key: Array) -> bool:

@@ -684,9 +684,10 @@ class _Stages(NamedTuple):
 
 def _joint_draws(predict_stage, births_stage, key_motion, key_birth, state, detections):
     """The motion noise and the births' random numbers from one Threefry evaluation
-    (:mod:`~jaxtrack.filters.draws`: the same numbers as the stages' own draws, bit for bit)
-    when the stages are this module's :func:`predict` and :func:`phd_births`; otherwise no
-    keyword arguments (the stages draw for themselves)."""
+    (:mod:`~jaxtrack.filters.draws`: the same numbers as the stages' own draws, bit for bit;
+    the arithmetic after them may round differently) when the stages are this module's
+    :func:`predict` and :func:`phd_births`; otherwise no keyword arguments (the stages draw
+    for themselves)."""
     if not _is_stage(predict_stage, predict) or (
         births_stage is not None and not _is_stage(births_stage, phd_births)
     ):
@@ -701,18 +702,18 @@ def _joint_draws(predict_stage, births_stage, key_motion, key_birth, state, dete
 
 
 def _is_stage(stage, function) -> bool:
-    """``stage`` is ``function`` or a ``functools.partial`` of it (no positional arguments
-    bound, and the draws' keywords left free)."""
+    """``stage`` is ``function`` or a ``functools.partial`` of it with no positional arguments
+    bound and the draws' keywords left free (:func:`phd_births` also needs its
+    ``births_per_detection`` bound: the draws' shape)."""
     if stage is function:
-        return function is predict
-    return (
-        isinstance(stage, functools.partial)
-        and stage.func is function
-        and not stage.args
-        and "normal" not in stage.keywords
-        and "random" not in stage.keywords
-        and (function is not phd_births or "births_per_detection" in stage.keywords)
-    )
+        keywords = {}
+    elif isinstance(stage, functools.partial) and stage.func is function and not stage.args:
+        keywords = stage.keywords
+    else:
+        return False
+    if "normal" in keywords or "random" in keywords:
+        return False
+    return function is not phd_births or "births_per_detection" in keywords
 
 
 def _frame_step(
