@@ -9,9 +9,11 @@ the learned context (GM): 162 tracker runs, each scored (MOTA, MOTP, MODA, MODP,
 ...). UM's intensities are padded with dead mixture components to GM's size, so both share
 one batch and one compile.
 
-* sweep: :func:`jaxtrack.sweep` on all devices, compile included. On CPU, JAX has one
-  device that already uses every core, so the default is 1; ``--host-devices N`` forces N
-  CPU devices instead;
+* sweep: :func:`jaxtrack.sweep` on all devices, compile included. On CPU the default is one
+  device per usable core (:func:`jaxtrack.use_cpu_cores`, as the ``jaxtrack`` command sets
+  it), each running a group of ``--chunk-size`` configurations; ``--host-devices N`` makes
+  N CPU devices instead (1: JAX's default single device). A configuration's numbers do not
+  depend on the number of devices;
 * loop: the same configurations one at a time through one jitted single-configuration run
   (``jit(run)`` on one device, on the same detections: ``fit_detections``, the capacity
   ``jaxtrack track`` and the sweep give the sequence) plus the same scoring;
@@ -32,14 +34,16 @@ import argparse
 import os
 import sys
 
-# XLA reads the device count when jax initialises: parse it before importing jax.
+# JAX fixes its CPU devices when it first computes: parse the count before anything runs.
 _early = argparse.ArgumentParser(add_help=False)
-_early.add_argument("--host-devices", type=int, default=1, help="forced CPU devices (default 1)")
+_early.add_argument(
+    "--host-devices",
+    type=int,
+    default=None,
+    help="CPU devices the sweep shards over (default: one per usable core, as the jaxtrack "
+    "command sets them; 1: one device)",
+)
 _host_devices = _early.parse_known_args(sys.argv[1:])[0].host_devices
-if _host_devices > 1:
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={_host_devices}"
-    ).strip()
 
 import json  # noqa: E402
 import platform  # noqa: E402
@@ -65,7 +69,7 @@ from jaxtrack.filters.phd_tracker import (  # noqa: E402
     phd_filter_of,
 )
 from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
-from jaxtrack.pipelines.sweep import sweep  # noqa: E402
+from jaxtrack.pipelines.sweep import sweep, use_cpu_cores  # noqa: E402
 
 CONFIG = PHDConfig()
 
@@ -75,7 +79,12 @@ DEFAULT_SEQUENCE = Path(__file__).resolve().parents[1].parent / "shared/data/mot
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[_early])
     parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE)
-    parser.add_argument("--chunk-size", type=int, default=28, help="configurations per call")
+    parser.add_argument(
+        "--chunk-size",
+        type=int,
+        default=9,
+        help="configurations per device per call (default 9: the 162 runs are 18 groups)",
+    )
     parser.add_argument(
         "--loop-configs", type=int, default=12, help="loop configurations timed per variant"
     )
@@ -88,6 +97,8 @@ def main() -> None:
         "the detection slots on that half",
     )
     args = parser.parse_args()
+    if _host_devices != 1:
+        use_cpu_cores(_host_devices)
     config = CONFIG.replace(frame_capacity=args.frame_capacity)
 
     split = split_halves(args.sequence)

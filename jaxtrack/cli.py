@@ -18,6 +18,7 @@ import warnings
 from jaxtrack import __version__
 from jaxtrack.commands.arguments import CommandParser, UsageError
 from jaxtrack.errors import InputError, InputWarning
+from jaxtrack.pipelines.sweep import use_cpu_cores
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
 COMMANDS = (
@@ -61,6 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as err:
         print(f"{err.prog}: error: {err}", file=sys.stderr)
         return 2
+    use_cpu_cores()  # a sweep's configurations run on every core (no effect on one run)
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warnings(args.command, warnings.showwarning)

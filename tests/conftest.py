@@ -14,8 +14,14 @@ from pathlib import Path
 import jax
 import pytest
 
+from jaxtrack.pipelines.sweep import use_cpu_cores
 from tests.cli_workspace import build_workspace
 from tests.data import DATA_ROOT, MOT15_ROOT, require_data
+
+# The devices the jaxtrack command makes (one CPU device per core), set before any test
+# computes: otherwise whichever test first calls the command's main() in this process
+# would decide the devices of every later test.
+use_cpu_cores()
 
 
 @pytest.fixture(scope="session")

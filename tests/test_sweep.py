@@ -210,28 +210,76 @@ def test_sharded_sweep_on_four_devices_equals_unsharded(mot15_root):
     )
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads(done.stdout.strip().splitlines()[-1])
+    # Each device runs a group of the single device's size (two groups of 3 on two of the
+    # four devices, against two calls of 3 on one): the same programs, bit for bit.
     assert report["ids_equal"]
-    assert report["max_box_diff"] < 1e-3
-    np.testing.assert_allclose(*report["mota"], atol=1e-9)
-    np.testing.assert_allclose(*report["hota"], atol=1e-9)
-    np.testing.assert_allclose(*report["log_likelihood"], rtol=1e-5)
+    assert report["max_box_diff"] == 0.0
+    assert report["mota"][0] == report["mota"][1]
+    assert report["hota"][0] == report["hota"][1]
+    assert report["log_likelihood"][0] == report["log_likelihood"][1]
     assert len(set(report["mota"][0])) > 1
+
+
+_CORES_SCRIPT = textwrap.dedent(
+    """
+    import json, os, sys
+    import jax
+    from jaxtrack import use_cpu_cores
+    made = use_cpu_cores(int(sys.argv[1]))
+    again = use_cpu_cores(3)  # before anything ran: a later call may still change it
+    count = jax.device_count()
+    late = use_cpu_cores(5)  # the backends now exist: too late, nothing changes
+    print(json.dumps({"made": made, "again": again, "count": count, "late": late,
+                      "after": jax.device_count()}))
+    """
+)
+
+
+@pytest.mark.parametrize(
+    ("env", "expected"),
+    [
+        ({}, {"made": 2, "again": 0, "count": 2, "late": 0, "after": 2}),
+        # the user's own choice is kept
+        (
+            {"XLA_FLAGS": "--xla_force_host_platform_device_count=4"},
+            {"made": 0, "again": 0, "count": 4, "late": 0, "after": 4},
+        ),
+        ({"JAX_NUM_CPU_DEVICES": "1"}, {"made": 0, "again": 0, "count": 1, "late": 0, "after": 1}),
+    ],
+)
+def test_use_cpu_cores_sets_devices_once_and_keeps_the_users_choice(env, expected):
+    base = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES")}
+    done = subprocess.run(
+        [sys.executable, "-c", _CORES_SCRIPT, "2"],
+        env={**base, "JAX_PLATFORMS": "cpu", **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == expected
 
 
 def test_chunks_are_even_and_padding_is_least():
     from jaxtrack.pipelines.sweep import _chunking
 
-    assert _chunking(162, 28, 1) == (6, 27)  # not five of 28 and a sixth padded by six
-    assert _chunking(6, 4, 1) == (2, 3)
-    assert _chunking(7, 4, 1) == (2, 4)  # the second chunk padded by one
-    assert _chunking(5, 16, 1) == (1, 5)
-    assert _chunking(6, 3, 4) == (2, 4)  # multiples of the devices
-    assert _chunking(162, 28, 4) == (6, 28)
+    assert _chunking(162, 28, 1) == (6, 27, 1)  # not five of 28 and a sixth padded by six
+    assert _chunking(162, 28, 2) == (3, 27, 2)  # the same groups of 27, two per call
+    assert _chunking(162, 28, 16) == (1, 27, 6)  # six groups: six devices
+    assert _chunking(6, 4, 1) == (2, 3, 1)
+    assert _chunking(7, 4, 1) == (2, 4, 1)  # the second chunk padded by one
+    assert _chunking(5, 16, 1) == (1, 5, 1)
+    assert _chunking(6, 3, 4) == (1, 3, 2)
     for batch in range(1, 60):
         for size in range(1, 20):
-            for devices in (1, 2, 4):
-                num_chunks, chunk = _chunking(batch, size, devices)
-                largest = -(-size // devices) * devices
-                assert chunk % devices == 0 and chunk <= largest
-                assert num_chunks == -(-batch // largest)
-                assert num_chunks * chunk >= batch > (num_chunks - 1) * chunk
+            one = _chunking(batch, size, 1)
+            for devices in (1, 2, 3, 4):
+                num_calls, per_device, used = _chunking(batch, size, devices)
+                # the group size is the single device's, whatever the number of devices
+                assert per_device == one[1] <= size
+                assert 1 <= used <= devices
+                assert num_calls * per_device * used >= batch
+                assert (num_calls - 1) * per_device * used < batch
+                # the fewest groups of at most `size`, no device left without a group
+                groups = -(-batch // size)
+                assert -(-batch // per_device) == groups and used == min(devices, groups)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import os
 from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
@@ -270,11 +271,15 @@ def sweep(
         first_frame: 1-based frame number of time index 0.
         output: ``"offline"`` (default, as ``jaxtrack track``) or ``"online"``.
         max_gap: longest gap filled by the offline output.
-        chunk_size: the most configurations per compiled call: the batch is shared evenly
-            among the fewest chunks of at most this size (rounded up to a multiple of the
-            number of devices; 162 configurations at 28: six chunks of 27), the last chunk
-            padded by repeating its last configuration.
-        devices: devices to shard the batch over (default: all, ``jax.devices()``).
+        chunk_size: the most configurations one device runs per compiled call: the batch
+            is shared evenly among the fewest groups of at most this size (162
+            configurations at 28: six groups of 27), each call runs one group per device
+            (three calls of 2 x 27 on two devices), and the last call is padded by
+            repeating the last configuration. A configuration's numbers depend on the
+            group size, not on the number of devices.
+        devices: devices to shard the batch over (default: all, ``jax.devices()``; a
+            sweep uses at most one device per group). On CPU, :func:`use_cpu_cores`
+            gives one device per core.
         eval_config: evaluation settings.
         progress: show a progress bar over the chunks.
 
@@ -302,8 +307,9 @@ def sweep(
     num_frames = detections.mask.shape[0]
 
     devices = list(jax.devices() if devices is None else devices)
-    mesh = Mesh(np.asarray(devices), ("batch",))
-    num_chunks, chunk = _chunking(batch, chunk_size, len(devices))
+    num_chunks, per_device, num_devices = _chunking(batch, chunk_size, len(devices))
+    mesh = Mesh(np.asarray(devices[:num_devices]), ("batch",))
+    chunk = per_device * num_devices
     order = np.minimum(np.arange(num_chunks * chunk), batch - 1)
     compiled = _sweep_function(filt, mesh, key_impl)
     replicated = NamedSharding(mesh, PartitionSpec())
@@ -450,6 +456,41 @@ def sweep_frames(
     )
 
 
+def use_cpu_cores(count: int | None = None) -> int:
+    """Makes JAX show one CPU device per usable core, so that a sweep's groups run side by side.
+
+    On CPU, JAX has one device by default and XLA runs its program's small kernels mostly one
+    after another, so a sweep of tracking-size configurations leaves cores idle; with one
+    device per core, :func:`sweep` runs a group of configurations on each (measured on 2
+    cores: the 162-run PETS09-S2L1 magnitude sweep of ``benchmarks/sweep_speed.py`` 10-15 %
+    faster; single runs are unchanged, they use the first device). The ``jaxtrack`` command
+    calls this at start. It must run before JAX computes anything; it changes nothing (and
+    returns 0) when the backends are already initialised, when the user chose a count
+    (``XLA_FLAGS=--xla_force_host_platform_device_count=N``, ``JAX_NUM_CPU_DEVICES``,
+    ``jax.config.update("jax_num_cpu_devices", N)``), or when there is one core.
+
+    Args:
+        count: devices to make (default: the cores this process may run on).
+
+    Returns:
+        The number of CPU devices set, or 0 when nothing was changed.
+    """
+    if count is None:
+        count = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    chosen = (
+        "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "")
+        or os.environ.get("JAX_NUM_CPU_DEVICES")
+        or jax.config.jax_num_cpu_devices != -1
+    )
+    if chosen or not count or count < 2:
+        return 0
+    try:
+        jax.config.update("jax_num_cpu_devices", int(count))
+    except RuntimeError:  # the backends are initialised: too late to change the devices
+        return 0
+    return int(count)
+
+
 @functools.lru_cache(maxsize=8)
 def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
     """``jit(shard_map(vmap(run)))`` over the ``batch`` axis of ``mesh`` (cached per filter).
@@ -484,14 +525,20 @@ def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
     )
 
 
-def _chunking(batch: int, chunk_size: int, num_devices: int) -> tuple[int, int]:
-    """``(number of chunks, configurations per chunk)``: the fewest chunks of at most
-    ``chunk_size`` (rounded up to a multiple of ``num_devices``), sized evenly so that the
-    padding of the last chunk (compute spent on repeated configurations) is the least."""
-    largest = -(-chunk_size // num_devices) * num_devices
-    num_chunks = -(-batch // largest)
-    chunk = -(-batch // num_chunks)
-    return num_chunks, -(-chunk // num_devices) * num_devices
+def _chunking(batch: int, chunk_size: int, num_devices: int) -> tuple[int, int, int]:
+    """``(number of calls, configurations per device per call, devices used)``.
+
+    The batch is cut into the fewest even groups of at most ``chunk_size`` configurations
+    (the least padding: 162 configurations at 28 are six groups of 27, not five of 28 and a
+    sixth padded by six) and each call runs one group per device, on at most as many devices
+    as there are groups. A device's program therefore always runs the same number of
+    configurations whatever the number of devices, so a configuration's numbers do not
+    depend on how many devices run the sweep (XLA's batched float32 arithmetic may round
+    differently for another batch size)."""
+    groups = -(-batch // chunk_size)
+    per_device = -(-batch // groups)
+    devices = min(num_devices, groups)
+    return -(-batch // (per_device * devices)), per_device, devices
 
 
 def _score_arrays(scores: list[dict[str, float]]) -> dict[str, np.ndarray]:
