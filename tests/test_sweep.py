@@ -168,6 +168,23 @@ def test_sweep_input_errors(campus, small_filter):
         sweep(small_filter, params, key, detections, magnitude_grid([1.0], [0.1]), chunk_size=0)
 
 
+def test_sweep_refuses_calls_that_need_more_memory_than_the_machine_has(
+    campus, small_filter, monkeypatch
+):
+    import jaxtrack.resources
+    from jaxtrack.resources import ResourceError
+
+    params = phd_params(PHDConfig(), campus.info)
+    key, detections = jax.random.PRNGKey(0), campus.detections
+    grid = magnitude_grid([1.0, 2.0], [0.1, 0.2])
+    monkeypatch.setattr(jaxtrack.resources, "available_memory_bytes", lambda: 1000)
+    with pytest.raises(ResourceError, match=r"sweep call of 2 configurations .*chunk_size"):
+        sweep(small_filter, params, key, detections, grid, chunk_size=2, devices=jax.devices()[:1])
+    monkeypatch.setattr(jaxtrack.resources, "available_memory_bytes", lambda: 10**12)
+    done = sweep(small_filter, params, key, detections, grid, chunk_size=2)
+    assert len(done.rows) == 4
+
+
 _SHARD_SCRIPT = textwrap.dedent(
     """
     import json, sys

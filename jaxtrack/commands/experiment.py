@@ -357,14 +357,15 @@ Learns context on the first half of a sequence (births from a UM tracker run, cl
 the ground truth), then tracks the second half for every point of a log-spaced grid of
 clutter magnitudes lambda_r (0.1..10 false detections per frame) and birth magnitudes
 lambda_s (0.02..2 births per frame), 9 x 9 by default, with uniform intensities (UM) and with
-the learned ones (GM): 162 tracker runs in one vmapped sweep sharded over all JAX devices.
+the learned ones (GM): 162 tracker runs in one vmapped sweep sharded over all JAX devices
+(on CPU one device per core; a configuration's numbers do not depend on how many).
 Writes sweep.csv (every configuration), sweep.png (scores against each magnitude),
 sweep_mota.png (MOTA over the grid) and summary.md into --out. Logic:
 jaxtrack.experiments.magnitudes.
 
 examples:
   jaxtrack experiment sweep-magnitudes --out /tmp/sweep
-  XLA_FLAGS=--xla_force_host_platform_device_count=2 jaxtrack experiment sweep-magnitudes ...""",
+  JAX_NUM_CPU_DEVICES=1 jaxtrack experiment sweep-magnitudes ...   # one CPU device""",
         quick_help="short smoke run (short scene, few particles, 3 x 3)",
         sequence=True,
         add_extras=None,

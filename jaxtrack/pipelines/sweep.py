@@ -63,6 +63,7 @@ from jaxtrack.pipelines.stream import (
     streamed_rows,
 )
 from jaxtrack.pipelines.tracking import check_tracking_memory
+from jaxtrack.resources import check_memory
 from jaxtrack.types import Detections
 
 #: Parameter names of the magnitudes ``lambda_r`` (clutter) and ``lambda_s`` (birth).
@@ -311,15 +312,21 @@ def sweep(
     mesh = Mesh(np.asarray(devices[:num_devices]), ("batch",))
     chunk = per_device * num_devices
     order = np.minimum(np.arange(num_chunks * chunk), batch - 1)
-    compiled = _sweep_function(filt, mesh, key_impl)
     replicated = NamedSharding(mesh, PartitionSpec())
     device_detections = jax.tree.map(lambda x: _put(x, replicated), detections)
     sharded = NamedSharding(mesh, PartitionSpec("batch"))
 
-    def dispatch(c):
+    def arguments(c):
         window = order[c * chunk : (c + 1) * chunk]
         chunk_params = jax.tree.map(lambda leaf: _put(leaf[window], sharded), batched)
-        return compiled(_put(keys[window], sharded), chunk_params, device_detections)
+        return _put(keys[window], sharded), chunk_params, device_detections
+
+    first_arguments = arguments(0)
+    compiled = _sweep_function(filt, mesh, key_impl).lower(*first_arguments).compile()
+    _check_sweep_memory(compiled, per_device, devices[:num_devices])
+
+    def dispatch(c):
+        return compiled(*(first_arguments if c == 0 else arguments(c)))
 
     span = (first_frame, first_frame + num_frames - 1)
     gt = None if ground_truth is None else ground_truth.frame_span(*span)
@@ -522,6 +529,30 @@ def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
             # communicates across devices, so the varying-axis type check is not needed.
             check_vma=False,
         )
+    )
+
+
+def _check_sweep_memory(compiled: Any, per_device: int, devices: Sequence[jax.Device]) -> None:
+    """Refuses a sweep whose calls would need more host memory than the machine has.
+
+    The compiled call's own estimate (XLA's ``memory_analysis``: the temporaries, inputs and
+    outputs of one device's program) times the CPU devices, which share the host's memory
+    (accelerators report their own out-of-memory errors).
+    """
+    cpus = sum(device.platform == "cpu" for device in devices)
+    analysis = compiled.memory_analysis() if cpus else None
+    if analysis is None:
+        return
+    per_call = cpus * (
+        analysis.temp_size_in_bytes
+        + analysis.argument_size_in_bytes
+        + analysis.output_size_in_bytes
+        - analysis.alias_size_in_bytes
+    )
+    check_memory(
+        per_call,
+        f"a sweep call of {per_device} configurations on each of {cpus} CPU devices",
+        "a smaller chunk_size or fewer CPU devices (JAX_NUM_CPU_DEVICES=N)",
     )
 
 
