@@ -146,7 +146,8 @@ def magnitude_sweep(
         seed: the tracking key, shared by every configuration.
         clutter_rates: ``lambda_r`` values, 1-D, positive.
         birth_rates: ``lambda_s`` values, 1-D, positive.
-        chunk_size: configurations per compiled call (bounds memory).
+        chunk_size: configurations per device per compiled call (bounds memory; see
+            :func:`~jaxtrack.pipelines.sweep.sweep`).
         progress: a progress bar over the chunks.
 
     Returns:
