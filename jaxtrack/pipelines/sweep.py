@@ -309,6 +309,9 @@ def sweep(
 
     devices = list(jax.devices() if devices is None else devices)
     num_chunks, per_device, num_devices = _chunking(batch, chunk_size, len(devices))
+    if jax.process_count() > 1:  # every host takes part in every call
+        num_devices = len(devices)
+        num_chunks = -(-batch // (per_device * num_devices))
     mesh = Mesh(np.asarray(devices[:num_devices]), ("batch",))
     chunk = per_device * num_devices
     order = np.minimum(np.arange(num_chunks * chunk), batch - 1)
@@ -469,8 +472,9 @@ def use_cpu_cores(count: int | None = None) -> int:
     On CPU, JAX has one device by default and XLA runs its program's small kernels mostly one
     after another, so a sweep of tracking-size configurations leaves cores idle; with one
     device per core, :func:`sweep` runs a group of configurations on each (measured on 2
-    cores: the 162-run PETS09-S2L1 magnitude sweep of ``benchmarks/sweep_speed.py`` 10-15 %
-    faster; single runs are unchanged, they use the first device). The ``jaxtrack`` command
+    cores: the 162-run PETS09-S2L1 magnitude sweep of ``benchmarks/sweep_speed.py`` took
+    15.0-17.1 s against 18.1-19.6 s on one device, in one series; single runs are
+    unchanged, they use the first device). The ``jaxtrack`` command
     calls this at start. It must run before JAX computes anything; it changes nothing (and
     returns 0) when the backends are already initialised, when the user chose a count
     (``XLA_FLAGS=--xla_force_host_platform_device_count=N``, ``JAX_NUM_CPU_DEVICES``,
