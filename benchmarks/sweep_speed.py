@@ -69,7 +69,8 @@ from jaxtrack.filters.phd_tracker import (  # noqa: E402
     phd_filter_of,
 )
 from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
-from jaxtrack.pipelines.sweep import sweep, use_cpu_cores  # noqa: E402
+from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores  # noqa: E402
+from jaxtrack.pipelines.sweep import sweep  # noqa: E402
 
 CONFIG = PHDConfig()
 
@@ -96,9 +97,18 @@ def main() -> None:
         help="the tracker's frame_capacity (PHDConfig): 'split' runs frames that fit in half "
         "the detection slots on that half",
     )
+    parser.add_argument(
+        "--compilation-cache",
+        type=Path,
+        default=None,
+        help="keep compiled programs in this folder (jaxtrack.use_compilation_cache): a second "
+        "run loads them instead of compiling; default none, every compile is timed",
+    )
     args = parser.parse_args()
     if _host_devices != 1:
         use_cpu_cores(_host_devices)
+    if args.compilation_cache is not None:
+        use_compilation_cache(args.compilation_cache)
     config = CONFIG.replace(frame_capacity=args.frame_capacity)
 
     split = split_halves(args.sequence)
@@ -163,6 +173,9 @@ def main() -> None:
                 "births_per_detection": CONFIG.births_per_detection,
                 "frame_capacity": args.frame_capacity,
                 "devices": len(jax.devices()),
+                "compilation_cache": None
+                if args.compilation_cache is None
+                else str(args.compilation_cache),
                 "chunk_size": args.chunk_size,
                 "detection_slots": int(detections.mask.shape[1]),
                 "max_detections_per_frame": int(np.max(np.sum(test.detections.mask, axis=1))),

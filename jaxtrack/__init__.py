@@ -22,14 +22,8 @@ from jaxtrack.io import MotSequence, MotTable, SequenceInfo, load_sequence, writ
 from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.parameters import ParameterProperties
 from jaxtrack.pipelines.context import learn_context
-from jaxtrack.pipelines.sweep import (
-    batch_params,
-    magnitude_grid,
-    product_grid,
-    sweep,
-    sweep_frames,
-    use_cpu_cores,
-)
+from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores
+from jaxtrack.pipelines.sweep import batch_params, magnitude_grid, product_grid, sweep, sweep_frames
 from jaxtrack.pipelines.tracking import track_sequences
 from jaxtrack.pipelines.tuner import tune
 from jaxtrack.pipelines.tuning import tune_sequence
@@ -78,6 +72,7 @@ __all__ = [
     "track_sequences",
     "tune",
     "tune_sequence",
+    "use_compilation_cache",
     "use_cpu_cores",
     "write_results",
 ]

@@ -18,7 +18,7 @@ import warnings
 from jaxtrack import __version__
 from jaxtrack.commands.arguments import CommandParser, UsageError
 from jaxtrack.errors import InputError, InputWarning
-from jaxtrack.pipelines.sweep import use_cpu_cores
+from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores
 
 #: Command modules under jaxtrack.commands, in the order ``--help`` lists them.
 COMMANDS = (
@@ -63,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{err.prog}: error: {err}", file=sys.stderr)
         return 2
     use_cpu_cores()  # a sweep's configurations run on every core (no effect on one run)
+    use_compilation_cache()  # a later run of the same setting skips the compile
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warnings(args.command, warnings.showwarning)

@@ -9,12 +9,13 @@ module; fixtures live in ``conftest.py`` files.
 from __future__ import annotations
 
 import gc
+import os
 from pathlib import Path
 
 import jax
 import pytest
 
-from jaxtrack.pipelines.sweep import use_cpu_cores
+from jaxtrack.pipelines.runtime import CACHE_ENV, use_cpu_cores
 from tests.cli_workspace import build_workspace
 from tests.data import DATA_ROOT, MOT15_ROOT, require_data
 
@@ -22,6 +23,9 @@ from tests.data import DATA_ROOT, MOT15_ROOT, require_data
 # computes: otherwise whichever test first calls the command's main() in this process
 # would decide the devices of every later test.
 use_cpu_cores()
+# No compilation cache on disk (here and in the commands the tests start): tests count
+# compiles, and a test run should not fill the machine's cache folder.
+os.environ[CACHE_ENV] = ""
 
 
 @pytest.fixture(scope="session")

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import functools
 import itertools
-import os
 from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
@@ -279,7 +278,8 @@ def sweep(
             repeating the last configuration. A configuration's numbers depend on the
             group size, not on the number of devices.
         devices: devices to shard the batch over (default: all, ``jax.devices()``; a
-            sweep uses at most one device per group). On CPU, :func:`use_cpu_cores`
+            sweep uses at most one device per group). On CPU,
+            :func:`~jaxtrack.pipelines.runtime.use_cpu_cores`
             gives one device per core.
         eval_config: evaluation settings.
         progress: show a progress bar over the chunks.
@@ -464,42 +464,6 @@ def sweep_frames(
         rows=rows,
         events=events if writes_events(config) else None,
     )
-
-
-def use_cpu_cores(count: int | None = None) -> int:
-    """Makes JAX show one CPU device per usable core, so that a sweep's groups run side by side.
-
-    On CPU, JAX has one device by default and XLA runs its program's small kernels mostly one
-    after another, so a sweep of tracking-size configurations leaves cores idle; with one
-    device per core, :func:`sweep` runs a group of configurations on each (measured on 2
-    cores: the 162-run PETS09-S2L1 magnitude sweep of ``benchmarks/sweep_speed.py`` took
-    15.0-17.1 s against 18.1-19.6 s on one device, in one series; single runs are
-    unchanged, they use the first device). The ``jaxtrack`` command
-    calls this at start. It must run before JAX computes anything; it changes nothing (and
-    returns 0) when the backends are already initialised, when the user chose a count
-    (``XLA_FLAGS=--xla_force_host_platform_device_count=N``, ``JAX_NUM_CPU_DEVICES``,
-    ``jax.config.update("jax_num_cpu_devices", N)``), or when there is one core.
-
-    Args:
-        count: devices to make (default: the cores this process may run on).
-
-    Returns:
-        The number of CPU devices set, or 0 when nothing was changed.
-    """
-    if count is None:
-        count = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    chosen = (
-        "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "")
-        or os.environ.get("JAX_NUM_CPU_DEVICES")
-        or jax.config.jax_num_cpu_devices != -1
-    )
-    if chosen or not count or count < 2:
-        return 0
-    try:
-        jax.config.update("jax_num_cpu_devices", int(count))
-    except RuntimeError:  # the backends are initialised: too late to change the devices
-        return 0
-    return int(count)
 
 
 @functools.lru_cache(maxsize=8)

@@ -1,0 +1,70 @@
+"""The command's JAX set-up (:mod:`jaxtrack.pipelines.runtime`): the compilation cache.
+
+Each case runs in a fresh interpreter: the settings must be made before JAX computes, and
+the test process's own are fixed by the conftest. (The CPU devices: ``tests/test_sweep.py``.)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+from jaxtrack.pipelines.runtime import CACHE_ENV
+
+_CACHE_SCRIPT = textwrap.dedent(
+    """
+    import json, sys
+    import jax, jax.numpy as jnp
+    from jaxtrack import use_compilation_cache
+    events = []
+    jax.monitoring.register_event_listener(lambda name, **_: events.append(name))
+    folder = use_compilation_cache(sys.argv[1] or None)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
+    step = jax.jit(lambda x: jnp.cumsum(jnp.sin(x) * 3.0) / (1.0 + x))
+    value = step(jnp.linspace(0.0, 1.0, 64, dtype=jnp.float32))
+    print(json.dumps({
+        "folder": None if folder is None else str(folder),
+        "hits": events.count("/jax/compilation_cache/cache_hits"),
+        "sum": float(jnp.sum(value)),
+    }))
+    """
+)
+
+
+def _run(path: str, **env: str) -> dict:
+    base = {
+        k: v for k, v in os.environ.items() if k not in (CACHE_ENV, "JAX_COMPILATION_CACHE_DIR")
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", _CACHE_SCRIPT, path],
+        env={**base, "JAX_PLATFORMS": "cpu", **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_a_second_process_loads_the_compiled_program_from_the_cache(tmp_path):
+    cache = tmp_path / "xla"
+    first = _run("", **{CACHE_ENV: str(cache)})
+    assert first["folder"] == str(cache) and first["hits"] == 0
+    assert any(cache.iterdir())  # the program was written
+    second = _run("", **{CACHE_ENV: str(cache)})
+    assert second["hits"] >= 1  # ... and loaded: not compiled again
+    assert second["sum"] == first["sum"]  # the same machine code, the same numbers
+
+
+def test_the_cache_is_off_when_disabled_and_the_users_own_is_kept(tmp_path):
+    assert _run("", **{CACHE_ENV: ""})["folder"] is None  # JAXTRACK_CACHE_DIR= : no cache
+    own = tmp_path / "own"
+    kept = _run(str(tmp_path / "ours"), JAX_COMPILATION_CACHE_DIR=str(own))
+    assert kept["folder"] is None and not (tmp_path / "ours").exists()
+    assert kept["hits"] == 0 and any(own.iterdir())  # JAX used the user's folder
+    # an explicit folder wins over the variable
+    chosen = _run(str(tmp_path / "given"), **{CACHE_ENV: str(tmp_path / "env")})
+    assert chosen["folder"] == str(tmp_path / "given")
