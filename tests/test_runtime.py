@@ -68,3 +68,18 @@ def test_the_cache_is_off_when_disabled_and_the_users_own_is_kept(tmp_path):
     # an explicit folder wins over the variable
     chosen = _run(str(tmp_path / "given"), **{CACHE_ENV: str(tmp_path / "env")})
     assert chosen["folder"] == str(tmp_path / "given")
+
+
+def test_no_home_folder_means_no_cache(monkeypatch):
+    from pathlib import Path
+
+    import jaxtrack.pipelines.runtime as runtime
+
+    def no_home():
+        raise RuntimeError("Could not determine home directory.")
+
+    monkeypatch.delenv(CACHE_ENV, raising=False)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR", raising=False)
+    monkeypatch.setattr(Path, "home", staticmethod(no_home))
+    assert runtime.use_compilation_cache() is None  # returns before changing any setting

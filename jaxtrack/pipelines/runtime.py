@@ -81,7 +81,7 @@ def use_compilation_cache(path: str | os.PathLike | None = None) -> Path | None:
     It changes nothing (and returns None) when the user chose a cache
     (``JAX_COMPILATION_CACHE_DIR``, ``jax.config.update("jax_compilation_cache_dir", ...)``),
     when ``JAXTRACK_CACHE_DIR`` is set and empty (no cache), or when the folder cannot be
-    made.
+    made (no home folder, no permission).
 
     Args:
         path: the cache's folder (default :func:`default_cache_dir`).
@@ -94,7 +94,10 @@ def use_compilation_cache(path: str | os.PathLike | None = None) -> Path | None:
     if path is None:
         if os.environ.get(CACHE_ENV) == "":
             return None
-        path = default_cache_dir()
+        try:
+            path = default_cache_dir()
+        except RuntimeError:  # no home folder to put it in
+            return None
     folder = Path(path).expanduser()
     try:
         folder.mkdir(parents=True, exist_ok=True)
