@@ -31,46 +31,33 @@ Usage: ``python benchmarks/sweep_speed.py [--host-devices N] [--loop-configs 12]
 from __future__ import annotations
 
 import argparse
+import json
 import os
-import sys
+import platform
+import time
+from pathlib import Path
 
-# JAX fixes its CPU devices when it first computes: parse the count before anything runs.
-_early = argparse.ArgumentParser(add_help=False)
-_early.add_argument(
-    "--host-devices",
-    type=int,
-    default=None,
-    help="CPU devices the sweep shards over (default: one per usable core, as the jaxtrack "
-    "command sets them; 1: one device)",
-)
-_host_devices = _early.parse_known_args(sys.argv[1:])[0].host_devices
+import jax
+import numpy as np
 
-import json  # noqa: E402
-import platform  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import jax  # noqa: E402
-import numpy as np  # noqa: E402
-
-from jaxtrack.association.offline import finalise_tracks  # noqa: E402
-from jaxtrack.experiments.common import learn_split, split_halves  # noqa: E402
-from jaxtrack.experiments.magnitudes import (  # noqa: E402
+from jaxtrack.association.offline import finalise_tracks
+from jaxtrack.experiments.common import learn_split, split_halves
+from jaxtrack.experiments.magnitudes import (
     BIRTH_RATES,
     CLUTTER_RATES,
     magnitude_batch,
     variant_params,
 )
-from jaxtrack.filters.base import fit_detections, run  # noqa: E402
-from jaxtrack.filters.phd_tracker import (  # noqa: E402
+from jaxtrack.filters.base import fit_detections, run
+from jaxtrack.filters.phd_tracker import (
     FRAME_CAPACITIES,
     Context,
     PHDConfig,
     phd_filter_of,
 )
-from jaxtrack.metrics.evaluate import evaluate_sequence  # noqa: E402
-from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores  # noqa: E402
-from jaxtrack.pipelines.sweep import sweep  # noqa: E402
+from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores
+from jaxtrack.pipelines.sweep import sweep
 
 CONFIG = PHDConfig()
 
@@ -78,7 +65,14 @@ DEFAULT_SEQUENCE = Path(__file__).resolve().parents[1].parent / "shared/data/mot
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], parents=[_early])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--host-devices",
+        type=int,
+        default=None,
+        help="CPU devices the sweep shards over (default: one per usable core, as the jaxtrack "
+        "command sets them; 1: one device); set before JAX computes anything",
+    )
     parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE)
     parser.add_argument(
         "--chunk-size",
@@ -105,8 +99,8 @@ def main() -> None:
         "run loads them instead of compiling; default none, every compile is timed",
     )
     args = parser.parse_args()
-    if _host_devices != 1:
-        use_cpu_cores(_host_devices)
+    if args.host_devices != 1:
+        use_cpu_cores(args.host_devices)
     if args.compilation_cache is not None:
         use_compilation_cache(args.compilation_cache)
     config = CONFIG.replace(frame_capacity=args.frame_capacity)
