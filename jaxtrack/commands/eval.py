@@ -33,6 +33,12 @@ first); F = frames of the span:
       --delay-tolerance + 1 frames after their last frame) / (entering + exiting targets);
       a target enters when its first frame is after the span's first, exits when its
       last frame is before the span's last
+
+--switches (one sequence) lists every identity switch with its kind, from what its two
+tracks did (jaxtrack.metrics.switches): exchange (the tracks traded objects), drift (the old
+track left for another object), takeover (the new track came from another object), lost
+(the old track ended; what re-identification fixes), replaced (the old track stayed on
+nothing). The kinds add up to IDSW.
 """
 
 from __future__ import annotations
@@ -58,6 +64,7 @@ from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
 from jaxtrack.metrics.cmt import ADDITIVE_FIELDS as CMT_COUNTS
 from jaxtrack.metrics.cmt import DEFAULT_TOLERANCE
+from jaxtrack.metrics.switches import SwitchTable, switch_table
 
 #: Minimum IoU of a match (default of --iou-threshold).
 DEFAULT_IOU_THRESHOLD = 0.5
@@ -179,6 +186,12 @@ def register(subparsers) -> None:
         help=f"CMT's DE: frames allowed to pick up an entering target or release an exiting "
         f"one (default {DEFAULT_TOLERANCE}; the paper states none)",
     )
+    parser.add_argument(
+        "--switches",
+        action="store_true",
+        help="also list every identity switch and its kind (exchange, drift, takeover, lost, "
+        "replaced; one sequence only); with --json, under the key 'switches'",
+    )
     parser.set_defaults(func=run)
 
 
@@ -196,6 +209,7 @@ def run(args) -> int:
         delay_tolerance=args.delay_tolerance,
     )
     if args.benchmark or args.results:
+        refuse_ignored(args, ["switches"], "lists one sequence's switches: give SEQ_DIR RES.txt")
         return _run_benchmark(args, config)
     gt_path, res_path, seqinfo_path = _single_inputs(args)
     info = read_seqinfo(seqinfo_path) if seqinfo_path else None
@@ -210,12 +224,31 @@ def run(args) -> int:
     if args.frames is not None:
         gt, result = gt.frame_span(first, last), result.frame_span(first, last)
     scores = evaluate_sequence(gt, result, (first, last), config).scores()
+    switches = switch_table(gt, result, (first, last), config) if args.switches else None
     if args.json:
-        print(json.dumps({key: scores[key] for key in SUMMARY_KEYS}))
+        record = {key: scores[key] for key in SUMMARY_KEYS}
+        if switches is not None:
+            record["switches"] = {"counts": switches.counts(), "rows": switches.rows()}
+        print(json.dumps(record))
     else:
         print(f"ground truth  {gt_path}\nresults       {res_path}\nframes        {first}..{last}")
         print(_score_listing(scores))
+        if switches is not None:
+            print(_switch_listing(switches))
     return 0
+
+
+def _switch_listing(switches: SwitchTable) -> str:
+    """The switches, one per line in frame order, then the count of each kind."""
+    lines = [f"identity switches ({len(switches.frame)}):"]
+    rows = sorted(switches.rows(), key=lambda row: (row["frame"], row["gt_id"]))
+    lines += [
+        f"  frame {r['frame']:>6}  gt {r['gt_id']:>5}  track {r['from_id']} -> {r['to_id']}  "
+        f"after {r['gap']} frame(s)  {r['kind']}"
+        for r in rows
+    ]
+    lines.append("  " + ", ".join(f"{kind} {n}" for kind, n in switches.counts().items()))
+    return "\n".join(lines)
 
 
 def _single_inputs(args):

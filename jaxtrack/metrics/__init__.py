@@ -1,5 +1,6 @@
 """Tracking metrics, TrackEval-exact: CLEAR MOT, VACE (MODA/MODP), identity, HOTA, OSPA/GOSPA;
-and CMT's error rates OE, DE, SE (on the CLEAR matching, :mod:`jaxtrack.metrics.cmt`).
+and CMT's error rates OE, DE, SE (on the CLEAR matching, :mod:`jaxtrack.metrics.cmt`); the
+kinds of the identity switches (:mod:`jaxtrack.metrics.switches`).
 
 Start with :func:`evaluate_sequence` (one sequence, every metric) and
 :func:`combine_sequences` (a benchmark's combined row); :func:`evaluate_tracks` scores padded
@@ -16,17 +17,21 @@ from jaxtrack.metrics.evaluate import (
 from jaxtrack.metrics.ospa import set_distance_frames, set_distances
 from jaxtrack.metrics.padded import evaluate_tracks, table_from_tracks
 from jaxtrack.metrics.preprocess import SequenceData, prepare_sequence
+from jaxtrack.metrics.switches import SwitchTable, classify_switches, switch_table
 
 __all__ = [
     "SUMMARY_KEYS",
     "EvalConfig",
     "Evaluation",
     "SequenceData",
+    "SwitchTable",
+    "classify_switches",
     "combine_sequences",
     "evaluate_sequence",
     "evaluate_tracks",
     "prepare_sequence",
     "set_distance_frames",
     "set_distances",
+    "switch_table",
     "table_from_tracks",
 ]

@@ -85,7 +85,7 @@ def clear_matching(data: SequenceData, threshold: float = 0.5) -> ClearMatching:
         matched[lo:hi] = False
         matched[chosen] = candidate[chosen]
     matches = np.bincount(pairs.frame[matched], minlength=data.num_frames)
-    gt_id, tracker_id, frame = _matches_by_object(data, matched)
+    gt_id, tracker_id, frame = matches_by_object(data, matched)
     switch = (gt_id[1:] == gt_id[:-1]) & (tracker_id[1:] != tracker_id[:-1])
     id_switches = np.bincount(frame[1:][switch], minlength=data.num_frames)
     return ClearMatching(matched, matches, id_switches)
@@ -104,7 +104,7 @@ def clear_fields(data: SequenceData, matching: ClearMatching) -> dict:
     pairs = data.pairs
     num_gt_rows, num_tracker_rows = data.num_rows
     tp = int(matching.matches.sum())
-    gt_id, _, frame = _matches_by_object(data, matching.matched)
+    gt_id, _, frame = matches_by_object(data, matching.matched)
     active = (pairs.num_gt > 0) & (pairs.num_tracker > 0)
     active_index = np.cumsum(active) - 1
     step = active_index[frame]
@@ -158,7 +158,7 @@ def clear_scores(fields: dict, single_sequence: bool = True) -> dict:
     return scores
 
 
-def _matches_by_object(data: SequenceData, matched: np.ndarray):
+def matches_by_object(data: SequenceData, matched: np.ndarray):
     """``(gt_id, tracker_id, frame)`` of the matches, sorted by gt id then frame."""
     pairs = data.pairs
     gt_id = data.gt_id[pairs.gt_row[matched]]

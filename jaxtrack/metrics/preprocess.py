@@ -58,6 +58,8 @@ class SequenceData(NamedTuple):
         num_tracker_ids: number of distinct tracker identities.
         pairs: every same-frame (gt, tracker) pair.
         similarity: ``[P]`` similarity of each pair (IoU, or centre similarity).
+        gt_labels: ``[num_gt_ids]`` the ground-truth file's id of each relabelled ``gt_id``.
+        tracker_labels: ``[num_tracker_ids]`` the result file's id of each ``tracker_id``.
     """
 
     first_frame: int
@@ -72,6 +74,8 @@ class SequenceData(NamedTuple):
     num_tracker_ids: int
     pairs: FramePairs
     similarity: np.ndarray
+    gt_labels: np.ndarray
+    tracker_labels: np.ndarray
 
     @property
     def num_rows(self) -> tuple[int, int]:
@@ -144,6 +148,8 @@ def prepare_sequence(
         num_tracker_ids=int(tracker_ids.size),
         pairs=pairs,
         similarity=similarity[kept],
+        gt_labels=gt_ids,
+        tracker_labels=tracker_ids,
     )
 
 

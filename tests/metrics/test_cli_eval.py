@@ -204,3 +204,26 @@ def test_help(capsys):
     out = capsys.readouterr().out
     for option in ("--benchmark", "--frames", "--iou-threshold", "--distractors", "--ospa-c"):
         assert option in out
+
+
+def test_switches_listing_and_json(capsys, campus):
+    # TUD-Campus's reference tracker: 7 identity switches, each listed once with a kind.
+    folder, result = campus
+    code, out, _ = run_cli(capsys, folder, result, "--switches")
+    assert code == 0
+    listing = out[out.index("identity switches (7):") :].splitlines()
+    switch_lines = [line for line in listing if line.strip().startswith("frame")]
+    assert len(switch_lines) == 7
+    totals = dict(item.split() for item in listing[-1].strip().split(", "))
+    assert sum(map(int, totals.values())) == 7
+    code, out, _ = run_cli(capsys, folder, result, "--switches", "--json")
+    report = json.loads(out)
+    assert list(report)[:-1] == JSON_KEYS
+    assert report["switches"]["counts"] == {kind: int(n) for kind, n in totals.items()}
+    assert len(report["switches"]["rows"]) == report["IDSW"] == 7
+
+
+def test_switches_refused_for_a_benchmark(capsys, small_benchmark):
+    root, results = small_benchmark
+    code, _, err = run_cli(capsys, "--benchmark", root, "--results", results, "--switches")
+    assert code == 2 and "--switches" in err and "one sequence" in err
