@@ -64,7 +64,8 @@ from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
 from jaxtrack.metrics.cmt import ADDITIVE_FIELDS as CMT_COUNTS
 from jaxtrack.metrics.cmt import DEFAULT_TOLERANCE
-from jaxtrack.metrics.switches import SwitchTable, switch_table
+from jaxtrack.metrics.evaluate import switch_table
+from jaxtrack.metrics.switches import SwitchTable
 
 #: Minimum IoU of a match (default of --iou-threshold).
 DEFAULT_IOU_THRESHOLD = 0.5

@@ -13,11 +13,12 @@ from jaxtrack.metrics.evaluate import (
     Evaluation,
     combine_sequences,
     evaluate_sequence,
+    switch_table,
 )
 from jaxtrack.metrics.ospa import set_distance_frames, set_distances
 from jaxtrack.metrics.padded import evaluate_tracks, table_from_tracks
 from jaxtrack.metrics.preprocess import SequenceData, prepare_sequence
-from jaxtrack.metrics.switches import SwitchTable, classify_switches, switch_table
+from jaxtrack.metrics.switches import SwitchTable, classify_switches
 
 __all__ = [
     "SUMMARY_KEYS",

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from jaxtrack.errors import InputError
-from jaxtrack.metrics import clear, cmt, hota, identity, ospa, vace
+from jaxtrack.metrics import clear, cmt, hota, identity, ospa, switches, vace
 from jaxtrack.metrics.preprocess import prepare_sequence
 
 #: The scores ``jaxtrack eval --json`` prints, in this order.
@@ -125,6 +125,8 @@ class Evaluation:
         set_distance: OSPA/GOSPA per-frame sums and ``num_frames``.
         cmt: CMT error counts (:data:`jaxtrack.metrics.cmt.ADDITIVE_FIELDS`).
         single_sequence: False for a combination of sequences.
+        switches: the identity switches of each kind
+            (:data:`jaxtrack.metrics.switches.KINDS`; they add up to ``IDSW``).
     """
 
     clear: dict
@@ -134,10 +136,12 @@ class Evaluation:
     set_distance: dict
     cmt: dict
     single_sequence: bool = True
+    switches: dict = dataclasses.field(default_factory=dict)
 
     def scores(self) -> dict:
         """Every score: the ``SUMMARY_KEYS`` first, then details (CLEAR/identity counts,
-        HOTA sub-scores, OSPA/GOSPA components, CMT error counts)."""
+        HOTA sub-scores, OSPA/GOSPA components, CMT error counts, ``IDSW_<kind>`` switch
+        counts)."""
         scores = {}
         scores.update(clear.clear_scores(self.clear, self.single_sequence))
         scores.update(identity.identity_scores(self.identity))
@@ -149,6 +153,7 @@ class Evaluation:
         ordered.update({key: value for key, value in scores.items() if key not in ordered})
         ordered.update({key: int(self.identity[key]) for key in identity.ADDITIVE_FIELDS})
         ordered["TP"] = int(self.clear["TP"])
+        ordered.update({f"IDSW_{kind}": int(n) for kind, n in self.switches.items()})
         return ordered
 
     def summary(self) -> dict:
@@ -193,6 +198,7 @@ def evaluate_sequence(gt, result, frames: tuple[int, int] | None = None, config=
             data, config.ospa_cutoff, config.ospa_order, config.ospa_distance
         ),
         cmt=cmt.cmt_fields(data, matching, config.delay_tolerance),
+        switches=switches.classify_switches(data, matching).counts(),
     )
 
 
@@ -221,4 +227,23 @@ def combine_sequences(evaluations) -> Evaluation:
         set_distance=summed("set_distance"),
         cmt=summed("cmt"),
         single_sequence=False,
+        switches=summed("switches"),
     )
+
+
+def switch_table(gt, result, frames: tuple[int, int], config=None) -> switches.SwitchTable:
+    """The classified switches of one sequence, with the matching of
+    :func:`~jaxtrack.metrics.evaluate.evaluate_sequence` (same ``config``).
+
+    Args:
+        gt: ground truth (:class:`~jaxtrack.types.MotTable`, all rows as read).
+        result: tracker output.
+        frames: ``(first, last)`` 1-based inclusive span; every row must lie in it.
+        config: :class:`EvalConfig` (default settings when None).
+
+    Returns:
+        The :class:`~jaxtrack.metrics.switches.SwitchTable`.
+    """
+    config = config or EvalConfig()
+    data = prepare_sequence(gt, result, frames, config.centre_threshold, config.distractors)
+    return switches.classify_switches(data, clear.clear_matching(data, config.match_threshold))

@@ -24,7 +24,9 @@ output frames:
 The kinds are exhaustive and exclusive, so their counts add up to ``IDSW``. ``gap`` is
 ``f1 - f0`` (1: the switch happened from one frame to the next). The classification uses
 the same matching as the counts (:func:`~jaxtrack.metrics.clear.clear_matching`), so it
-inherits its threshold and conventions.
+inherits its threshold and conventions. :func:`~jaxtrack.metrics.evaluate.evaluate_sequence`
+reports the counts (``IDSW_<kind>`` in its scores, summed when sequences are combined);
+:func:`~jaxtrack.metrics.evaluate.switch_table` lists the switches of one sequence.
 """
 
 from __future__ import annotations
@@ -33,9 +35,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from jaxtrack.metrics.clear import ClearMatching, clear_matching, matches_by_object
-from jaxtrack.metrics.evaluate import EvalConfig
-from jaxtrack.metrics.preprocess import SequenceData, prepare_sequence
+from jaxtrack.metrics.clear import ClearMatching, matches_by_object
+from jaxtrack.metrics.preprocess import SequenceData
 
 #: Switch kinds, in the order of the codes of :attr:`SwitchTable.kind`.
 KINDS = ("exchange", "drift", "takeover", "lost", "replaced")
@@ -129,21 +130,3 @@ def classify_switches(data: SequenceData, matching: ClearMatching) -> SwitchTabl
         gap=(frame[switch] - frame[switch - 1]).astype(np.int64),
         kind=kinds,
     )
-
-
-def switch_table(gt, result, frames: tuple[int, int], config=None) -> SwitchTable:
-    """The classified switches of one sequence, with the matching of
-    :func:`~jaxtrack.metrics.evaluate.evaluate_sequence` (same ``config``).
-
-    Args:
-        gt: ground truth (:class:`~jaxtrack.types.MotTable`, all rows as read).
-        result: tracker output.
-        frames: ``(first, last)`` 1-based inclusive span; every row must lie in it.
-        config: :class:`~jaxtrack.metrics.evaluate.EvalConfig` (default settings when None).
-
-    Returns:
-        The :class:`SwitchTable`.
-    """
-    config = config or EvalConfig()
-    data = prepare_sequence(gt, result, frames, config.centre_threshold, config.distractors)
-    return classify_switches(data, clear_matching(data, config.match_threshold))

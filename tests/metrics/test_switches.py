@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from jaxtrack.io import MotTable
-from jaxtrack.metrics import evaluate_sequence, switch_table
+from jaxtrack.metrics import combine_sequences, evaluate_sequence, switch_table
 from jaxtrack.metrics.switches import KINDS
 
 # Two objects far apart: A at x = 0, B at x = 100 (10 x 10 boxes); ids 7 and 8 in the gt.
@@ -116,3 +116,18 @@ def test_kinds_add_up_to_idsw_on_random_tracks(seed):
     assert set(switches.counts()) == set(KINDS)
     assert switches.counts()["exchange"] > 0 and switches.counts()["lost"] > 0
     assert np.all(switches.gap >= 1)
+
+
+def test_evaluation_reports_the_counts_and_combines_them():
+    exchange = table(
+        [(f, 1, A if f <= 5 else B) for f in range(1, 11)]
+        + [(f, 2, B if f <= 5 else A) for f in range(1, 11)]
+    )
+    lost = table([(f, 1, A) for f in range(1, 5)] + [(f, 2, A) for f in range(7, 11)])
+    first = evaluate_sequence(both_objects(), exchange, (1, 10))
+    second = evaluate_sequence(table([(f, 7, A) for f in range(1, 11)]), lost, (1, 10))
+    assert first.switches == {**dict.fromkeys(KINDS, 0), "exchange": 2}
+    combined = combine_sequences([first, second]).scores()
+    kinds = {key: value for key, value in combined.items() if key.startswith("IDSW_")}
+    assert kinds == {f"IDSW_{kind}": {"exchange": 2, "lost": 1}.get(kind, 0) for kind in KINDS}
+    assert sum(kinds.values()) == combined["IDSW"] == 3
