@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from jaxtrack.cli import main
+from jaxtrack.experiments.common import SWITCH_KEYS
 from jaxtrack.experiments.fusion import TABLE_COLUMNS, result_name
 from jaxtrack.filters.fusion_tracker import FusionConfig
 
@@ -56,6 +57,7 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
             scores["IDSW"],
         )
         assert row["MT %"] == round(100 * scores["MT"] / scores["GT_IDs"], 1)
+        assert sum(row[key] for key in SWITCH_KEYS) == row["IDS"]
     # the bs detections are written beside the results and differ from MOT15's
     bs = (out / "sequences" / "TUD-Campus" / "bs" / "det.txt").read_text()
     assert bs and bs != (mot15_root / "TUD-Campus" / "det" / "det.txt").read_text()
@@ -69,6 +71,7 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
     assert tracked.read_text() == written.read_text()
     table = (out / "table.md").read_text()
     assert table.startswith("# Fusion tracker") and "Quick smoke run" in table
+    assert "## Identity switches by kind" in table
     assert "| Proposed (paper, Table 4) | 94.7 | 5.3 | 0.0 | 18 | 1 | 0 | 19 | 34 | 7 |" in table
     # quick: the scene's goal only (no PETS, no ablation, no pooled MOT15 row)
     assert [g["goal"].split(" (")[0] for g in record["goals"]] == ["video-101", "video-101"]

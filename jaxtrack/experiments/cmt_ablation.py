@@ -60,9 +60,12 @@ from jaxtrack.experiments.cmt_analysis import (
 )
 from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
+    SWITCH_KEYS,
     evaluate_rows,
     markdown_table,
     output_folder,
+    switch_counts,
+    switch_section,
 )
 from jaxtrack.filters.cmt_tracker import CMTConfig
 from jaxtrack.filters.kalman_tracker import KalmanConfig
@@ -256,6 +259,7 @@ def score_row(
     row: dict[str, Any] = {"sequence": sequence, "tracker": tracker, "synthetic": synthetic}
     row.update({key: round(100 * summary[key], 2) for key in PERCENT_KEYS})
     row.update({key: int(summary[key]) for key in COUNT_KEYS})
+    row.update(switch_counts(evaluation))
     return row
 
 
@@ -430,10 +434,12 @@ def seed_mean_rows(rows_by_seed: Sequence[Sequence[dict[str, Any]]]) -> list[dic
     means = []
     for index, row in enumerate(first):
         mean = {k: row[k] for k in ("sequence", "tracker", "synthetic")}
-        for key in (*PERCENT_KEYS, *COUNT_KEYS):
+        for key in (*PERCENT_KEYS, *COUNT_KEYS, *SWITCH_KEYS):
+            if key not in row:
+                continue
             values = [rows[index][key] for rows in rows_by_seed]
             mean[key] = round(float(np.mean(values)), 2)
-            if len(rows_by_seed) == 1 and key in COUNT_KEYS:
+            if len(rows_by_seed) == 1 and key in (*COUNT_KEYS, *SWITCH_KEYS):
                 mean[key] = int(values[0])
         means.append(mean)
     return means
@@ -629,6 +635,7 @@ def table_markdown(record: dict[str, Any]) -> str:
         "OE/DE/SE as `jaxtrack.metrics.cmt` defines them; pooled rows combine the sequences "
         "as TrackEval does.\n",
         markdown_table(record["rows"], TABLE_COLUMNS),
+        *_switch_lines(record["rows"]),
         *_seed_section(record),
         "## Off-the-shelf peers (quoted from issue 17, not re-run)\n",
         "Same MOT15 detections, TrackEval 1.3.0 MOT15 mode, pooled over PETS09-S2L1 + "
@@ -660,6 +667,15 @@ def table_markdown(record: dict[str, Any]) -> str:
         + f"; whole run {record['seconds']} s.\n",
     ]
     return "\n".join(lines)
+
+
+def _switch_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The switch kinds of the pooled rows (every row when none is pooled: a quick run),
+    means over the seeds like the table."""
+    pooled = [r for r in rows if r["sequence"] in (MOT15_COMBINED, SYNTHETIC_COMBINED)]
+    return switch_section(
+        [r for r in pooled or rows if "IDSW_exchange" in r], ("sequence", "tracker")
+    )
 
 
 def _seeds_sentence(tracker_seeds: Sequence[int]) -> str:

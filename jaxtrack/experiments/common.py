@@ -34,6 +34,7 @@ from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import MotSequence, MotTable, load_sequence
 from jaxtrack.io.motchallenge import read_seqinfo
 from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
+from jaxtrack.metrics.switches import KINDS
 from jaxtrack.pipelines.context import learn_context
 from jaxtrack.plot.scene import save_scene_preview
 
@@ -41,6 +42,8 @@ from jaxtrack.plot.scene import save_scene_preview
 SCORE_KEYS = ("MOTA", "MOTP", "MODA", "MODP", "IDF1", "HOTA")
 #: Error counts reported beside the scores.
 COUNT_KEYS = ("FP", "FN", "IDSW")
+#: The identity switches of each kind (:mod:`jaxtrack.metrics.switches`), as row keys.
+SWITCH_KEYS = tuple(f"IDSW_{kind}" for kind in KINDS)
 #: The short synthetic scene of ``--quick`` runs: 120 frames, a short burn-in (fewer targets
 #: in view, so fast runs) and more births than the default scene, so that a 60-frame
 #: training half still holds birth events.
@@ -194,6 +197,24 @@ def score_summary(evaluation: Evaluation) -> dict[str, float | int]:
     scores: dict[str, float | int] = {key: round(100 * summary[key], 2) for key in SCORE_KEYS}
     scores.update({key: int(summary[key]) for key in COUNT_KEYS})
     return scores
+
+
+def switch_counts(evaluation: Evaluation) -> dict[str, int]:
+    """The :data:`SWITCH_KEYS` of an evaluation (they add up to its ``IDSW``)."""
+    return {f"IDSW_{kind}": int(evaluation.switches.get(kind, 0)) for kind in KINDS}
+
+
+def switch_section(rows: Sequence[dict], labels: Sequence[str], total: str = "IDSW") -> list[str]:
+    """``table.md`` lines: a heading, what the kinds mean, and ``rows`` (dicts with the
+    ``labels`` columns, ``total`` and the :data:`SWITCH_KEYS`) as a table."""
+    return [
+        "## Identity switches by kind\n",
+        "What each switch's two tracks did (`jaxtrack eval --switches`, "
+        "`jaxtrack.metrics.switches`): exchange = the tracks traded objects, drift = the old "
+        "track moved on to another object, takeover = the new track came from another object, "
+        "lost = the old track ended, replaced = the old track stayed on no object.\n",
+        markdown_table(rows, (*labels, total, *SWITCH_KEYS)),
+    ]
 
 
 def percent_difference(value: float, reference: float) -> float:

@@ -56,6 +56,8 @@ from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
     evaluate_rows,
     markdown_table,
+    switch_counts,
+    switch_section,
 )
 from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
 from jaxtrack.filters.fusion_tracker import FusionConfig
@@ -171,6 +173,7 @@ def score_row(key: RunKey, synthetic: bool, evaluation: Evaluation) -> dict[str,
     row.update({name: int(summary[name]) for name in TRAJECTORY_KEYS})
     row.update(GT=int(trajectories), FM=int(summary["Frag"]), IDS=int(summary["IDSW"]))
     row.update({name: round(100 * summary[name], 2) for name in PERCENT_KEYS})
+    row.update(switch_counts(evaluation))
     return row
 
 
@@ -440,6 +443,13 @@ def table4_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return table
 
 
+def _switch_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The switch kinds of the pooled rows (every row when none is pooled: a quick run)."""
+    pooled = [r for r in rows if r["sequence"] in (MOT15_COMBINED, SYNTHETIC_COMBINED)]
+    shown = [r for r in pooled or rows if "IDSW_exchange" in r]
+    return switch_section(shown, ("sequence", "detections", "scored", "tracker"), "IDS")
+
+
 def table_markdown(record: dict[str, Any]) -> str:
     """``table.md``: Table 4 beside ours, the scores, the paper's ablation, the peers, the
     goals and the setting."""
@@ -470,6 +480,7 @@ def table_markdown(record: dict[str, Any]) -> str:
         "Same MOT15 detections, TrackEval 1.3.0 MOT15 mode, pooled over PETS09-S2L1 + "
         "TUD-Campus + TUD-Stadtmitte, whole sequences.\n",
         markdown_table(record["peers"], PEER_COLUMNS),
+        *_switch_lines(record["rows"]),
         "## Goals\n",
         *(
             f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"

@@ -39,7 +39,12 @@ from jaxtrack.experiments.cmt_ablation import (
     SYNTHETIC_COMBINED,
     start_experiment,
 )
-from jaxtrack.experiments.common import evaluate_rows, markdown_table
+from jaxtrack.experiments.common import (
+    evaluate_rows,
+    markdown_table,
+    switch_counts,
+    switch_section,
+)
 from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
 from jaxtrack.filters.hier_events import DEFAULT_EXITING_FRAMES
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
@@ -87,6 +92,7 @@ def score_row(key: RunKey, synthetic: bool, evaluation: Evaluation) -> dict[str,
     }
     row.update({name: round(100 * summary[name], 2) for name in PERCENT_KEYS})
     row.update({name: int(summary[name]) for name in COUNT_KEYS})
+    row.update(switch_counts(evaluation))
     return row
 
 
@@ -298,7 +304,11 @@ def table_markdown(record: dict[str, Any]) -> str:
         for run, v in record["identity_kept"].items()
     ]
     columns = ("run", "occlusion", "crossing", "group", "overall")
-    lines += [markdown_table(kept_rows, columns), "", "## Goals", ""]
+    lines += [markdown_table(kept_rows, columns), ""]
+    pooled = [r for r in record["rows"] if r["sequence"] in (MOT15_COMBINED, SYNTHETIC_COMBINED)]
+    if pooled and all("IDSW_exchange" in r for r in pooled):
+        lines += [*switch_section(pooled, ("sequence", "detections", "tracker")), ""]
+    lines += ["## Goals", ""]
     lines += [
         f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"
         for g in record["goals"]

@@ -26,8 +26,11 @@ from jaxtrack.experiments.cmt_ablation import (
     seed_mean_rows,
 )
 from jaxtrack.experiments.cmt_analysis import likelihood_gaps, pair_boxes, proposal_distances
+from jaxtrack.experiments.common import SWITCH_KEYS
 from jaxtrack.io.motchallenge import read_mot_file
+from jaxtrack.metrics import switch_table
 from jaxtrack.metrics.evaluate import evaluate_sequence
+from jaxtrack.metrics.switches import KINDS
 from jaxtrack.plot.cmt_analysis import discrimination_figure, prediction_figure
 from jaxtrack.types import MotTable
 
@@ -314,6 +317,10 @@ def test_quick_run_writes_what_it_prints(tmp_path, capsys):
         assert row["IDF1"] == pytest.approx(100 * summary["IDF1"], abs=0.01)
         assert row["OE"] == pytest.approx(100 * summary["OE"], abs=0.01)
         assert row["IDSW"] == summary["IDSW"]
+        kinds = [row[key] for key in SWITCH_KEYS]
+        assert sum(kinds) == row["IDSW"]
+        assert kinds == [len(k) for k in _kinds(gt.frame_span(1, 24), result, (1, 24))]
+    assert "## Identity switches by kind" in table
     # the rows are those ``jaxtrack track`` writes with the same configuration and seed
     config = tmp_path / "cmt.json"
     values = {k: v for k, v in record["trackers"]["CMT"].items() if k != "tracker"}
@@ -333,3 +340,9 @@ def test_quick_run_writes_what_it_prints(tmp_path, capsys):
     for name in ("fig8_prediction.png", "fig9_discrimination.png"):
         pixels = imread(out / name)[..., :3]
         assert np.unique(pixels.reshape(-1, 3), axis=0).shape[0] > 20, name
+
+
+def _kinds(gt, result, frames) -> list[list[int]]:
+    """The frames of the switches of each kind (:data:`KINDS` order), from ``switch_table``."""
+    table = switch_table(gt, result, frames)
+    return [table.frame[table.kind == code].tolist() for code in range(len(KINDS))]

@@ -59,3 +59,10 @@ def test_table_markdown_lists_goals():
     text = table_markdown(data)
     assert "| s det | 1.00 / 0.50 |" in text and "| s det Hierarchical | 1/2 |" in text
     assert text.count("FAIL") + text.count("PASS") == len(data["goals"])
+    assert "Identity switches by kind" not in text  # rows without the kinds (older records)
+    kinds = {"IDSW_exchange": 2, "IDSW_drift": 1, "IDSW_takeover": 0, "IDSW_lost": 2}
+    for r in data["rows"]:
+        r.update(kinds, IDSW_replaced=r["IDSW"] - 5)
+    text = table_markdown(data)
+    assert "## Identity switches by kind" in text
+    assert f"| {MOT15_COMBINED} | det | Hierarchical | 5 | 2 | 1 | 0 | 2 | 0 |" in text
