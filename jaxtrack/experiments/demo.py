@@ -47,6 +47,7 @@ from jaxtrack.experiments.magnitudes import (
 )
 from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of
 from jaxtrack.io.motchallenge import write_results
+from jaxtrack.pipelines.sweep import log_grid
 from jaxtrack.pipelines.tracking import phd_frame_snapshot, track_sequences
 from jaxtrack.plot.context import save_context_plots
 from jaxtrack.plot.experiments import save_demo_figure
@@ -54,8 +55,8 @@ from jaxtrack.plot.tracks import phd_frame_figure
 
 #: The demo's magnitude grid: ``lambda_r`` (false detections / frame) x ``lambda_s``
 #: (births / frame), log-spaced.
-DEMO_CLUTTER_RATES = np.logspace(-1.0, 1.0, 5)
-DEMO_BIRTH_RATES = np.logspace(np.log10(0.02), np.log10(2.0), 5)
+DEMO_CLUTTER_RATES = log_grid(0.1, 10.0, 5)
+DEMO_BIRTH_RATES = log_grid(0.02, 2.0, 5)
 #: The 2 x 2 grid of ``--quick`` runs.
 QUICK_RATES = (np.array([0.3, 3.0]), np.array([0.05, 0.5]))
 #: Columns of ``results.csv``.

@@ -37,16 +37,16 @@ from jaxtrack.experiments.common import (
     write_csv,
 )
 from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_filter_of, phd_params
-from jaxtrack.pipelines.sweep import batch_params, common_shapes, magnitude_grid, sweep
+from jaxtrack.pipelines.sweep import batch_params, common_shapes, log_grid, magnitude_grid, sweep
 from jaxtrack.plot.experiments import save_sweep_figure, save_sweep_heatmaps
 
 #: Clutter magnitudes ``lambda_r`` of the default grid (false detections per frame).
-CLUTTER_RATES = np.logspace(-1.0, 1.0, 9)
+CLUTTER_RATES = log_grid(0.1, 10.0, 9)
 #: Birth magnitudes ``lambda_s`` of the default grid (births per frame).
-BIRTH_RATES = np.logspace(np.log10(0.02), np.log10(2.0), 9)
+BIRTH_RATES = log_grid(0.02, 2.0, 9)
 #: The 3 x 3 grid of ``--quick`` runs.
-QUICK_CLUTTER_RATES = np.logspace(-1.0, 1.0, 3)
-QUICK_BIRTH_RATES = np.logspace(np.log10(0.02), np.log10(2.0), 3)
+QUICK_CLUTTER_RATES = log_grid(0.1, 10.0, 3)
+QUICK_BIRTH_RATES = log_grid(0.02, 2.0, 3)
 #: The variants swept: uniform (UM) and learned (GM) intensities.
 SWEEP_VARIANTS = ("UM", "GM")
 #: The columns of :attr:`MagnitudeSweep.rows`, in order.

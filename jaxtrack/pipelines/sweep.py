@@ -117,6 +117,19 @@ def product_grid(axes: Mapping[str, ArrayLike]) -> dict[str, np.ndarray]:
     return {path: v[columns[:, k]] for k, (path, v) in enumerate(values.items())}
 
 
+def log_grid(low: float, high: float, num: int) -> np.ndarray:
+    """``num`` values from ``low`` to ``high``, evenly spaced in log, each rounded to 12
+    significant digits.
+
+    ``np.logspace`` alone gives 0.20000000000000004 for the middle of ``(0.02, 2, 3)`` on
+    some CPUs and 0.2 on others (its power function's last bits differ between vectorised
+    code paths); the rounding makes grid values, and a grid point's equality with a default,
+    the same on every machine. (No tracker sees the difference: parameters are float32.)
+    """
+    values = np.logspace(np.log10(low), np.log10(high), num)
+    return np.array([float(f"{value:.12g}") for value in values])
+
+
 def magnitude_grid(clutter_rates: ArrayLike, birth_rates: ArrayLike) -> dict[str, np.ndarray]:
     """The ``lambda_r x lambda_s`` grid of PHD-context Fig. 15 (clutter rate slowest).
 
