@@ -211,6 +211,8 @@ def test_switches_listing_and_json(capsys, campus):
     folder, result = campus
     code, out, _ = run_cli(capsys, folder, result, "--switches")
     assert code == 0
+    counts = dict(line.split() for line in out.splitlines() if line.startswith("IDSW_"))
+    assert sum(map(int, counts.values())) == 7  # counts in the score listing, not percentages
     listing = out[out.index("identity switches (7):") :].splitlines()
     switch_lines = [line for line in listing if line.strip().startswith("frame")]
     assert len(switch_lines) == 7
