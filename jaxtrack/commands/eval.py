@@ -65,7 +65,7 @@ from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evalua
 from jaxtrack.metrics.cmt import ADDITIVE_FIELDS as CMT_COUNTS
 from jaxtrack.metrics.cmt import DEFAULT_TOLERANCE
 from jaxtrack.metrics.evaluate import switch_table
-from jaxtrack.metrics.switches import KINDS as SWITCH_KINDS
+from jaxtrack.metrics.switches import SCORE_NAMES as SWITCH_SCORE_NAMES
 from jaxtrack.metrics.switches import SwitchTable
 
 #: Minimum IoU of a match (default of --iou-threshold).
@@ -109,7 +109,7 @@ NOT_PERCENT = (
     "IDFN",
     "IDFP",
     *CMT_COUNTS,
-    *(f"IDSW_{kind}" for kind in SWITCH_KINDS),
+    *SWITCH_SCORE_NAMES.values(),
 )
 
 

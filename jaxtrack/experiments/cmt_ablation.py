@@ -91,6 +91,8 @@ CMT_VARIANTS = {"MTb": "mtb", "MTb+CPD": "cpd", "CMT": "cmt"}
 #: Name of the pooled rows over the MOT15 sequences and over the synthetic scenes.
 MOT15_COMBINED = "MOT15 video combined"
 SYNTHETIC_COMBINED = "synthetic combined"
+#: Both pooled rows.
+POOLED = (MOT15_COMBINED, SYNTHETIC_COMBINED)
 #: Scores in percent, then counts, as the table shows them.
 PERCENT_KEYS = ("OE", "DE", "SE", "MOTA", "IDF1", "HOTA")
 COUNT_KEYS = ("IDSW", "MT", "Frag")
@@ -354,7 +356,7 @@ def goal_checks(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     sequences = list(dict.fromkeys(row["sequence"] for row in rows))
     checks = []
     for sequence in sequences:
-        if sequence in (MOT15_COMBINED, SYNTHETIC_COMBINED):
+        if sequence in POOLED:
             continue
         if not all((sequence, name) in by for name in CMT_VARIANTS):
             continue
@@ -451,14 +453,13 @@ def pooled_rows_by_seed(
     """Every seed's pooled rows (:data:`MOT15_COMBINED`, :data:`SYNTHETIC_COMBINED`; every
     sequence's rows when a table has no pooled row, e.g. a quick run) of the CMT variants and
     PHD, with a ``seed`` column (:data:`SEED_COLUMNS`)."""
-    pooled = (MOT15_COMBINED, SYNTHETIC_COMBINED)
     kept = []
     for seed, rows in zip(seeds, rows_by_seed, strict=True):
-        has_pooled = any(row["sequence"] in pooled for row in rows)
+        has_pooled = any(row["sequence"] in POOLED for row in rows)
         kept += [
             {"seed": seed, **row}
             for row in rows
-            if (row["sequence"] in pooled or not has_pooled)
+            if (row["sequence"] in POOLED or not has_pooled)
             and row["tracker"] in (*CMT_VARIANTS, "PHD")
         ]
     return kept
@@ -635,7 +636,7 @@ def table_markdown(record: dict[str, Any]) -> str:
         "OE/DE/SE as `jaxtrack.metrics.cmt` defines them; pooled rows combine the sequences "
         "as TrackEval does.\n",
         markdown_table(record["rows"], TABLE_COLUMNS),
-        *_switch_lines(record["rows"]),
+        *switch_section(record["rows"], ("sequence", "tracker"), POOLED),
         *_seed_section(record),
         "## Off-the-shelf peers (quoted from issue 17, not re-run)\n",
         "Same MOT15 detections, TrackEval 1.3.0 MOT15 mode, pooled over PETS09-S2L1 + "
@@ -667,15 +668,6 @@ def table_markdown(record: dict[str, Any]) -> str:
         + f"; whole run {record['seconds']} s.\n",
     ]
     return "\n".join(lines)
-
-
-def _switch_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
-    """The switch kinds of the pooled rows (every row when none is pooled: a quick run),
-    means over the seeds like the table."""
-    pooled = [r for r in rows if r["sequence"] in (MOT15_COMBINED, SYNTHETIC_COMBINED)]
-    return switch_section(
-        [r for r in pooled or rows if "IDSW_exchange" in r], ("sequence", "tracker")
-    )
 
 
 def _seeds_sentence(tracker_seeds: Sequence[int]) -> str:

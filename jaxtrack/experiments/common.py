@@ -34,7 +34,7 @@ from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import MotSequence, MotTable, load_sequence
 from jaxtrack.io.motchallenge import read_seqinfo
 from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
-from jaxtrack.metrics.switches import KINDS
+from jaxtrack.metrics.switches import SCORE_NAMES
 from jaxtrack.pipelines.context import learn_context
 from jaxtrack.plot.scene import save_scene_preview
 
@@ -43,7 +43,7 @@ SCORE_KEYS = ("MOTA", "MOTP", "MODA", "MODP", "IDF1", "HOTA")
 #: Error counts reported beside the scores.
 COUNT_KEYS = ("FP", "FN", "IDSW")
 #: The identity switches of each kind (:mod:`jaxtrack.metrics.switches`), as row keys.
-SWITCH_KEYS = tuple(f"IDSW_{kind}" for kind in KINDS)
+SWITCH_KEYS = tuple(SCORE_NAMES.values())
 #: The short synthetic scene of ``--quick`` runs: 120 frames, a short burn-in (fewer targets
 #: in view, so fast runs) and more births than the default scene, so that a 60-frame
 #: training half still holds birth events.
@@ -201,19 +201,27 @@ def score_summary(evaluation: Evaluation) -> dict[str, float | int]:
 
 def switch_counts(evaluation: Evaluation) -> dict[str, int]:
     """The :data:`SWITCH_KEYS` of an evaluation (they add up to its ``IDSW``)."""
-    return {f"IDSW_{kind}": int(evaluation.switches.get(kind, 0)) for kind in KINDS}
+    return {key: int(evaluation.switches.get(kind, 0)) for kind, key in SCORE_NAMES.items()}
 
 
-def switch_section(rows: Sequence[dict], labels: Sequence[str], total: str = "IDSW") -> list[str]:
-    """``table.md`` lines: a heading, what the kinds mean, and ``rows`` (dicts with the
-    ``labels`` columns, ``total`` and the :data:`SWITCH_KEYS`) as a table."""
+def switch_section(
+    rows: Sequence[dict], labels: Sequence[str], pooled: Sequence[str], total: str = "IDSW"
+) -> list[str]:
+    """``table.md`` lines: a heading, what the kinds mean, and a table (the ``labels``
+    columns, ``total`` and the :data:`SWITCH_KEYS`) of the rows whose ``sequence`` is one of
+    ``pooled`` (every row when none is: a quick run). Rows without the kinds (records written
+    before they existed) are left out; no lines when no row is left."""
+    shown = [row for row in rows if row["sequence"] in pooled] or list(rows)
+    shown = [row for row in shown if SWITCH_KEYS[0] in row]
+    if not shown:
+        return []
     return [
         "## Identity switches by kind\n",
         "What each switch's two tracks did (`jaxtrack eval --switches`, "
         "`jaxtrack.metrics.switches`): exchange = the tracks traded objects, drift = the old "
         "track moved on to another object, takeover = the new track came from another object, "
         "lost = the old track ended, replaced = the old track stayed on no object.\n",
-        markdown_table(rows, (*labels, total, *SWITCH_KEYS)),
+        markdown_table(shown, (*labels, total, *SWITCH_KEYS)),
     ]
 
 

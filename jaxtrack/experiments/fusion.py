@@ -48,6 +48,7 @@ from jaxtrack.experiments.cmt_ablation import (
     MOT15_COMBINED,
     PEER_COLUMNS,
     PEERS,
+    POOLED,
     SYNTHETIC_COMBINED,
     peer_rows,
     start_experiment,
@@ -338,7 +339,7 @@ def _table4_goal(by) -> list[dict[str, Any]]:
 
 def _sequences(by) -> list[str]:
     names = dict.fromkeys(key.sequence for key in by)
-    return [name for name in names if name not in (MOT15_COMBINED, SYNTHETIC_COMBINED)]
+    return [name for name in names if name not in POOLED]
 
 
 def _ablation_goals(by) -> list[dict[str, Any]]:
@@ -443,13 +444,6 @@ def table4_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return table
 
 
-def _switch_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
-    """The switch kinds of the pooled rows (every row when none is pooled: a quick run)."""
-    pooled = [r for r in rows if r["sequence"] in (MOT15_COMBINED, SYNTHETIC_COMBINED)]
-    shown = [r for r in pooled or rows if "IDSW_exchange" in r]
-    return switch_section(shown, ("sequence", "detections", "scored", "tracker"), "IDS")
-
-
 def table_markdown(record: dict[str, Any]) -> str:
     """``table.md``: Table 4 beside ours, the scores, the paper's ablation, the peers, the
     goals and the setting."""
@@ -480,7 +474,9 @@ def table_markdown(record: dict[str, Any]) -> str:
         "Same MOT15 detections, TrackEval 1.3.0 MOT15 mode, pooled over PETS09-S2L1 + "
         "TUD-Campus + TUD-Stadtmitte, whole sequences.\n",
         markdown_table(record["peers"], PEER_COLUMNS),
-        *_switch_lines(record["rows"]),
+        *switch_section(
+            record["rows"], ("sequence", "detections", "scored", "tracker"), POOLED, "IDS"
+        ),
         "## Goals\n",
         *(
             f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"

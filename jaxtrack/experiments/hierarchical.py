@@ -35,6 +35,7 @@ from jaxtrack.experiments.cmt_ablation import (
     BEST_PEER_IDF1,
     HELD_OUT_SEEDS,
     MOT15_COMBINED,
+    POOLED,
     QUICK_SCENE,
     SYNTHETIC_COMBINED,
     start_experiment,
@@ -210,7 +211,7 @@ def goal_checks(record: dict[str, Any], real: Sequence[str]) -> list[dict[str, A
        combined, on the MOT15 detections (the peers' detections).
     """
     rows, goals = record["rows"], []
-    names = sorted({r["sequence"] for r in rows} - {MOT15_COMBINED, SYNTHETIC_COMBINED})
+    names = sorted({r["sequence"] for r in rows} - set(POOLED))
     for source in SOURCES:
         failures, details = [], []
         for name in names:
@@ -305,9 +306,10 @@ def table_markdown(record: dict[str, Any]) -> str:
     ]
     columns = ("run", "occlusion", "crossing", "group", "overall")
     lines += [markdown_table(kept_rows, columns), ""]
-    pooled = [r for r in record["rows"] if r["sequence"] in (MOT15_COMBINED, SYNTHETIC_COMBINED)]
-    if pooled and all("IDSW_exchange" in r for r in pooled):
-        lines += [*switch_section(pooled, ("sequence", "detections", "tracker")), ""]
+    # the pooled rows only (a quick run has none, and no section)
+    pooled = [r for r in record["rows"] if r["sequence"] in POOLED]
+    section = switch_section(pooled, ("sequence", "detections", "tracker"), POOLED)
+    lines += [*section, ""] if section else []
     lines += ["## Goals", ""]
     lines += [
         f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"

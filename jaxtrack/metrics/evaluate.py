@@ -153,7 +153,7 @@ class Evaluation:
         ordered.update({key: value for key, value in scores.items() if key not in ordered})
         ordered.update({key: int(self.identity[key]) for key in identity.ADDITIVE_FIELDS})
         ordered["TP"] = int(self.clear["TP"])
-        ordered.update({f"IDSW_{kind}": int(n) for kind, n in self.switches.items()})
+        ordered.update({switches.SCORE_NAMES[kind]: int(n) for kind, n in self.switches.items()})
         return ordered
 
     def summary(self) -> dict:

@@ -41,6 +41,8 @@ from jaxtrack.metrics.preprocess import SequenceData
 #: Switch kinds, in the order of the codes of :attr:`SwitchTable.kind`.
 KINDS = ("exchange", "drift", "takeover", "lost", "replaced")
 EXCHANGE, DRIFT, TAKEOVER, LOST, REPLACED = range(len(KINDS))
+#: The name of each kind's count among an evaluation's scores (``IDSW_<kind>``).
+SCORE_NAMES = {kind: f"IDSW_{kind}" for kind in KINDS}
 
 
 class SwitchTable(NamedTuple):
