@@ -20,6 +20,11 @@ def table(rows) -> MotTable:
     return MotTable.from_arrays(rows[:, 0], rows[:, 1], boxes)
 
 
+def one_object() -> MotTable:
+    """Object A alone (gt id 7), frames 1-10."""
+    return table([(f, 7, A) for f in range(1, 11)])
+
+
 def both_objects(frames=range(1, 11)) -> MotTable:
     return table([(f, 7, A) for f in frames] + [(f, 8, B) for f in frames])
 
@@ -60,7 +65,7 @@ def test_takeover_new_track_comes_from_another_object():
 
 def test_lost_track_ends_and_a_new_one_starts():
     # A tracked by 1 for frames 1-4, nothing in 5-6, a new track 2 from frame 7.
-    gt = table([(f, 7, A) for f in range(1, 11)])
+    gt = one_object()
     result = table([(f, 1, A) for f in range(1, 5)] + [(f, 2, A) for f in range(7, 11)])
     switches = switch_table(gt, result, (1, 10))
     assert rows_of(switches) == [(7, 7, 1, 2, "lost")]
@@ -70,7 +75,7 @@ def test_lost_track_ends_and_a_new_one_starts():
 def test_replaced_old_track_stays_on_nothing():
     # Track 1 slides off A onto empty ground at frame 6 (IoU 0 with every object) and stays
     # there; a second track 2 takes A.
-    gt = table([(f, 7, A) for f in range(1, 11)])
+    gt = one_object()
     result = table(
         [(f, 1, A if f <= 5 else 50) for f in range(1, 11)] + [(f, 2, A) for f in range(6, 11)]
     )
@@ -125,7 +130,7 @@ def test_evaluation_reports_the_counts_and_combines_them():
     )
     lost = table([(f, 1, A) for f in range(1, 5)] + [(f, 2, A) for f in range(7, 11)])
     first = evaluate_sequence(both_objects(), exchange, (1, 10))
-    second = evaluate_sequence(table([(f, 7, A) for f in range(1, 11)]), lost, (1, 10))
+    second = evaluate_sequence(one_object(), lost, (1, 10))
     assert first.switches == {**dict.fromkeys(KINDS, 0), "exchange": 2}
     combined = combine_sequences([first, second]).scores()
     kinds = {key: value for key, value in combined.items() if key.startswith("IDSW_")}
