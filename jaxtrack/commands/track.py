@@ -46,7 +46,8 @@ mixture tracker; + contextual proposal; + contextual observation model, the defa
 are learned on the fly from the PHD tracker's trajectories on the tracked span (the run says
 which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
 ``variant``, ``max_components``, ``particles_per_component``,
-``max_misses``, ``appearance_weight``, ``output``, ``max_gap``.
+``max_misses``, ``appearance_weight``, ``group_area_ratio`` (group blobs, off by default),
+``output``, ``max_gap``.
 
 ``--tracker hierarchical`` runs the Hierarchical tracker (SPEC section 4,
 ``jaxtrack.filters.hierarchical``): a bank of constant-velocity Kalman filters whose tracks

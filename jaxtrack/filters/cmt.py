@@ -17,7 +17,9 @@ model look at the scene's context. One :func:`cmt_step` on
    feature mixture of eq. 11 (:mod:`~jaxtrack.filters.cmt_observation`) raised to
    ``a = appearance_weight``; the weights ``rho_k`` are uniform (EWOM, ``"mtb"`` and
    ``"cpd"``) or the mutual information of each feature with the identities in the
-   component's field of context (COM, eqs. 13-17, ``"cmt"``);
+   component's field of context (COM, eqs. 13-17, ``"cmt"``); with group blobs on
+   (``CPDParams.group_area_ratio`` > 0, off by default), a member of a group blob may
+   instead score that blob on the edges it accounts for (:func:`grouped_log_likelihood`);
 3. reweight (eq. 3), mixture weights (eq. 4), local decisions (heaviest cluster), as in
    :func:`~jaxtrack.filters.mixture.mixture_step`;
 4. **verify**: a component whose likelihood support stays below ``min_log_support`` (no blob
@@ -26,7 +28,8 @@ model look at the scene's context. One :func:`cmt_step` on
    hidden behind another), or whose ``pi_m`` falls below ``min_mixture_weight``, is deleted
    (CMT Algorithm 1);
 5. resample per component; **enter**: a blob that no component explains starts one (the
-   dispelling rule: a blob explained by another component's hypothesis starts none);
+   dispelling rule: a blob explained by another component's hypothesis starts none; nor
+   does a group blob);
 6. **update** the appearance models and decayed histograms at the local decisions, except
    for components whose particles mostly drew *merge* (appearance frozen, Sec. IV-B).
 
@@ -52,7 +55,7 @@ from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.births import LOG_ZERO
-from jaxtrack.filters.cmt_conditions import predicted_mean
+from jaxtrack.filters.cmt_conditions import group_members, predicted_mean
 from jaxtrack.filters.cmt_observation import (
     NUM_LEVELS,
     NUM_VALUES,
@@ -231,6 +234,11 @@ def cmt_step(
     key_propose, key_resample, key_add = jax.random.split(key, 3)
     mixture, blobs, frame = state.mixture, inputs_t.detections, inputs_t.frame
     alive = mixture.alive
+    groups = jnp.zeros((alive.shape[0], blobs.mask.shape[0]), bool)
+    if variant != "mtb":
+        groups = group_members(
+            predicted_mean(state.estimates), alive, blobs, params.proposal.group_area_ratio
+        )
     if variant == "mtb":
         particles, log_q = bootstrap_proposal(key_propose, mixture.particles, params.mixture, blobs)
         conditions = jnp.full(log_q.shape, NORMAL, jnp.int32)
@@ -279,7 +287,10 @@ def cmt_step(
         params.appearance_weight * blob_appearance,
         params,
     )
-    log_box = owned_log_likelihood(particles, params, blobs, owner)
+    log_box = jnp.maximum(
+        owned_log_likelihood(particles, params, blobs, owner),
+        grouped_log_likelihood(particles, state.estimates, params, blobs, groups),
+    )
     log_likelihood = log_box + params.appearance_weight * log_appearance
     log_likelihood = jnp.where(exited, LOG_ZERO, log_likelihood)
     log_weights = reweight(
@@ -325,7 +336,9 @@ def cmt_step(
     )
     entering = blobs
     if variant != "mtb":
-        entering = blobs._replace(mask=blobs.mask & _may_enter(blobs, state.frame, params))
+        entering = blobs._replace(
+            mask=blobs.mask & _may_enter(blobs, state.frame, params) & ~jnp.any(groups, axis=0)
+        )
     new_mixture, overflow = add_unexplained(key_add, resampled, entering, params.mixture)
     born = new_mixture.alive & ~survivors
 
@@ -492,6 +505,62 @@ def owned_log_likelihood(
         return nearest_detection_log_likelihood(component_particles[None], params.mixture, own)[0]
 
     return jax.vmap(one)(particles, usable)
+
+
+def group_anchors(
+    predictions: Float[Array, "max_components 6"],
+    groups: Bool[Array, "max_components max_detections"],
+) -> Bool[Array, "max_components max_detections 4"]:
+    """Which edges of each group blob each member accounts for (left, top, right, bottom).
+
+    A group blob is the box of its members together: its left edge is the left edge of the
+    member whose predicted box reaches furthest left, and so on. ``anchors[m, j, e]`` is
+    True when member ``m``'s predicted box is the extreme one of blob ``j``'s members on
+    edge ``e`` (ties: all of them).
+    """
+    boxes = particle_boxes(predictions)
+    edges = jnp.concatenate([boxes[:, :2], boxes[:, :2] + boxes[:, 2:]], axis=-1)
+    signs = jnp.array([-1.0, -1.0, 1.0, 1.0])  # left and top: smallest; right, bottom: largest
+    reach = jnp.where(groups[..., None], (signs * edges)[:, None, :], -jnp.inf)
+    return groups[..., None] & (reach == jnp.max(reach, axis=0, keepdims=True))
+
+
+def grouped_log_likelihood(
+    particles: Float[Array, "max_components num_particles 6"],
+    estimates: Float[Array, "max_components 6"],
+    params: CMTParams,
+    blobs: Detections,
+    groups: Bool[Array, "max_components max_detections"],
+) -> Float[Array, "max_components num_particles"]:
+    """The box likelihood of each particle on the group blobs its component is a member of
+    (:func:`~jaxtrack.filters.cmt_conditions.group_members`; ``LOG_ZERO`` where none).
+
+    A group blob is the box of its members together: each of its edges is some member's
+    edge (:func:`group_anchors`), and every member lies inside it. Per edge ``e`` of the
+    particle's box (``x_0, y_0, x_1, y_1``) against the blob's, the residual is the edge's
+    offset where the component's prediction is the extreme member on that edge, else the
+    part of the box outside the blob (``max(0, b_x0 - x_0)`` on the left, and so on); the
+    likelihood is the box likelihood's Gaussian (:func:`~jaxtrack.models.likelihood.
+    log_likelihood`'s SDV standard deviations ``s_1`` for the vertical edges, ``s_2`` for
+    the horizontal ones, and its four-coordinate normaliser) of these residuals. The
+    standard deviations are those of the component's previous local decision, the same for
+    all its particles, so that smaller boxes are not favoured. Box sizes are not observed
+    directly: they follow the motion model within what the anchored edges allow.
+    """
+    std = state_dependent_std(estimates[:, SIZE], params.mixture.measurement_noise_std)
+    std = jnp.where(jnp.all(std > 0, axis=-1, keepdims=True), std, 1.0)
+    log_norm = jnp.sum(jnp.log(std), axis=-1) + 2 * jnp.log(2 * jnp.pi)
+    edge_std = std[:, (0, 1, 0, 1)][:, None, None, :]
+    boxes = particle_boxes(particles)[..., None, :]
+    edges = jnp.concatenate([boxes[..., :2], boxes[..., :2] + boxes[..., 2:]], axis=-1)
+    blob_edges = jnp.concatenate([blobs.boxes[:, :2], blobs.boxes[:, :2] + blobs.boxes[:, 2:]], -1)
+    signs = jnp.array([-1.0, -1.0, 1.0, 1.0])
+    beyond = signs * (edges - blob_edges)  # > 0: the particle's edge is outside the blob
+    anchors = group_anchors(predicted_mean(estimates), groups)[:, None]
+    residual = jnp.where(anchors, beyond, jax.nn.relu(beyond)) / edge_std
+    per_blob = -0.5 * jnp.sum(residual**2, axis=-1) - log_norm[:, None, None]
+    per_blob = jnp.where(groups[:, None, :], per_blob, LOG_ZERO)
+    return jnp.max(per_blob, axis=-1, initial=LOG_ZERO)
 
 
 def _merging(

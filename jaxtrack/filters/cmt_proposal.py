@@ -8,15 +8,18 @@ state from the condition's proposal (CMT Sec. IV-A and IV-B-2):
   ``b_j = (cx, cy, w, h)``) is taken as a Gaussian observation ``N(b_j, r_j^2)`` of the
   particle's ``(y1, y2, w, h)``, ``r_j = blob_spread * (w_j, h_j, w_j, h_j)``; the CV
   prediction's marginal is ``N(p, s^2)``. Among the real blobs within ``blob_gate`` heights
-  of the prediction, blob ``j`` is picked with probability ``c_j / sum_k c_k``, ``c_j =
-  N(b_j; p, s^2 + r_j^2)`` (its Gaussian closeness to the prediction), and the centre and
-  size are drawn from the product of the two Gaussians, ``N_j`` (:func:`blob_gaussians`):
-  the blob's Gaussian pulled towards the prediction by the prior's precision (the locally
-  optimal proposal of a linear-Gaussian observation, so the weights ``p / q`` stay
-  bounded). The velocity is set to ``v = 2 (y - y') - v'`` (so that the CV position update
-  ``y = y' + (v' + v) / 2`` holds). With probability ``defensive_weight`` (``beta``), or
-  when no blob is near, the draw comes from the CV transition ``p_cv`` instead:
-  ``q_blob = beta p_cv + (1 - beta) sum_j (c_j / sum_k c_k) N_j``;
+  of the prediction (except the group blobs the component is a member of,
+  :func:`~jaxtrack.filters.cmt_conditions.group_members`: a box over several targets says
+  where the group is, not where this target is), blob ``j`` is picked with probability ``c_j
+  / sum_k c_k``, ``c_j = N(b_j; p, s^2 + r_j^2)`` (its Gaussian closeness to the
+  prediction), and the centre and size are drawn from the product of the two Gaussians,
+  ``N_j`` (:func:`blob_gaussians`): the blob's Gaussian pulled towards the prediction by the
+  prior's precision (the locally optimal proposal of a linear-Gaussian observation, so the
+  weights ``p / q`` stay bounded). The velocity is set to ``v = 2 (y - y') - v'`` (so that
+  the CV position update ``y = y' + (v' + v) / 2`` holds). With probability
+  ``defensive_weight`` (``beta``), or when no blob is near, the draw comes from the CV
+  transition ``p_cv`` instead: ``q_blob = beta p_cv + (1 - beta) sum_j (c_j / sum_k c_k)
+  N_j``;
 * merge: the CV transition ``p_cv`` (the paper's AR(2) prediction: the state holds the
   velocity);
 * exit: the particle is invalidated (``exited``; the caller gives it zero weight). Its
@@ -52,6 +55,7 @@ from jaxtrack.filters.cmt_conditions import (
     CPDParams,
     condition_probabilities,
     default_cpd_params,
+    group_members,
     near_blobs,
     predicted_mean,
 )
@@ -160,6 +164,7 @@ def blob_gaussians(
     params: CPDParams,
     motion_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
+    excluded: Bool[Array, "max_components max_detections"] | None = None,
 ) -> BlobGaussians:
     """The CV prediction of each particle fused with each blob, per coordinate (CMT Sec. IV-A).
 
@@ -174,6 +179,8 @@ def blob_gaussians(
         params: the proposal's parameters (``blob_gate``, ``blob_spread``).
         motion_noise_std: the CV transition's noise std.
         noise_model: noise model of the dynamics.
+        excluded: ``[max_components, max_detections]`` blobs a component's particles may not
+            be drawn onto (the group blobs it is a member of); None: none.
 
     Returns:
         The closeness, means and standard deviations.
@@ -187,6 +194,8 @@ def blob_gaussians(
     total_var = prior_var + blob_var
     closeness = _gaussian_logpdf(boxes, predicted, jnp.sqrt(total_var))
     near = near_blobs(prediction, blobs, params.blob_gate)
+    if excluded is not None:
+        near = near & ~excluded[:, None, :]
     return BlobGaussians(
         log_closeness=jnp.where(near, closeness, LOG_ZERO),
         means=(predicted * blob_var + boxes * prior_var) / total_var,
@@ -311,7 +320,8 @@ def contextual_proposal(
     cv = sample_constant_velocity(
         key_cv, particles.reshape(-1, STATE_DIM), motion_noise_std, noise_model
     ).reshape(particles.shape)
-    gaussians = blob_gaussians(particles, blobs, params, motion_noise_std, noise_model)
+    groups = group_members(predicted_mean(estimates), alive, blobs, params.group_area_ratio)
+    gaussians = blob_gaussians(particles, blobs, params, motion_noise_std, noise_model, groups)
     from_blobs = sample_near_blobs(key_blob, particles, gaussians)
     defensive = jax.random.uniform(key_defensive, conditions.shape) < params.defensive_weight
     blob_driven = (

@@ -82,6 +82,16 @@ class CMTConfig(TrackerConfig):
     appearance_weight: float = setting(
         1.0, Rule("exponent of the appearance likelihood (0: box only)", float, 0.0, 100.0)
     )
+    group_area_ratio: float = setting(
+        0.0,
+        Rule(
+            "group blobs: one detection over two targets bounds both (0: off; e.g. 0.6, the "
+            "largest share of the pair's box and the blob one target may cover)",
+            float,
+            0.0,
+            1.0,
+        ),
+    )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
 
@@ -115,7 +125,9 @@ def cmt_params(config: CMTConfig, zones: SceneZones | None = None) -> CMTParams:
             min_log_support=jnp.float32(MIN_LOG_SUPPORT),
             birth_log_likelihood=jnp.float32(BIRTH_LOG_LIKELIHOOD),
         ),
-        proposal=default_cpd_params(),
+        proposal=default_cpd_params()._replace(
+            group_area_ratio=jnp.float32(config.group_area_ratio)
+        ),
         observation=default_com_params(),
         appearance_weight=jnp.float32(config.appearance_weight),
         duplicate_iou=jnp.float32(DUPLICATE_IOU),

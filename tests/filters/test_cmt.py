@@ -14,6 +14,7 @@ import pytest
 
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.filters.base import run
+from jaxtrack.filters.cmt import group_anchors, grouped_log_likelihood
 from jaxtrack.filters.cmt_tracker import CMTConfig, build_cmt
 from jaxtrack.types import Detections, FrameInputs, SequenceInfo
 
@@ -154,3 +155,95 @@ def test_gradient_of_the_likelihood_support_wrt_noise_is_finite():
 
     grad = jax.grad(support)(params.mixture.motion_noise_std)
     assert np.all(np.isfinite(np.asarray(grad))) and np.any(np.asarray(grad) != 0)
+
+
+def test_grouped_likelihood_matches_its_formula():
+    # Blob 0 (x 50-110, y 20-80) over components 0 (x 50-80, y 20-80) and 1 (x 80-110,
+    # y 24-80): 0 accounts for its left, top and bottom edges, 1 for its right and bottom
+    # edges (the predictions: the estimates have no velocity). Component 2 is no member.
+    boxes = np.array([[50.0, 20.0, 60.0, 60.0], [0.0, 0.0, 1.0, 1.0]], np.float32)
+    blobs = Detections(jnp.asarray(boxes), jnp.ones(2), jnp.array([True, False]))
+    estimates = np.array(
+        [[65, 0, 50, 0, 30, 60], [95, 0, 52, 0, 30, 56], [20, 0, 20, 0, 10, 20]], np.float32
+    )
+    groups = jnp.array([[True, False], [True, False], [False, False]])
+    anchors = np.asarray(group_anchors(jnp.asarray(estimates), groups))
+    np.testing.assert_array_equal(anchors[:, 0], [[1, 1, 0, 1], [0, 0, 1, 1], [0, 0, 0, 0]])
+    assert not anchors[:, 1].any()
+    # per component, particles (cx, cy, w, h) and their edge residuals (left, top, right,
+    # bottom) in pixels: anchored edges count their offset either way, the others only
+    # what lies outside the blob
+    cases = [
+        [
+            ((65, 50, 30, 60), (0, 0, 0, 0)),
+            ((69, 50, 30, 60), (4, 0, 0, 0)),  # left edge 4 px inside: anchored
+            ((65, 50, 30, 66), (0, 3, 0, 3)),  # 3 px out at the top and the bottom
+            ((58, 50, 30, 60), (7, 0, 0, 0)),  # 7 px out on the left
+        ],
+        [
+            ((95, 52, 30, 56), (0, 0, 0, 0)),
+            ((93, 52, 30, 56), (0, 0, 2, 0)),  # left edge 2 px further in: not anchored
+            ((95, 50, 30, 56), (0, 0, 0, 2)),  # bottom 2 px up: anchored; top still inside
+            ((95, 40, 30, 56), (0, 8, 0, 12)),  # top 8 px out; bottom 12 px up
+        ],
+    ]
+    particles = np.zeros((3, 4, 6), np.float32)
+    for m, rows in enumerate(cases):
+        particles[m, :, [0, 2, 4, 5]] = np.array([state for state, _ in rows], np.float32).T
+    _, params = build_cmt(CMTConfig(variant="cmt", **SMALL), INFO)
+    got = np.asarray(
+        grouped_log_likelihood(
+            jnp.asarray(particles), jnp.asarray(estimates), params, blobs, groups
+        )
+    )
+    noise = np.asarray(params.mixture.measurement_noise_std, np.float64)
+    for m, rows in enumerate(cases):
+        w, h = estimates[m, 4:6]
+        std = noise * [w, h, w, h]
+        log_norm = np.sum(np.log(std)) + 2 * np.log(2 * np.pi)
+        edge_std = std[[0, 1, 0, 1]]
+        want = [-0.5 * np.sum((np.array(r) / edge_std) ** 2) - log_norm for _, r in rows]
+        np.testing.assert_allclose(got[m], want, rtol=1e-5)
+    assert np.all(got[2] <= -1e29)  # not a member: LOG_ZERO
+
+
+def side_by_side(num_frames=30, merged=range(8, 22)):
+    """Two targets walking right side by side (2 px apart); on the frames of ``merged`` the
+    detector sees them as one box (their bounding box)."""
+    truth, detections = [], []
+    for t in range(num_frames):
+        pair = [(20.0 + 2 * t, 40.0, 16.0, 36.0), (38.0 + 2 * t, 40.0, 16.0, 36.0)]
+        truth.append(pair)
+        detections.append([(20.0 + 2 * t, 40.0, 34.0, 36.0)] if t in merged else pair)
+    return truth, detections
+
+
+def kept_the_pair(info, num_frames) -> bool:
+    """Both targets shown from frame 2 on, with identities 0 and 1 only, left one 0."""
+    mask, ids = np.asarray(info.tracks.mask), np.asarray(info.tracks.ids)
+    boxes = np.asarray(info.tracks.boxes)
+    if mask.sum(axis=1)[2:].tolist() != [2] * (num_frames - 2):
+        return False
+    for t in range(2, num_frames):
+        order = np.argsort(boxes[t, mask[t], 0])
+        if ids[t, mask[t]][order].tolist() != [0, 1]:
+            return False
+    return True
+
+
+def test_a_pair_seen_as_one_box_keeps_two_tracks_and_their_identities():
+    # Frames 8-21 have one detection over the pair. As a group blob it bounds both
+    # components (CV draws, contained likelihood, COM tells them apart); without group blobs
+    # (ratio 0, the default) one component takes the box and the other starves or swaps.
+    truth, detections = side_by_side()
+    inputs = frame_inputs(np.asarray(scene(truth, COLOURS).frame), detections)
+    filt, params = build_cmt(CMTConfig(variant="cmt", **SMALL), INFO)
+    track = jax.jit(lambda k, p, i: run(filt, k, p, i)[1])
+    kept = {}
+    for ratio in (0.0, 0.6):
+        p = params._replace(proposal=params.proposal._replace(group_area_ratio=jnp.float32(ratio)))
+        kept[ratio] = sum(
+            kept_the_pair(track(jax.random.PRNGKey(seed), p, inputs), len(truth))
+            for seed in range(10)
+        )
+    assert kept[0.6] >= 8 and kept[0.0] <= 2, kept

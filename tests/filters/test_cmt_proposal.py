@@ -19,20 +19,36 @@ from scipy.stats import norm
 
 from jaxtrack.filters.cmt_conditions import (
     EXIT,
+    GROUP_IOU,
     MERGE,
     NORMAL,
     SPLIT,
     CPDParams,
     condition_probabilities,
     default_cpd_params,
+    group_members,
 )
 from jaxtrack.filters.cmt_proposal import contextual_proposal, log_constant_velocity
 from jaxtrack.filters.mixture_models import log_transition
 from jaxtrack.filters.mixture_state import MixtureParams
 from jaxtrack.types import Detections
 
+#: The constant-velocity transition ``G`` (``T = 1``), written out.
+TRANSITION = np.array(
+    [
+        [1, 1, 0, 0, 0, 0],
+        [0, 1, 0, 0, 0, 0],
+        [0, 0, 1, 1, 0, 0],
+        [0, 0, 0, 1, 0, 0],
+        [0, 0, 0, 0, 1, 0],
+        [0, 0, 0, 0, 0, 1],
+    ],
+    np.float32,
+)
 MOTION = np.array([0.05, 0.05, 0.01, 0.01], np.float32)
 PARAMS = default_cpd_params()
+#: The defaults with group blobs on (they are off by default).
+GROUPED = PARAMS._replace(group_area_ratio=jnp.float32(0.6))
 NO_ZONE = (np.zeros((2, 4), np.float32), np.zeros(2, bool))
 
 
@@ -69,9 +85,48 @@ def box_at(state, dx=0.0, dy=0.0) -> list[float]:
     return [cx + vx + dx - w / 2, cy + vy + dy - h / 2, w, h]
 
 
+def reference_iou(a, b) -> float:
+    """IoU of two ``(x, y, w, h)`` boxes, float64."""
+    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
+    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
+    inter = ix * iy
+    return inter / (a[2] * a[3] + b[2] * b[3] - inter)
+
+
+def reference_groups(estimates, alive, blobs, ratio) -> np.ndarray:
+    """Group membership by loops over pairs and blobs, float64 (``group_members``)."""
+    boxes = [box_at(e) for e in np.asarray(estimates, np.float64)]
+    num, blob_boxes = len(boxes), np.asarray(blobs.boxes, np.float64)
+    out = np.zeros((num, len(blob_boxes)), bool)
+    for j, (blob, real) in enumerate(zip(blob_boxes, np.asarray(blobs.mask), strict=True)):
+        for m in range(num):
+            for k in range(num):
+                if not (real and alive[m] and alive[k] and m != k):
+                    continue
+                a, b = boxes[m], boxes[k]
+                x0, y0 = min(a[0], b[0]), min(a[1], b[1])
+                x1, y1 = max(a[0] + a[2], b[0] + b[2]), max(a[1] + a[3], b[1] + b[3])
+                hull = [x0, y0, x1 - x0, y1 - y0]
+                hull_iou = reference_iou(hull, blob)
+                inside = all(
+                    blob[0] <= c[0] + c[2] / 2 <= blob[0] + blob[2]
+                    and blob[1] <= c[1] + c[3] / 2 <= blob[1] + blob[3]
+                    for c in (a, b)
+                )
+                out[m, j] |= (
+                    hull_iou >= GROUP_IOU
+                    and hull_iou > max(reference_iou(a, blob), reference_iou(b, blob))
+                    and max(a[2] * a[3], b[2] * b[3]) <= float(ratio) * hull[2] * hull[3]
+                    and max(a[2] * a[3], b[2] * b[3]) <= float(ratio) * blob[2] * blob[3]
+                    and inside
+                )
+    return out
+
+
 def reference_probabilities(estimates, alive, zone_boxes, zone_mask, blobs, params):
     """Eqs. 6-10 by loops, float64, with the exponentials taken directly."""
     p = {k: np.asarray(v, np.float64) for k, v in params._asdict().items()}
+    grouped = reference_groups(estimates, alive, blobs, p["group_area_ratio"]).any(axis=1)
     estimates = np.asarray(estimates, np.float64)
     out = np.zeros((len(estimates), 4))
     for m, (cx, vx, cy, vy, _, h) in enumerate(estimates):
@@ -103,12 +158,16 @@ def reference_probabilities(estimates, alive, zone_boxes, zone_mask, blobs, para
         )
         if near:
             row[EXIT] *= p["exit_penalty"]
+        if grouped[m]:
+            row[NORMAL] *= p["group_penalty"]
+            row[SPLIT] *= p["group_penalty"]
         out[m] = np.array(row) / sum(row)
     return out
 
 
-def reference_log_q(new, old, probabilities, blobs, params):
-    """``log q(x | x')`` of eq. 5 by loops, float64 (module docstring of cmt_proposal)."""
+def reference_log_q(new, old, probabilities, blobs, params, groups=None):
+    """``log q(x | x')`` of eq. 5 by loops, float64 (module docstring of cmt_proposal); the
+    blobs ``groups[k, j]`` are not near component ``k``."""
     p = {k: np.asarray(v, np.float64) for k, v in params._asdict().items()}
     new, old = np.asarray(new, np.float64), np.asarray(old, np.float64)
     boxes = np.asarray(blobs.boxes, np.float64)
@@ -120,8 +179,10 @@ def reference_log_q(new, old, probabilities, blobs, params):
             s = MOTION.astype(np.float64) * np.array([w, h, w, h])
             cv = np.prod(norm.pdf([x[1], x[3], x[4], x[5]], [vx, vy, w, h], s))
             closeness, gaussians = [], []
-            for (bx, by, bw, bh), real in zip(boxes, blobs.mask, strict=True):
+            for j, ((bx, by, bw, bh), real) in enumerate(zip(boxes, blobs.mask, strict=True)):
                 b = np.array([bx + bw / 2, by + bh / 2, bw, bh])
+                if groups is not None and groups[k, j]:
+                    continue
                 if not real or math.hypot(b[0] - cx - vx, b[1] - cy - vy) > p["blob_gate"] * h:
                     continue
                 pred = np.array([cx + vx, cy + vy, w, h])
@@ -141,6 +202,14 @@ def reference_log_q(new, old, probabilities, blobs, params):
                 blob_driven = cv
             out[k, i] = np.log(share_blob * blob_driven + probabilities[k, MERGE] * cv)
     return out
+
+
+def pair_box(first, second, pad=2.0) -> list[float]:
+    """The bounding box of two states' CV prediction boxes, grown by ``pad`` on each side."""
+    a, b = box_at(first), box_at(second)
+    x0, y0 = min(a[0], b[0]) - pad, min(a[1], b[1]) - pad
+    x1, y1 = max(a[0] + a[2], b[0] + b[2]) + pad, max(a[1] + a[3], b[1] + b[3]) + pad
+    return [x0, y0, x1 - x0, y1 - y0]
 
 
 ESTIMATES = np.array(
@@ -168,12 +237,20 @@ ZONES = (np.array([[0.0, 240.0, 60.0, 80.0], [0.0, 0.0, 5.0, 5.0]], np.float32),
         ([True, True, True, True], ZONES, [], None),
         # blob at component 0's prediction: its exit penalised; padded blob ignored
         ([True, True, True, True], ZONES, "at0", None),
+        # one blob over components 0 and 1 together: their normal and split penalised
+        ([True, True, True, True], ZONES, "group", None),
+        ([True, True, False, False], NO_ZONE, "group", None),
     ],
 )
 def test_condition_probabilities_match_a_loop(alive, zones, blob_boxes, expected):
     alive = np.array(alive)
+    params = PARAMS
     if blob_boxes == "at0":
         blobs = blobs_of([box_at(ESTIMATES[0], 3.0), box_at(ESTIMATES[2])], [True, False])
+    elif blob_boxes == "group":
+        blobs = blobs_of([pair_box(ESTIMATES[0], ESTIMATES[1]), box_at(ESTIMATES[2])])
+        params = GROUPED
+        assert reference_groups(ESTIMATES, alive, blobs, 0.6)[:2, 0].all()
     else:
         blobs = blobs_of(np.zeros((2, 4)), [False, False])
     got = probabilities_of(
@@ -182,9 +259,9 @@ def test_condition_probabilities_match_a_loop(alive, zones, blob_boxes, expected
         jnp.asarray(zones[0]),
         jnp.asarray(zones[1]),
         blobs,
-        PARAMS,
+        params,
     )
-    want = reference_probabilities(ESTIMATES, alive, zones[0], zones[1], blobs, PARAMS)
+    want = reference_probabilities(ESTIMATES, alive, zones[0], zones[1], blobs, params)
     np.testing.assert_allclose(got, want, atol=1e-6)
     np.testing.assert_allclose(np.sum(got, axis=1), 1.0, atol=1e-6)
     if expected is not None:
@@ -205,6 +282,65 @@ def test_blob_penalises_exit_and_the_pair_share_grows_when_close():
     near = probabilities_of(jnp.asarray(closer), alive, *zones, none, PARAMS)
     assert float(near[0, NORMAL]) < float(without[0, NORMAL])
     assert float(near[0, SPLIT]) > float(without[0, SPLIT])
+
+
+@pytest.mark.parametrize(
+    ("case", "members"),
+    [
+        # two targets side by side under one box: both members
+        ("pair", [True, True, False]),
+        # the blob is component 0's own box: no group
+        ("own", [False, False, False]),
+        # a small second component inside component 0's box, the blob that box: no group
+        ("inside", [False, False, False]),
+        # the pair's box, but component 1 dead: no group
+        ("dead", [False, False, False]),
+        # the pair's box with group blobs turned off (ratio 0): no group
+        ("off", [False, False, False]),
+    ],
+)
+def test_group_members_match_a_loop(case, members):
+    estimates = ESTIMATES[:3].copy()
+    alive = np.array([True, case != "dead", True])
+    ratio = 0.0 if case == "off" else 0.6
+    if case == "inside":
+        estimates[1] = [101.0, 2.0, 195.0, 1.0, 20.0, 50.0]
+    box = box_at(estimates[0]) if case in ("own", "inside") else pair_box(*estimates[:2])
+    blobs = blobs_of([box, box_at(estimates[2]), box], [True, True, False])
+    got = group_members(
+        jnp.asarray(estimates) @ jnp.asarray(TRANSITION).T,
+        jnp.asarray(alive),
+        blobs,
+        jnp.float32(ratio),
+    )
+    want = reference_groups(estimates, alive, blobs, ratio)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(np.asarray(got)[:, 0], members)
+    assert not np.asarray(got)[:, 1:].any()
+
+
+def test_a_group_member_draws_its_particles_from_the_transition_not_the_group_blob():
+    # Only blob: one box over components 0 and 1. As members (ratio 0.6) all their draws
+    # come from the CV transition, ``q = (1 - q(exit)) p_cv``; without groups (ratio 0) the
+    # normal and split draws come from the blob-driven mixture, and ``q`` differs.
+    particles, estimates, alive, _, zone_boxes, zone_mask = scene(64, 4)
+    blobs = blobs_of([pair_box(ESTIMATES[0], ESTIMATES[1])])
+    gaps, merges = {}, {}
+    for ratio in (0.0, 0.6):
+        params = PARAMS._replace(group_area_ratio=jnp.float32(ratio))
+        draw = propose(
+            jax.random.key(5), particles, estimates, alive, blobs, zone_boxes, zone_mask, params
+        )
+        kept = ~np.asarray(draw.exited)[:2]
+        transition = (
+            np.log1p(-np.asarray(draw.probabilities)[:2, EXIT, None])
+            + np.asarray(log_cv(draw.particles, particles, jnp.asarray(MOTION)))[:2]
+        )
+        gaps[ratio] = np.abs(np.asarray(draw.log_q)[:2] - transition)[kept]
+        merges[ratio] = np.asarray(draw.probabilities)[:2, MERGE]
+    assert gaps[0.6].max() < 1e-3
+    assert np.median(gaps[0.0]) > 0.02  # 20x the members' tolerance
+    assert np.all(merges[0.6] > 2 * merges[0.0])
 
 
 def scene(num_particles: int, seed: int):
@@ -233,10 +369,24 @@ def scene(num_particles: int, seed: int):
     )
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_log_q_matches_a_loop_of_the_mixture_density(seed):
+@pytest.mark.parametrize(("seed", "group"), [(0, False), (1, False), (2, True)])
+def test_log_q_matches_a_loop_of_the_mixture_density(seed, group):
     particles, estimates, alive, blobs, zone_boxes, zone_mask = scene(32, seed)
-    params = PARAMS._replace(
+    groups = None
+    if group:  # the padded slot becomes one blob over components 0 and 1 together
+        boxes = np.asarray(blobs.boxes).copy()
+        boxes[4] = pair_box(ESTIMATES[0], ESTIMATES[1])
+        blobs = blobs_of(boxes)
+        groups = reference_groups(estimates, np.asarray(alive), blobs, 0.6)
+        assert groups[:2, 4].all() and groups.sum() == 2
+        got = group_members(
+            jnp.asarray(estimates) @ jnp.asarray(TRANSITION).T,
+            alive,
+            blobs,
+            GROUPED.group_area_ratio,
+        )
+        np.testing.assert_array_equal(got, groups)
+    params = (GROUPED if group else PARAMS)._replace(
         blob_gate=jnp.asarray(0.5), defensive_weight=jnp.asarray(0.3), exit_penalty=jnp.asarray(0.5)
     )
     draw = propose(
@@ -246,7 +396,7 @@ def test_log_q_matches_a_loop_of_the_mixture_density(seed):
         estimates, np.asarray(alive), zone_boxes, np.asarray(zone_mask), blobs, params
     )
     np.testing.assert_allclose(draw.probabilities, probabilities, atol=1e-6)
-    want = reference_log_q(draw.particles, particles, probabilities, blobs, params)
+    want = reference_log_q(draw.particles, particles, probabilities, blobs, params, groups)
     np.testing.assert_allclose(draw.log_q, want, rtol=1e-5, atol=1e-3)
     conditions = np.asarray(draw.conditions)
     assert set(np.unique(conditions[:2])) == {NORMAL, SPLIT, MERGE, EXIT}
