@@ -33,18 +33,6 @@ from jaxtrack.filters.mixture_models import log_transition
 from jaxtrack.filters.mixture_state import MixtureParams
 from jaxtrack.types import Detections
 
-#: The constant-velocity transition ``G`` (``T = 1``), written out.
-TRANSITION = np.array(
-    [
-        [1, 1, 0, 0, 0, 0],
-        [0, 1, 0, 0, 0, 0],
-        [0, 0, 1, 1, 0, 0],
-        [0, 0, 0, 1, 0, 0],
-        [0, 0, 0, 0, 1, 0],
-        [0, 0, 0, 0, 0, 1],
-    ],
-    np.float32,
-)
 MOTION = np.array([0.05, 0.05, 0.01, 0.01], np.float32)
 PARAMS = default_cpd_params()
 #: The defaults with group blobs on (they are off by default).
@@ -70,6 +58,14 @@ def eager_propose(key, particles, estimates, alive, blobs, zone_boxes, zone_mask
 propose = jax.jit(eager_propose)
 log_cv = jax.jit(log_constant_velocity)
 probabilities_of = jax.jit(condition_probabilities)
+
+
+def cv_prediction(states) -> jnp.ndarray:
+    """The constant-velocity prediction of ``(cx, vx, cy, vy, w, h)`` states (``T = 1``)."""
+    states = np.asarray(states, np.float32).copy()
+    states[:, 0] += states[:, 1]
+    states[:, 2] += states[:, 3]
+    return jnp.asarray(states)
 
 
 def blobs_of(boxes, mask=None) -> Detections:
@@ -308,7 +304,7 @@ def test_group_members_match_a_loop(case, members):
     box = box_at(estimates[0]) if case in ("own", "inside") else pair_box(*estimates[:2])
     blobs = blobs_of([box, box_at(estimates[2]), box], [True, True, False])
     got = group_members(
-        jnp.asarray(estimates) @ jnp.asarray(TRANSITION).T,
+        cv_prediction(estimates),
         jnp.asarray(alive),
         blobs,
         jnp.float32(ratio),
@@ -380,7 +376,7 @@ def test_log_q_matches_a_loop_of_the_mixture_density(seed, group):
         groups = reference_groups(estimates, np.asarray(alive), blobs, 0.6)
         assert groups[:2, 4].all() and groups.sum() == 2
         got = group_members(
-            jnp.asarray(estimates) @ jnp.asarray(TRANSITION).T,
+            cv_prediction(estimates),
             alive,
             blobs,
             GROUPED.group_area_ratio,
