@@ -102,7 +102,7 @@ def default_cpd_params() -> CPDParams:
     """Defaults: ``d_thr`` 1.5 heights, ``eps`` 0.05 (CMT Sec. IV-B), the rest chosen here.
 
     Group blobs are off (``group_area_ratio`` 0): on the development scenes they did not
-    pay (README, "CMT: group blobs"); 0.6 is the setting measured there.
+    pay (README, CMT section, "Group blobs"); 0.6 is the setting measured there.
 
     ``blob_spread`` is the toolkit's default SDV measurement noise
     (:data:`~jaxtrack.filters.phd_defaults.DEFAULT_MEASUREMENT_NOISE_STD`): the blobs are the
