@@ -234,11 +234,10 @@ def cmt_step(
     key_propose, key_resample, key_add = jax.random.split(key, 3)
     mixture, blobs, frame = state.mixture, inputs_t.detections, inputs_t.frame
     alive = mixture.alive
+    predictions = predicted_mean(state.estimates)
     groups = jnp.zeros((alive.shape[0], blobs.mask.shape[0]), bool)
     if variant != "mtb":
-        groups = group_members(
-            predicted_mean(state.estimates), alive, blobs, params.proposal.group_area_ratio
-        )
+        groups = group_members(predictions, alive, blobs, params.proposal.group_area_ratio)
     if variant == "mtb":
         particles, log_q = bootstrap_proposal(key_propose, mixture.particles, params.mixture, blobs)
         conditions = jnp.full(log_q.shape, NORMAL, jnp.int32)
@@ -254,6 +253,7 @@ def cmt_step(
             blobs,
             params.zone_boxes,
             params.zone_mask,
+            groups=groups,
         )
         particles, log_q, conditions, exited = (
             draw.particles,
@@ -281,7 +281,7 @@ def cmt_step(
         params.observation,
     )
     owner = blob_owners(
-        predicted_mean(state.estimates),
+        predictions,
         alive,
         blobs,
         params.appearance_weight * blob_appearance,
@@ -289,7 +289,7 @@ def cmt_step(
     )
     log_box = jnp.maximum(
         owned_log_likelihood(particles, params, blobs, owner),
-        grouped_log_likelihood(particles, state.estimates, params, blobs, groups),
+        grouped_log_likelihood(particles, predictions, params, blobs, groups),
     )
     log_likelihood = log_box + params.appearance_weight * log_appearance
     log_likelihood = jnp.where(exited, LOG_ZERO, log_likelihood)
@@ -527,7 +527,7 @@ def group_anchors(
 
 def grouped_log_likelihood(
     particles: Float[Array, "max_components num_particles 6"],
-    estimates: Float[Array, "max_components 6"],
+    predictions: Float[Array, "max_components 6"],
     params: CMTParams,
     blobs: Detections,
     groups: Bool[Array, "max_components max_detections"],
@@ -543,11 +543,12 @@ def grouped_log_likelihood(
     likelihood is the box likelihood's Gaussian (:func:`~jaxtrack.models.likelihood.
     log_likelihood`'s SDV standard deviations ``s_1`` for the vertical edges, ``s_2`` for
     the horizontal ones, and its four-coordinate normaliser) of these residuals. The
-    standard deviations are those of the component's previous local decision, the same for
-    all its particles, so that smaller boxes are not favoured. Box sizes are not observed
+    standard deviations are those of the component's predicted box (``predictions``: the
+    constant-velocity prediction of its previous local decision, whose size it keeps), the
+    same for all its particles, so that smaller boxes are not favoured. Box sizes are not observed
     directly: they follow the motion model within what the anchored edges allow.
     """
-    std = state_dependent_std(estimates[:, SIZE], params.mixture.measurement_noise_std)
+    std = state_dependent_std(predictions[:, SIZE], params.mixture.measurement_noise_std)
     std = jnp.where(jnp.all(std > 0, axis=-1, keepdims=True), std, 1.0)
     log_norm = jnp.sum(jnp.log(std), axis=-1) + 2 * jnp.log(2 * jnp.pi)
     edge_std = std[:, (0, 1, 0, 1)][:, None, None, :]
@@ -556,7 +557,7 @@ def grouped_log_likelihood(
     blob_edges = jnp.concatenate([blobs.boxes[:, :2], blobs.boxes[:, :2] + blobs.boxes[:, 2:]], -1)
     signs = jnp.array([-1.0, -1.0, 1.0, 1.0])
     beyond = signs * (edges - blob_edges)  # > 0: the particle's edge is outside the blob
-    anchors = group_anchors(predicted_mean(estimates), groups)[:, None]
+    anchors = group_anchors(predictions, groups)[:, None]
     residual = jnp.where(anchors, beyond, jax.nn.relu(beyond)) / edge_std
     per_blob = -0.5 * jnp.sum(residual**2, axis=-1) - log_norm[:, None, None]
     per_blob = jnp.where(groups[:, None, :], per_blob, LOG_ZERO)

@@ -247,6 +247,7 @@ def condition_probabilities(
     zone_mask: Bool[Array, " num_zones"],
     blobs: Detections,
     params: CPDParams,
+    groups: Bool[Array, "max_components max_detections"] | None = None,
 ) -> Float[Array, "max_components 4"]:
     """``q(h | x_{t-1}, z~_t)`` of each component (CMT eqs. 6-10; module docstring).
 
@@ -258,6 +259,8 @@ def condition_probabilities(
         zone_mask: True for the real zones.
         blobs: the frame's padded foreground blobs ``z~_t``.
         params: the proposal's parameters.
+        groups: :func:`group_members` of the estimates' predictions, when the caller has
+            them; None: computed here.
 
     Returns:
         ``[max_components, 4]`` probabilities of ``(NORMAL, SPLIT, MERGE, EXIT)``, rows
@@ -277,10 +280,9 @@ def condition_probabilities(
     prior = jnp.concatenate([normal[:, None], (1 - normal)[:, None] * shares], axis=-1)
     blob_near = jnp.any(near_blobs(predicted_mean(estimates), blobs, params.blob_gate), axis=-1)
     exit_evidence = jnp.where(blob_near, params.exit_penalty, 1.0)
-    grouped = jnp.any(
-        group_members(predicted_mean(estimates), alive, blobs, params.group_area_ratio), axis=-1
-    )
-    move_evidence = jnp.where(grouped, params.group_penalty, 1.0)
+    if groups is None:
+        groups = group_members(predicted_mean(estimates), alive, blobs, params.group_area_ratio)
+    move_evidence = jnp.where(jnp.any(groups, axis=-1), params.group_penalty, 1.0)
     # p(z~ | h) in the columns' order (NORMAL, SPLIT, MERGE, EXIT) = (0, 1, 2, 3)
     ones = jnp.ones_like(move_evidence)
     evidence = jnp.stack([move_evidence, move_evidence, ones, exit_evidence], axis=-1)

@@ -293,6 +293,7 @@ def contextual_proposal(
     zone_boxes: Float[Array, "num_zones 4"],
     zone_mask: Bool[Array, " num_zones"],
     noise_model: NoiseModel = state_dependent_std,
+    groups: Bool[Array, "max_components max_detections"] | None = None,
 ) -> CPDDraw:
     """One draw of CMT's motion-condition-specific proposal (CMT eq. 5; module docstring).
 
@@ -307,20 +308,25 @@ def contextual_proposal(
         zone_boxes: padded entry/exit zone boxes ``(x, y, w, h)``, pixels.
         zone_mask: True for the real zones.
         noise_model: noise model of the dynamics.
+        groups: :func:`~jaxtrack.filters.cmt_conditions.group_members` of the estimates'
+            predictions, when the caller has them; None: computed here.
 
     Returns:
         The proposed particles, ``log q``, the drawn conditions and the exits, and ``q(h)``.
     """
     key_condition, key_defensive, key_cv, key_blob = jax.random.split(key, 4)
     num_components, num_particles = particles.shape[:2]
-    probabilities = condition_probabilities(estimates, alive, zone_boxes, zone_mask, blobs, params)
+    if groups is None:
+        groups = group_members(predicted_mean(estimates), alive, blobs, params.group_area_ratio)
+    probabilities = condition_probabilities(
+        estimates, alive, zone_boxes, zone_mask, blobs, params, groups
+    )
     conditions = jax.random.categorical(
         key_condition, _safe_log(probabilities)[:, None, :], shape=(num_components, num_particles)
     )
     cv = sample_constant_velocity(
         key_cv, particles.reshape(-1, STATE_DIM), motion_noise_std, noise_model
     ).reshape(particles.shape)
-    groups = group_members(predicted_mean(estimates), alive, blobs, params.group_area_ratio)
     gaussians = blob_gaussians(particles, blobs, params, motion_noise_std, noise_model, groups)
     from_blobs = sample_near_blobs(key_blob, particles, gaussians)
     defensive = jax.random.uniform(key_defensive, conditions.shape) < params.defensive_weight
