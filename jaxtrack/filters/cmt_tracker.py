@@ -157,13 +157,16 @@ def build_cmt(
         config.max_components,
         config.particles_per_component,
         config.max_misses,
+        config.group_area_ratio > 0,
     )
     return filt, cmt_params(config, context)
 
 
 @functools.lru_cache(maxsize=8)
-def _cmt_filter(variant, max_components, particles, max_misses) -> Filter:
-    return cmt_filter(variant, max_components, particles, max_misses)
+def _cmt_filter(variant, max_components, particles, max_misses, group_blobs) -> Filter:
+    # Group blobs off (a ratio of 0): their code is compiled out (the ratio is a frozen
+    # parameter, so no sweep or tuning can turn them on behind the configuration's back).
+    return cmt_filter(variant, max_components, particles, max_misses, group_blobs)
 
 
 def cmt_memory_estimate(config: CMTConfig, capacity: int, chunk_frames: int) -> MemoryEstimate:

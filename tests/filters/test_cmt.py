@@ -237,7 +237,7 @@ def test_a_pair_seen_as_one_box_keeps_two_tracks_and_their_identities():
     # (ratio 0, the default) one component takes the box and the other starves or swaps.
     truth, detections = side_by_side()
     inputs = frame_inputs(np.asarray(scene(truth, COLOURS).frame), detections)
-    filt, params = build_cmt(CMTConfig(variant="cmt", **SMALL), INFO)
+    filt, params = build_cmt(CMTConfig(variant="cmt", group_area_ratio=0.6, **SMALL), INFO)
     track = jax.jit(lambda k, p, i: run(filt, k, p, i)[1])
     kept = {}
     for ratio in (0.0, 0.6):
@@ -247,3 +247,28 @@ def test_a_pair_seen_as_one_box_keeps_two_tracks_and_their_identities():
             for seed in range(10)
         )
     assert kept[0.6] >= 8 and kept[0.0] <= 2, kept
+
+
+@pytest.mark.parametrize("variant", ["cpd", "cmt"])
+def test_group_blobs_off_compiles_them_out_with_the_same_outputs(variant):
+    # A configuration's ratio of 0 builds the step without the group code; it must track
+    # exactly as the step with the code compiled in and the ratio set to 0.
+    truth, detections = side_by_side(num_frames=24)
+    inputs = frame_inputs(np.asarray(scene(truth, COLOURS).frame), detections)
+    without, params = build_cmt(CMTConfig(variant=variant, **SMALL), INFO)
+    with_code, params_on = build_cmt(
+        CMTConfig(variant=variant, group_area_ratio=0.6, **SMALL), INFO
+    )
+    assert float(params.proposal.group_area_ratio) == 0.0
+    assert float(params_on.proposal.group_area_ratio) == pytest.approx(0.6)
+    key = jax.random.PRNGKey(3)
+    off = jax.jit(lambda k, p, i: run(without, k, p, i)[1])(key, params, inputs)
+    on_at_zero = jax.jit(lambda k, p, i: run(with_code, k, p, i)[1])(key, params, inputs)
+    for got, want in zip(jax.tree.leaves(off), jax.tree.leaves(on_at_zero), strict=True):
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
+    # and the compiled-in rule does act at 0.6 on this scene (the check is not vacuous)
+    on = jax.jit(lambda k, p, i: run(with_code, k, p, i)[1])(key, params_on, inputs)
+    assert any(
+        not np.array_equal(np.asarray(a), np.asarray(b))
+        for a, b in zip(jax.tree.leaves(on), jax.tree.leaves(off), strict=True)
+    )
