@@ -296,6 +296,13 @@ RULES: tuple[Limit, ...] = (
         "assume probabilities",
         "warning",
     ),
+    Limit(
+        "detections below a tracker's min_score",
+        "det files (column 7), with the Kalman tracker's default preset or a min_score setting",
+        "half or more of a sequence's detections score below the threshold (the Kalman "
+        "default preset's 0.9 was chosen on MOT15's detector) and are ignored",
+        "warning",
+    ),
     Limit("extra columns", "MOT files (columns 8-10)", _F32),
     Limit(
         "identity",

@@ -162,6 +162,7 @@ from jaxtrack.pipelines.tracking import (
     phd_frame_snapshot,
     track_sequences,
     tracker_description,
+    warn_if_scores_ignored,
 )
 from jaxtrack.plot.tracks import phd_frame_figure
 
@@ -275,6 +276,7 @@ def track_sequence(
             )
             for value in used.values():
                 print(f"{seq.info.name}: {value}", file=sys.stderr)
+            warn_if_scores_ignored(seq, params, config)
             rows, events = track_streamed_events(seq, reader, config, seed, params)
         used["video"] = str(reader.path)
     if detections is not None:

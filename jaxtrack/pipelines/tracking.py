@@ -96,6 +96,7 @@ def track_sequences(
     for seq, seq_params in tqdm(
         items, total=len(sequences), desc="tracking", unit="seq", disable=not progress
     ):
+        warn_if_scores_ignored(seq, seq_params, config)
         _, info = run(
             filt,
             key,
@@ -109,6 +110,42 @@ def track_sequences(
         warn_if_no_tracks(seq, rows, config)
         results.append(rows)
     return results
+
+
+#: Share of a sequence's detections below a tracker's ``min_score`` from which
+#: :func:`warn_if_scores_ignored` warns.
+IGNORED_SHARE = 0.5
+
+
+def warn_if_scores_ignored(seq: MotSequence, params: Any, config: TrackerConfig) -> None:
+    """Warns (:class:`~jaxtrack.errors.InputWarning`) when a tracker with a score threshold
+    (a ``min_score`` parameter: the Kalman tracker's default preset, 0.9, chosen on MOT15's
+    detector) ignores at least :data:`IGNORED_SHARE` of a sequence's detections: a detector
+    whose scores live on another scale (e.g. 0.5-0.9) is then mostly dropped, silently."""
+    threshold = getattr(params, "min_score", None)
+    scores = np.asarray(seq.det_table.confs)
+    if threshold is None or np.ndim(threshold) != 0 or scores.size == 0:
+        return
+    ignored = int(np.sum(scores < float(threshold)))
+    if ignored >= IGNORED_SHARE * scores.size:
+        warnings.warn(
+            InputWarning(
+                f"{seq.info.name}: {ignored} of {scores.size} detections "
+                f"({100 * ignored / scores.size:.0f} %) score below the {config.tracker} "
+                f"tracker's min_score {float(threshold):g} and are ignored (median score "
+                f"{float(np.median(scores)):.3g}){_score_remedy(config)}"
+            ),
+            stacklevel=3,
+        )
+
+
+def _score_remedy(config: TrackerConfig) -> str:
+    """How a user of ``config`` keeps the detections :func:`warn_if_scores_ignored` names."""
+    if hasattr(config, "min_score"):
+        return "; if that is not meant, lower min_score with --config"
+    if isinstance(config, KalmanConfig):
+        return "; if that is not meant, the 'sort' preset takes every detection (--preset sort)"
+    return ""
 
 
 def warn_if_no_tracks(seq: MotSequence, rows: MotTable, config: TrackerConfig) -> None:

@@ -154,3 +154,32 @@ def test_detections_that_give_no_tracks_warn(campus):
     with pytest.warns(InputWarning, match=r"TUD-Campus: 1 detections in frames 1..40 gave no"):
         (rows,) = track_sequences([lone], CONFIG, seed=0)
     assert len(rows) == 0
+
+
+def test_a_score_threshold_that_drops_most_detections_warns(campus):
+    import warnings
+
+    from jaxtrack.errors import InputWarning
+    from jaxtrack.filters.kalman_tracker import KalmanConfig
+
+    # TUD-Campus's detector scores are mostly above the default preset's 0.9: quiet.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        track_sequences([campus], KalmanConfig(), seed=0)
+    # The same boxes with scores on another scale (0.5-0.85): every one ignored, said so.
+    table = campus.det_table
+    count = len(table)
+    rescaled = dataclasses.replace(table, confs=0.5 + 0.35 * (table.confs - table.confs.min()))
+    low = dataclasses.replace(
+        campus,
+        det_table=rescaled,
+        detections=pad_detections(rescaled, campus.first_frame, campus.num_frames),
+    )
+    with pytest.warns(InputWarning, match=rf"TUD-Campus: {count} of {count} detections \(100 %\)"):
+        (dropped,) = track_sequences([low], KalmanConfig(), seed=0)
+    assert len(dropped) == 0  # what the warning is about: nothing tracked
+    # The 'sort' preset has no threshold: no warning, and it tracks them.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        (kept,) = track_sequences([low], KalmanConfig(preset="sort"), seed=0)
+    assert len(kept) > 100
