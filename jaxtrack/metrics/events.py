@@ -252,6 +252,39 @@ def score_events(
     return {**scores, "tolerance": tolerance}
 
 
+#: The counts of a kind's scores (:func:`score_events`), in the order :func:`_ratios` takes.
+COUNTS = ("predicted", "ignored", "scripted", "matched")
+
+
+def pool_scores(runs: Sequence[dict]) -> dict:
+    """Scores of several runs pooled: each kind's counts summed, the ratios taken again.
+
+    Precision and recall of the pool are those of one run holding all the runs' onsets,
+    ``sum matched / max(1, sum (predicted - ignored))`` and ``sum matched / max(1, sum
+    scored)`` (not the mean of the runs' ratios, and not ``matched / predicted``: an ignored
+    onset stays ignored in the pool).
+
+    Args:
+        runs: outputs of :func:`score_events`, with the same tolerance.
+
+    Returns:
+        The same mapping as :func:`score_events` for the pooled onsets.
+
+    Raises:
+        InputError: no runs, or runs scored with different tolerances.
+    """
+    if not runs:
+        raise InputError("no event scores to pool")
+    tolerances = {run["tolerance"] for run in runs}
+    if len(tolerances) > 1:
+        raise InputError(f"event scores with different tolerances {sorted(tolerances)}")
+    scores = {
+        kind: _ratios(*(sum(run[kind][count] for run in runs) for count in COUNTS))
+        for kind in (*KINDS, "overall")
+    }
+    return {**scores, "tolerance": tolerances.pop()}
+
+
 def _ratios(predicted: int, ignored: int, scripted: int, matched: int) -> dict:
     return {
         "predicted": predicted,

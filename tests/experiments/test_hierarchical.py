@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from jaxtrack.experiments.cmt_ablation import MOT15_COMBINED
 from jaxtrack.experiments.hierarchical import goal_checks, table_markdown
+from jaxtrack.metrics.events import KINDS
 
 
 def row(sequence, source, tracker, idf1, idsw):
@@ -14,17 +15,24 @@ def row(sequence, source, tracker, idf1, idsw):
     }  # fmt: skip
 
 
+def event_counts(**counts) -> dict:
+    """A kind's scores as :func:`~jaxtrack.metrics.events.score_events` gives them."""
+    scored = counts["predicted"] - counts["ignored"]
+    precision = counts["matched"] / max(1, scored)
+    return {**counts, "precision": precision, "recall": counts["matched"] / counts["scripted"]}
+
+
 def record(full_idsw, full_idf1, kept, matched):
     rows = []
     for source in ("det", "bs"):
         for name in ("A", "B", MOT15_COMBINED):
             rows.append(row(name, source, "Managed low level", 50.0, 10))
             rows.append(row(name, source, "Hierarchical", full_idf1, full_idsw))
-    overall = {"predicted": 10, "scripted": 10, "matched": matched}
+    overall = event_counts(predicted=10, ignored=0, scripted=10, matched=matched)
     counts = {"cases": 10, "kept": kept, "unscored": 0, "rate": kept / 10}
     return {
         "rows": rows,
-        "events": {"s det": {"overall": overall}},
+        "events": {"s det": {kind: overall for kind in (*KINDS, "overall")} | {"tolerance": 25}},
         "event_tolerance_frames": 25,
         "identity_kept": {
             "s det Hierarchical": {"overall": counts},
@@ -42,6 +50,24 @@ def test_goals_pass_and_fail_at_their_thresholds():
     assert goals[2]["measured"].startswith("8/10 cases")
 
 
+def test_event_goal_pools_the_runs_onsets_without_the_ignored_ones():
+    data = record(full_idsw=5, full_idf1=60.0, kept=9, matched=8)
+    a = event_counts(predicted=10, ignored=4, scripted=5, matched=5)  # precision 5 / 6
+    b = event_counts(predicted=4, ignored=0, scripted=5, matched=4)  # precision 1
+    data["events"] = {
+        run: {kind: scores for kind in (*KINDS, "overall")} | {"tolerance": 25}
+        for run, scores in (("s det", a), ("s bs", b))
+    }
+    (goal,) = [g for g in goal_checks(data, ["A", "B"]) if g["goal"].startswith("event")]
+    # 9 matched of 14 - 4 scored onsets: 0.90 (9 / 14 = 0.64 would count ignored onsets)
+    assert goal["pass"] and goal["measured"].startswith("precision 0.90 (9/10: 14 predicted")
+    assert goal["measured"].endswith("recall 0.90 (9/10)")
+    data["events"]["s bs"] = {k: event_counts(predicted=4, ignored=0, scripted=5, matched=2)
+                              for k in (*KINDS, "overall")} | {"tolerance": 25}  # fmt: skip
+    (goal,) = [g for g in goal_checks(data, ["A", "B"]) if g["goal"].startswith("event")]
+    assert not goal["pass"] and "recall 0.70 (7/10)" in goal["measured"]
+
+
 def test_goal_on_peers_uses_the_combined_mot15_row():
     goals = goal_checks(record(full_idsw=5, full_idf1=60.0, kept=9, matched=8), ["A", "B"])
     assert goals[-1]["measured"] == "60.0"
@@ -50,9 +76,8 @@ def test_goal_on_peers_uses_the_combined_mot15_row():
 def test_table_markdown_lists_goals():
     data = record(full_idsw=5, full_idf1=60.0, kept=9, matched=8)
     data.update(synthetic_seeds_held_out=[101], seed=0, seconds=1.0)
-    data["events"] = {"s det": {k: {"precision": 1.0, "recall": 0.5} for k in
-                                ("group", "split", "entry", "exit", "overall")}}  # fmt: skip
-    data["events"]["s det"]["overall"].update(predicted=2, scripted=4, matched=2)
+    scores = event_counts(predicted=2, ignored=0, scripted=4, matched=2)
+    data["events"] = {"s det": {k: scores for k in (*KINDS, "overall")} | {"tolerance": 25}}
     kinds = ("occlusion", "crossing", "group", "overall")
     data["identity_kept"] = {"s det Hierarchical": {k: {"kept": 1, "cases": 2} for k in kinds}}
     data["goals"] = goal_checks(data, ["A", "B"])

@@ -17,6 +17,7 @@ from jaxtrack.metrics.events import (
     gt_collisions,
     matched_identities,
     onset_summary,
+    pool_scores,
     predicted_onsets,
     score_events,
     scripted_onsets,
@@ -275,3 +276,30 @@ def test_no_output_scores_zero(scene):
     assert scores["overall"]["predicted"] == scores["overall"]["matched"] == 0
     assert scores["overall"]["scripted"] > 0
     assert scores["overall"]["precision"] == scores["overall"]["recall"] == 0.0
+
+
+def counts(predicted, ignored, scripted, matched) -> dict:
+    return {"predicted": predicted, "ignored": ignored, "scripted": scripted, "matched": matched}
+
+
+def test_pooled_scores_sum_the_counts_and_keep_ignored_onsets_out():
+    # run A: 10 onsets, 4 of them ignored, 5 matched of 8 scripted; run B: 4 onsets, 4 matched
+    # of 4. Pooled: 9 matched of 14 - 4 scored onsets, of 12 scripted (not 9 / 14).
+    a = {kind: counts(0, 0, 0, 0) for kind in KINDS} | {"tolerance": 5}
+    b = {kind: counts(0, 0, 0, 0) for kind in KINDS} | {"tolerance": 5}
+    a["group"], a["overall"] = counts(10, 4, 8, 5), counts(10, 4, 8, 5)
+    b["exit"], b["overall"] = counts(4, 0, 4, 4), counts(4, 0, 4, 4)
+    pooled = pool_scores([a, b])
+    assert pooled["tolerance"] == 5
+    assert pooled["overall"] == {**counts(14, 4, 12, 9), "precision": 0.9, "recall": 0.75}
+    assert pooled["group"]["precision"] == 5 / 6 and pooled["exit"]["recall"] == 1.0
+    assert pooled["split"] == {**counts(0, 0, 0, 0), "precision": 0.0, "recall": 0.0}
+
+
+def test_pooled_scores_of_one_run_are_that_run_s(scene):
+    scores = score_events(perfect_rows(scene), scene.gt_table, scene.gt_table, scene.events)
+    assert pool_scores([scores]) == scores
+    with pytest.raises(InputError, match="tolerances"):
+        pool_scores([scores, {**scores, "tolerance": 3}])
+    with pytest.raises(InputError, match="no event scores"):
+        pool_scores([])
