@@ -9,12 +9,15 @@ is compared with the one matched *after* it:
   overlapping): before = the last match in ``[first - window, first)``, after = the first
   match in ``(last, last + window]``;
 * ``group`` (frames ``entry..split``: the people enter together and walk side by side):
-  before = the last match within the group walk ``[first, last]``, after = the first match
-  in ``(last, last + window]``.
+  before = the *first* match within the group walk ``[first, last]`` (the identity the
+  person was given when the walk was picked up), after = the first match in ``(last, last +
+  window]``, so that an identity swapped during the walk is not kept.
 
-A case counts when both exist; it is *kept* when they are the same identity. Cases where the
-person is not matched on one side (missed by the tracker, or gone) are counted apart
-(``unscored``), not as failures or successes.
+A case counts when the person is matched before the event. It is *kept* when the identity
+after is the same; it is *lost* (counted, not kept) when the person is in the ground truth
+within ``window`` frames after the event but no track is matched to them there (the tracker
+did not pick them up again). A person unmatched before the event, or gone from the ground
+truth after it, is counted apart (``unscored``), neither a failure nor a success.
 """
 
 from __future__ import annotations
@@ -47,11 +50,12 @@ def identity_kept(
         window: frames searched on each side of an event.
 
     Returns:
-        ``{kind: {"cases", "kept", "unscored", "rate"}}`` for each of :data:`KINDS` and
-        ``"overall"`` (``rate`` None without cases), and ``"window"``.
+        ``{kind: {"cases", "kept", "lost", "unscored", "rate"}}`` for each of :data:`KINDS`
+        and ``"overall"`` (``lost`` cases are among ``cases``; ``rate = kept / cases``, None
+        without cases), and ``"window"``.
     """
     matches = matched_identities(results, gt)
-    counts = {kind: [0, 0, 0] for kind in KINDS}
+    counts = {kind: [0, 0, 0, 0] for kind in KINDS}
     for event in scripted:
         if event.kind not in KINDS:
             continue
@@ -63,20 +67,26 @@ def identity_kept(
             own = own[np.argsort(own[:, 0], kind="stable")]
             before = own[(own[:, 0] >= start) & (own[:, 0] <= stop)]
             after = own[(own[:, 0] > last) & (own[:, 0] <= last + window)]
+            seen = gt.frames[(gt.ids == person) & (gt.frames > last) & (gt.frames <= last + window)]
             tally = counts[event.kind]
-            if not len(before) or not len(after):
-                tally[2] += 1
+            if not len(before) or not (len(after) or len(seen)):
+                tally[3] += 1
                 continue
             tally[0] += 1
-            tally[1] += int(before[-1, 2] == after[0, 2])
+            if not len(after):
+                tally[2] += 1
+                continue
+            identity = before[0, 2] if event.kind == "group" else before[-1, 2]
+            tally[1] += int(identity == after[0, 2])
     counts["overall"] = [sum(column) for column in zip(*counts.values(), strict=True)]
     scores = {
         kind: {
             "cases": cases,
             "kept": kept,
+            "lost": lost,
             "unscored": unscored,
             "rate": kept / cases if cases else None,
         }
-        for kind, (cases, kept, unscored) in counts.items()
+        for kind, (cases, kept, lost, unscored) in counts.items()
     }
     return {**scores, "window": window}

@@ -22,6 +22,18 @@ def event_counts(**counts) -> dict:
     return {**counts, "precision": precision, "recall": counts["matched"] / counts["scripted"]}
 
 
+def identity_counts(cases_kept: dict, lost: int = 0, unscored: int = 0) -> dict:
+    """:func:`~jaxtrack.metrics.reassociation.identity_kept`'s output, from ``{kind: (cases,
+    kept)}`` (kinds left out have no case); ``lost`` and ``unscored`` go to the occlusions."""
+    out = {}
+    for kind in ("occlusion", "crossing", "group"):
+        cases, kept = cases_kept.get(kind, (0, 0))
+        extra = (lost, unscored) if kind == "occlusion" else (0, 0)
+        out[kind] = {"cases": cases, "kept": kept, "lost": extra[0], "unscored": extra[1]}
+    out["overall"] = {key: sum(v[key] for v in out.values()) for key in out["occlusion"]}
+    return out
+
+
 def record(full_idsw, full_idf1, kept, matched):
     rows = []
     for source in ("det", "bs"):
@@ -29,14 +41,14 @@ def record(full_idsw, full_idf1, kept, matched):
             rows.append(row(name, source, "Managed low level", 50.0, 10))
             rows.append(row(name, source, "Hierarchical", full_idf1, full_idsw))
     overall = event_counts(predicted=10, ignored=0, scripted=10, matched=matched)
-    counts = {"cases": 10, "kept": kept, "unscored": 0, "rate": kept / 10}
+    counts = identity_counts({"occlusion": (6, kept - 4), "group": (4, 4), "crossing": (4, 0)})
     return {
         "rows": rows,
         "events": {"s det": {kind: overall for kind in (*KINDS, "overall")} | {"tolerance": 25}},
         "event_tolerance_frames": 25,
         "identity_kept": {
-            "s det Hierarchical": {"overall": counts},
-            "s det Managed low level": {"overall": {**counts, "kept": 10}},
+            "s det Hierarchical": counts,
+            "s det Managed low level": identity_counts({"occlusion": (6, 6), "group": (4, 4)}),
         },
     }
 
@@ -46,8 +58,21 @@ def test_goals_pass_and_fail_at_their_thresholds():
     assert [g["pass"] for g in goals] == [True] * 5  # IDF1 60 > the best peer's 58.6
     goals = goal_checks(record(full_idsw=6, full_idf1=50.0, kept=8, matched=7), ["A", "B"])
     assert [g["pass"] for g in goals] == [False, False, False, False, False]
-    # only the full tracker's identities count (the managed one kept 10 of 10)
-    assert goals[2]["measured"].startswith("8/10 cases")
+    # only the full tracker's identities count (the managed one kept 10 of 10), and only the
+    # occlusions and group walks (the crossings' 0 of 4 are shown, not counted)
+    assert goals[2]["measured"].startswith("8/10 cases (80.0%), 0 of them lost")
+    assert goals[2]["measured"].endswith("crossings (not in the goal): 0/4")
+
+
+def test_identity_goal_counts_lost_cases_and_shows_unscored_ones():
+    data = record(full_idsw=5, full_idf1=60.0, kept=9, matched=8)
+    data["identity_kept"]["s det Hierarchical"] = identity_counts(
+        {"occlusion": (8, 5), "group": (4, 4)}, lost=3, unscored=2
+    )
+    goal = goal_checks(data, ["A", "B"])[2]
+    assert not goal["pass"]  # 9 of 12: the 3 lost are failures
+    assert goal["measured"].startswith("9/12 cases (75.0%), 3 of them lost")
+    assert "2 unscored" in goal["measured"]
 
 
 def test_event_goal_pools_the_runs_onsets_without_the_ignored_ones():
@@ -78,8 +103,7 @@ def test_table_markdown_lists_goals():
     data.update(synthetic_seeds_held_out=[101], seed=0, seconds=1.0)
     scores = event_counts(predicted=2, ignored=0, scripted=4, matched=2)
     data["events"] = {"s det": {k: scores for k in (*KINDS, "overall")} | {"tolerance": 25}}
-    kinds = ("occlusion", "crossing", "group", "overall")
-    data["identity_kept"] = {"s det Hierarchical": {k: {"kept": 1, "cases": 2} for k in kinds}}
+    data["identity_kept"] = {"s det Hierarchical": identity_counts({"occlusion": (2, 1)})}
     data["goals"] = goal_checks(data, ["A", "B"])
     text = table_markdown(data)
     assert "| s det | 1.00 / 0.50 |" in text and "| s det Hierarchical | 1/2 |" in text

@@ -35,14 +35,21 @@ def test_kept_switched_and_unscored_cases():
     )
     events = [ScriptedEvent("occlusion", (1,), (10, 20)), ScriptedEvent("crossing", (2,), (10, 20))]
     kept = identity_kept(results, gt, events, window=5)
-    assert kept["occlusion"] == {"cases": 1, "kept": 1, "unscored": 0, "rate": 1.0}
-    assert kept["crossing"] == {"cases": 1, "kept": 0, "unscored": 0, "rate": 0.0}
+    assert kept["occlusion"] == {"cases": 1, "kept": 1, "lost": 0, "unscored": 0, "rate": 1.0}
+    assert kept["crossing"] == {"cases": 1, "kept": 0, "lost": 0, "unscored": 0, "rate": 0.0}
     assert kept["overall"]["cases"] == 2 and kept["overall"]["rate"] == 0.5
     assert kept["group"]["rate"] is None
-    # beyond the window after the event: unscored, neither kept nor switched
+    # in view after the event but picked up again only beyond the window: lost, a failure
     late = table(walk(7, range(1, 10)) + walk(7, range(27, 31)))
     scored = identity_kept(late, gt, events[:1], window=5)
-    assert scored["occlusion"] == {"cases": 0, "kept": 0, "unscored": 1, "rate": None}
+    assert scored["occlusion"] == {"cases": 1, "kept": 0, "lost": 1, "unscored": 0, "rate": 0.0}
+    # gone from the ground truth after the event, or never matched before it: unscored
+    gone = table(walk(1, range(1, 10)))
+    for results in (late, table(walk(7, range(21, 31)))):
+        scored = identity_kept(results, gone if results is late else gt, events[:1], window=5)
+        assert scored["occlusion"] == {
+            "cases": 0, "kept": 0, "lost": 0, "unscored": 1, "rate": None
+        }  # fmt: skip
 
 
 def test_group_compares_the_walk_with_after_the_split():
@@ -50,5 +57,17 @@ def test_group_compares_the_walk_with_after_the_split():
     results = table(walk(4, range(1, 21)) + walk(5, range(21, 31)))
     events = [ScriptedEvent("group", (3,), (5, 20)), ScriptedEvent("entry", (3,), (1, 1), "a")]
     kept = identity_kept(results, gt, events, window=5)
-    assert kept["group"] == {"cases": 1, "kept": 0, "unscored": 0, "rate": 0.0}
+    assert kept["group"] == {"cases": 1, "kept": 0, "lost": 0, "unscored": 0, "rate": 0.0}
     assert kept["overall"]["cases"] == 1  # the entry is not an identity case
+
+
+def test_group_identity_swapped_during_the_walk_is_not_kept():
+    # the walk is frames 1-20; tracker 4 picks the person up, 5 takes over at frame 12 and
+    # keeps them after the split: the identity after (5) is not the walk's first (4)
+    gt = table(walk(3, range(1, 31)))
+    results = table(walk(4, range(1, 12)) + walk(5, range(12, 31)))
+    kept = identity_kept(results, gt, [ScriptedEvent("group", (3,), (1, 20))], window=5)
+    assert kept["group"] == {"cases": 1, "kept": 0, "lost": 0, "unscored": 0, "rate": 0.0}
+    same = table(walk(4, range(3, 31)))  # picked up on frame 3, the same identity throughout
+    kept = identity_kept(same, gt, [ScriptedEvent("group", (3,), (1, 20))], window=5)
+    assert kept["group"] == {"cases": 1, "kept": 1, "lost": 0, "unscored": 0, "rate": 1.0}
