@@ -44,6 +44,7 @@ from jaxtyping import Array
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.datasets.video_files import TRUTH_FILE
+from jaxtrack.errors import InputError
 from jaxtrack.filters.base import run
 from jaxtrack.filters.cmt import CMTParams
 from jaxtrack.filters.cmt_observation import (
@@ -375,15 +376,34 @@ def _comparison(distances: dict[str, np.ndarray], offset: int) -> dict[str, Any]
     }
 
 
+def scene_crossings(folder: Path) -> list[tuple[tuple[int, ...], tuple[int, int]]]:
+    """``(people's gt ids, (first, last))`` of every scripted crossing of a synthetic video
+    scene's folder (its truth file), in the script's order.
+
+    Raises:
+        InputError: a folder without a truth file.
+    """
+    path = Path(folder) / TRUTH_FILE
+    if not path.is_file():
+        raise InputError(f"{path}: no truth file (is it a `jaxtrack simulate --video` scene?)")
+    events = json.loads(path.read_text())["events"]
+    return [
+        (tuple(event["ids"]), tuple(event["frames"]))
+        for event in events
+        if event["type"] == "crossing"
+    ]
+
+
 def discrimination_analysis(folder: Path, quick: bool = False) -> dict[str, Any]:
     """Fig. 9 (module docstring) on the scripted crossing of a synthetic video scene's folder
     (``jaxtrack simulate --video``: its two similarly dressed people), from
     :data:`FIG9_LEAD` frames before it to its end (quick: its last :data:`QUICK_FIG9_FRAMES`
     frames), as JSON-ready numbers."""
-    truth = json.loads((folder / TRUTH_FILE).read_text())
-    crossing = next(event for event in truth["events"] if event["type"] == "crossing")
-    ids = tuple(crossing["ids"])
-    first, last = crossing["frames"]
+    crossings = scene_crossings(folder)
+    if not crossings:
+        raise InputError(f"{folder}: the scene scripts no crossing")
+    ids, crossing_frames = crossings[0]
+    first, last = crossing_frames
     first = last - QUICK_FIG9_FRAMES if quick else first - FIG9_LEAD
     loaded = load_sequence(folder)
     frames, boxes = pair_boxes(loaded.gt_table, ids, first, last)
@@ -392,7 +412,7 @@ def discrimination_analysis(folder: Path, quick: bool = False) -> dict[str, Any]
     return {
         "sequence": loaded.info.name,
         "ids": list(ids),
-        "crossing_frames": crossing["frames"],
+        "crossing_frames": list(crossing_frames),
         "frames": gaps.frames.tolist(),
         "COM": _json_floats(gaps.com),
         "EWOM": _json_floats(gaps.ewom),

@@ -26,11 +26,20 @@ and then maximises the summed IoU. With ``F`` the frames of the scored span:
   ``DE = (entries picked up late + exits released late) / (entering + exiting targets)``; a
   target that both enters and exits counts twice.
 
+* ``SE`` *on the crossings* (the paper's SE claim is about the crossings of similarly dressed
+  people; :func:`crossing_swap_fields`): a crossing of people ``P`` scripted over frames
+  ``first..last`` (their boxes overlap) has the window ``first .. last + tolerance`` (a swap
+  shows when the matching picks the people up again after the overlap); ``SE_crossings =
+  frames of a window in which one of its people has an identity switch / frames of the
+  windows``, each frame counted once even where windows overlap.
+
 The paper states no tolerance; the default :data:`DEFAULT_TOLERANCE` is 10 frames. Ratios
 divide by ``max(1, denominator)`` as CLEAR's do. Host-side NumPy, like the other metrics.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -123,6 +132,47 @@ def cmt_scores(fields: dict) -> dict:
     }
     scores.update({key: int(fields[key]) for key in ADDITIVE_FIELDS if key != "num_frames"})
     return scores
+
+
+def crossing_swap_fields(
+    switch_frames: np.ndarray,
+    switch_gt_ids: np.ndarray,
+    crossings: Sequence[tuple[Sequence[int], tuple[int, int]]],
+    span: tuple[int, int],
+    tolerance: int = DEFAULT_TOLERANCE,
+) -> dict:
+    """The counts behind ``SE`` on the crossings (module docstring).
+
+    Args:
+        switch_frames: 1-based frame of each identity switch (e.g.
+            :attr:`~jaxtrack.metrics.switches.SwitchTable.frame`).
+        switch_gt_ids: the ground-truth id of each switch's object (``SwitchTable.gt_id``).
+        crossings: ``(people's gt ids, (first, last))`` of each scripted crossing, 1-based
+            inclusive frames.
+        span: the scored frames ``(first, last)``, 1-based inclusive: windows are cut to it.
+        tolerance: frames after a crossing's last that its window holds (>= 0).
+
+    Returns:
+        ``crossing_frames`` (frames in a window) and ``crossing_swap_frames`` (those with a
+        switch of one of the window's people), ints; ``SE_crossings`` is their ratio.
+
+    Raises:
+        ValueError: a negative tolerance.
+    """
+    if tolerance < 0:
+        raise ValueError(f"tolerance must be >= 0 frames, got {tolerance}")
+    windowed, swapped = set(), set()
+    for people, (first, last) in crossings:
+        frames = range(max(first, span[0]), min(last + tolerance, span[1]) + 1)
+        windowed.update(frames)
+        inside = np.isin(switch_gt_ids, list(people)) & np.isin(switch_frames, list(frames))
+        swapped.update(int(frame) for frame in switch_frames[inside])
+    return {"crossing_frames": len(windowed), "crossing_swap_frames": len(swapped)}
+
+
+def crossing_swap_rate(fields: dict) -> float:
+    """``SE_crossings`` (a fraction) from :func:`crossing_swap_fields` or their sums."""
+    return fields["crossing_swap_frames"] / max(1, fields["crossing_frames"])
 
 
 def _first_and_last(ids: np.ndarray, frames: np.ndarray, num_ids: int):

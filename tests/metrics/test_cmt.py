@@ -12,7 +12,12 @@ from jaxtrack.errors import InputError
 from jaxtrack.io import MotTable, write_mot_file
 from jaxtrack.metrics import EvalConfig, combine_sequences, evaluate_sequence
 from jaxtrack.metrics.clear import clear_matching
-from jaxtrack.metrics.cmt import DEFAULT_TOLERANCE, cmt_fields
+from jaxtrack.metrics.cmt import (
+    DEFAULT_TOLERANCE,
+    cmt_fields,
+    crossing_swap_fields,
+    crossing_swap_rate,
+)
 from jaxtrack.metrics.preprocess import prepare_sequence
 from jaxtrack.metrics.synthetic import SCENARIOS, corrupt
 
@@ -251,3 +256,36 @@ def test_eval_cli_prints_the_rates_and_takes_the_tolerance(tmp_path, capsys):
     assert scores["DE"] == 1.0 and scores["OE"] == pytest.approx(4 / 20)
     assert main([*argv, "--delay-tolerance", "-1"]) == 2
     assert "--delay-tolerance" in capsys.readouterr().err
+
+
+def test_crossing_swaps_count_window_frames_once_and_only_the_crossing_people():
+    # crossings of people (1, 2) on frames 10-14 and (3, 4) on frames 18-20, tolerance 3:
+    # windows 10-17 and 18-23 (14 frames); switches of 1 at 16 (in), of 2 at 16 (the same
+    # frame), of 3 at 12 (before its window), of 5 at 19 (not a crossing person), of 4 at 24
+    # (after its window): 1 frame with a swap
+    fields = crossing_swap_fields(
+        np.array([16, 16, 12, 19, 24]),
+        np.array([1, 2, 3, 5, 4]),
+        [((1, 2), (10, 14)), ((3, 4), (18, 20))],
+        (1, 100),
+        tolerance=3,
+    )
+    assert fields == {"crossing_frames": 14, "crossing_swap_frames": 1}
+    assert crossing_swap_rate(fields) == 1 / 14
+    # overlapping windows (10-17, 12-22 cut by the span) count their frames once: 13; 3 at 13
+    # and 4 at 21 are in their crossing's window, 1 at 21 is not (its window ends at 17)
+    fields = crossing_swap_fields(
+        np.array([13, 21, 21]),
+        np.array([3, 4, 1]),
+        [((1, 2), (10, 14)), ((3, 4), (12, 20))],
+        (1, 22),
+        3,
+    )
+    assert fields == {"crossing_frames": 13, "crossing_swap_frames": 2}
+    only_one = crossing_swap_fields(
+        np.array([21]), np.array([1]), [((1, 2), (10, 14)), ((3, 4), (12, 20))], (1, 22), 3
+    )
+    assert only_one["crossing_swap_frames"] == 0
+    assert crossing_swap_rate({"crossing_frames": 0, "crossing_swap_frames": 0}) == 0.0
+    with pytest.raises(ValueError, match="tolerance"):
+        crossing_swap_fields(np.array([]), np.array([]), [], (1, 10), -1)
