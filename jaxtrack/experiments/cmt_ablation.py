@@ -338,6 +338,7 @@ def ablation_table(
     zones: dict[str, SceneZones | None] = {}
     notes: dict[str, str] = {}
     evaluations: dict[tuple[str, str], Evaluation] = {}
+    scripted: dict[str, list] = {}
     crossings: dict[tuple[str, str], dict[str, int]] = {}
     results: dict[str, dict[str, MotTable]] = {}
     seconds = dict.fromkeys(trackers, 0.0)
@@ -345,6 +346,8 @@ def ablation_table(
         bar.set_postfix_str(f"{sequence.name} {name}")
         if sequence.name not in loaded:
             loaded[sequence.name] = load_sequence(sequence.folder, sequence.frames)
+            if sequence.synthetic:
+                scripted[sequence.name] = scene_crossings(sequence.folder)
             zones[sequence.name], notes[sequence.name] = tracker_zones(
                 loaded[sequence.name], None, seed
             )
@@ -356,8 +359,9 @@ def ablation_table(
         results.setdefault(sequence.name, {})[name] = rows
         evaluations[sequence.name, name] = evaluate_rows(loaded[sequence.name], rows)
         if sequence.synthetic:
-            scripted = scene_crossings(sequence.folder)
-            crossings[sequence.name, name] = crossing_counts(loaded[sequence.name], rows, scripted)
+            crossings[sequence.name, name] = crossing_counts(
+                loaded[sequence.name], rows, scripted[sequence.name]
+            )
     table = []
     for synthetic, combined in ((False, MOT15_COMBINED), (True, SYNTHETIC_COMBINED)):
         group = [sequence.name for sequence in sequences if sequence.synthetic == synthetic]
