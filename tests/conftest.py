@@ -8,8 +8,11 @@ module; fixtures live in ``conftest.py`` files.
 
 from __future__ import annotations
 
+import atexit
 import gc
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import jax
@@ -19,13 +22,32 @@ from jaxtrack.pipelines.runtime import CACHE_ENV, use_cpu_cores
 from tests.cli_workspace import build_workspace
 from tests.data import DATA_ROOT, MOT15_ROOT, require_data
 
+#: Environment variable naming this test run's compilation cache folder (see below).
+TEST_CACHE_ENV = "JAXTRACK_TEST_XLA_CACHE"
+#: Programs that compile faster than this are not written to it (writing costs too).
+TEST_CACHE_MIN_SECONDS = 0.5
+
 # The devices the jaxtrack command makes (one CPU device per core), set before any test
 # computes: otherwise whichever test first calls the command's main() in this process
 # would decide the devices of every later test.
 use_cpu_cores()
-# No compilation cache on disk (here and in the commands the tests start): tests count
-# compiles, and a test run should not fill the machine's cache folder.
+# The machine's compilation cache is not used (here and in the commands the tests start): a
+# test run should not fill it, nor start from what an earlier run left there.
 os.environ[CACHE_ENV] = ""
+# One compilation cache of this test run's own instead, in a temporary folder that the first
+# process (pytest, or xdist's controller) makes and removes when it exits; the xdist workers,
+# the commands the tests start and the notebooks' kernels inherit it by the environment. The
+# suite is compile-bound (on 2 cores XLA's compiles take about 4/5 of a test's time), and
+# without it every worker and every subprocess compiled the same programs again. A program
+# loaded from the cache is the same machine code (same results, bit for bit), and JAX reports
+# it as a backend compile like a fresh one, so the tests that count compiles count the same.
+if TEST_CACHE_ENV not in os.environ:
+    os.environ[TEST_CACHE_ENV] = tempfile.mkdtemp(prefix="jaxtrack-test-xla-")
+    atexit.register(shutil.rmtree, os.environ[TEST_CACHE_ENV], ignore_errors=True)
+os.environ["JAX_COMPILATION_CACHE_DIR"] = os.environ[TEST_CACHE_ENV]
+os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = str(TEST_CACHE_MIN_SECONDS)
+jax.config.update("jax_compilation_cache_dir", os.environ[TEST_CACHE_ENV])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", TEST_CACHE_MIN_SECONDS)
 
 
 @pytest.fixture(scope="session")

@@ -12,6 +12,8 @@ import subprocess
 import sys
 import textwrap
 
+import jax
+
 from jaxtrack.pipelines.runtime import CACHE_ENV
 
 _CACHE_SCRIPT = textwrap.dedent(
@@ -82,4 +84,12 @@ def test_no_home_folder_means_no_cache(monkeypatch):
     monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
     monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR", raising=False)
     monkeypatch.setattr(Path, "home", staticmethod(no_home))
-    assert runtime.use_compilation_cache() is None  # returns before changing any setting
+    # The test run's own cache (tests/conftest.py) is a user's choice to the function: off
+    # here, else it would return None for that reason.
+    chosen = jax.config.jax_compilation_cache_dir
+    jax.config.update("jax_compilation_cache_dir", None)
+    try:
+        assert runtime.use_compilation_cache() is None
+        assert jax.config.jax_compilation_cache_dir is None  # returned before setting it
+    finally:
+        jax.config.update("jax_compilation_cache_dir", chosen)
