@@ -20,7 +20,10 @@ births per frame), ``initial_rate`` (the first frame's uniform birth magnitude),
 gaps of up to ``max_gap`` frames interpolated; "online": the filter's frame-by-frame
 output), ``max_gap`` and ``frame_capacity`` ("full", default, or "split": a frame whose
 detections fit in half the run's detection slots runs on that half; faster on long runs and
-sweeps, twice the compile, results equal up to float32 rounding)). Unknown keys, wrong
+sweeps, twice the compile, results equal up to float32 rounding) and ``confirmation``
+("score", default: a track is output once one of its detections scores 0.97 or more;
+"evidence": once the score log-odds of its detections add up to logit(0.97), so that a
+target detected at lower scores is tracked too)). Unknown keys, wrong
 types and out-of-range values are errors naming the key.
 
 ``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``

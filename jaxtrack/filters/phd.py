@@ -38,6 +38,8 @@ from jaxtrack.association.labelling import (
     LabelParams,
     Labels,
     LabelState,
+    confirm_by_evidence,
+    confirm_by_score,
     init_labels,
     label_step,
 )
@@ -758,6 +760,10 @@ def _frame_step(
     return new_state, info
 
 
+#: The track confirmation rules of :func:`phd_filter`, by name.
+CONFIRMATIONS = {"score": confirm_by_score, "evidence": confirm_by_evidence}
+
+
 def phd_filter(
     num_particles: int,
     births_per_detection: int = 32,
@@ -773,6 +779,7 @@ def phd_filter(
     measurement_noise_model: NoiseModel = state_dependent_std,
     block_size: int | None = None,
     split_capacity: bool = False,
+    confirmation: Literal["score", "evidence"] = "score",
 ) -> Filter:
     """Builds the particle PHD tracker from its stages; all arguments are static.
 
@@ -806,6 +813,11 @@ def phd_filter(
         split_capacity: frames whose detections fit in half the run's slots run on that
             half (:func:`phd_step`): faster runs, twice the compile; results equal up to
             float32 rounding. Default False.
+        confirmation: how a track is confirmed (output from then on): ``"score"`` (default,
+            :func:`~jaxtrack.association.labelling.confirm_by_score`: one estimate whose
+            detection score reaches ``confirm_score``) or ``"evidence"``
+            (:func:`~jaxtrack.association.labelling.confirm_by_evidence`: the score log-odds
+            of the estimates it has held add up to ``logit(confirm_score)``).
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter`.
@@ -816,6 +828,8 @@ def phd_filter(
         raise ValueError(f"soft_resampling must lie in [0, 1), got {soft_resampling}")
     if soft_resampling > 0 and stop_gradient_resampling:
         raise ValueError("soft_resampling and stop_gradient_resampling are exclusive")
+    if confirmation not in CONFIRMATIONS:
+        raise ValueError(f"confirmation must be one of {list(CONFIRMATIONS)}, got {confirmation!r}")
 
     extract = (
         partition_estimates
@@ -848,7 +862,7 @@ def phd_filter(
             soft_weight=soft_resampling,
         ),
         extract=extract,
-        label=label_step,
+        label=functools.partial(label_step, confirmation=CONFIRMATIONS[confirmation]),
         expected_birth_mass=expected_birth_mass,
         split_capacity=split_capacity,
     )

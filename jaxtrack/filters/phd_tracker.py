@@ -38,7 +38,7 @@ from jaxtrack.context.intensity import Intensity, birth_speed_limit, uniform_bir
 from jaxtrack.context.learn import volume_mass
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
-from jaxtrack.filters.phd import PHDParams, phd_filter
+from jaxtrack.filters.phd import CONFIRMATIONS, PHDParams, phd_filter
 from jaxtrack.filters.phd_defaults import (
     DEFAULT_DETECTION_PROB,
     DEFAULT_MEASUREMENT_NOISE_STD,
@@ -128,6 +128,16 @@ class PHDConfig(TrackerConfig):
     measurement_noise_std: tuple = setting(
         DEFAULT_MEASUREMENT_NOISE_STD,
         Rule("SDV likelihood noise (s_1, s_2, s_w, s_h), relative to box size", **_NOISE),
+    )
+    confirmation: str = setting(
+        "score",
+        Rule(
+            "track confirmation: 'score' (one detection scoring at least confirm_score, 0.97) "
+            "or 'evidence' (the score log-odds of the track's detections add up to "
+            "logit(0.97): a target whose detections all score 0.8 is confirmed on its third)",
+            str,
+            choices=tuple(CONFIRMATIONS),
+        ),
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
@@ -263,12 +273,17 @@ def phd_filter_of(config: PHDConfig) -> Filter:
         config.births_per_detection,
         config.extraction,
         config.frame_capacity == "split",
+        config.confirmation,
     )
 
 
 @functools.lru_cache(maxsize=16)
 def _phd_filter(
-    num_particles: int, births_per_detection: int, extraction: str, split_capacity: bool
+    num_particles: int,
+    births_per_detection: int,
+    extraction: str,
+    split_capacity: bool,
+    confirmation: str,
 ) -> Filter:
     return phd_filter(
         num_particles,
@@ -277,6 +292,7 @@ def _phd_filter(
         max_clusters=GMM_CLUSTERS,
         max_tracks=MAX_TRACKS,
         split_capacity=split_capacity,
+        confirmation=confirmation,
     )
 
 

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import functools
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -9,7 +12,13 @@ from scipy.optimize import linear_sum_assignment
 
 from jaxtrack.association.assignment import gated_assignment
 from jaxtrack.association.estimates import Estimates
-from jaxtrack.association.labelling import LabelParams, init_labels, label_step
+from jaxtrack.association.labelling import (
+    LabelParams,
+    confirm_by_evidence,
+    confirm_by_score,
+    init_labels,
+    label_step,
+)
 
 PARAMS = LabelParams(
     min_iou=jnp.asarray(0.3),
@@ -164,3 +173,67 @@ def test_linked_tracks_smooth_their_box_displacement():
     # two frames since the last link: predicted x = 112 + 2 * 6 = 124, IoU 0.74: linked;
     # displacement per frame (18, 1) / 2.
     np.testing.assert_allclose(state.velocities[0], [0.75 * 6 + 0.25 * 9, 0.75 * 0.5 + 0.25 * 0.5])
+
+
+def _logit(score: float) -> float:
+    return math.log(score) - math.log1p(-score)
+
+
+def _evidence_oracle(scores, confirm_score):
+    """Frame of confirmation of one target held on every frame where its score is not None:
+    the running sum of logit(score) over held frames reaches logit(confirm_score)."""
+    total = 0.0
+    for t, score in enumerate(scores):
+        if score is None:
+            continue
+        total += _logit(score)
+        if total >= _logit(confirm_score):
+            return t
+    return None
+
+
+def test_evidence_rule_confirms_when_the_score_log_odds_add_up():
+    """Four targets far apart, each with its own score sequence (None: not detected), against
+    a plain-Python sum of log-odds; the score rule confirms only the target that once
+    reaches the threshold."""
+    confirm = 0.97
+    sequences = [
+        [0.8] * 6,  # 3 logit(0.8) = 4.16 >= logit(0.97) = 3.48: third frame
+        [0.6] * 12,  # logit(0.6) = 0.405: ninth frame
+        [0.9, 0.2, 0.9, 0.9, 0.99, 0.9],  # a low score lowers the sum: fourth frame, not second
+        [0.8, None, None, 0.8, 0.8, 0.8],  # the sum is kept through missed frames: fifth frame
+    ]
+    frames = 12
+    params = PARAMS._replace(confirm_score=jnp.asarray(confirm), max_missed_frames=jnp.asarray(4.0))
+    step = jax.jit(functools.partial(label_step, confirmation=confirm_by_evidence))
+    score_step = jax.jit(label_step)
+    state, score_state = init_labels(6), init_labels(6)
+    first_confirmed = [None] * 4
+    first_by_score = [None] * 4
+    for t in range(frames):
+        boxes, scores, slots = [], [], []
+        for k, seq in enumerate(sequences):
+            if t < len(seq) and seq[t] is not None:
+                boxes.append((100 + 150 * k, 200, 40, 100))
+                scores.append(seq[t])
+                slots.append(k)
+        estimates = _estimates(boxes, scores=scores + [0.0] * (6 - len(scores)), capacity=6)
+        state, labels = step(state, params, estimates)
+        score_state, score_labels = score_step(score_state, params, estimates)
+        for j, k in enumerate(slots):
+            if labels.confirmed[j] and first_confirmed[k] is None:
+                first_confirmed[k] = t
+            if score_labels.confirmed[j] and first_by_score[k] is None:
+                first_by_score[k] = t
+    expected = [_evidence_oracle(seq, confirm) for seq in sequences]
+    assert expected == [2, 8, 3, 4]
+    assert first_confirmed == expected
+    assert first_by_score == [None, None, 4, None]
+
+
+def test_evidence_rule_with_one_detection_at_the_threshold_confirms_at_once():
+    params = PARAMS._replace(confirm_score=jnp.asarray(0.97))
+    estimates = _estimates([(100, 200, 40, 100), (400, 200, 40, 100)], scores=[0.98, 0.96, 0, 0])
+    for rule in (confirm_by_score, confirm_by_evidence):
+        _, labels = label_step(init_labels(4), params, estimates, confirmation=rule)
+        np.testing.assert_array_equal(labels.confirmed[:2], [True, False])
