@@ -63,6 +63,9 @@ def test_learns_from_ground_truth_and_writes_figures(run_cli, scene_dir, tmp_pat
     assert "left out" in printed and "coverage" in printed
     assert float(clutter.magnitude) == pytest.approx(lam_r / meta["clutter"]["volume_mass"])
     assert lam_r == pytest.approx(SceneConfig().total_clutter_rate, rel=0.2)
+    calibration = meta["score_calibration"]
+    assert calibration["learned"] and calibration["source"] == "gt"
+    assert f"score calibration from gt on {calibration['detections']} detections" in printed
     for name in ("intensities.png", "birth_evolution.png", "clutter_evolution.png"):
         data = (plots / name).read_bytes()
         assert data[:4] == b"\x89PNG" and len(data) > 10_000, name

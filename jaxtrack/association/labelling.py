@@ -15,7 +15,8 @@ without output, through shorter misses).
 ``confirm_score``; :func:`confirm_by_evidence` adds up the score log-odds of the estimates
 a track holds, frame after frame, and confirms when the sum reaches ``logit(confirm_score)``
 (a sequential test on the track's existence; one detection at ``confirm_score`` confirms at
-once under both rules).
+once under both rules); the scores are read through the detector's calibration
+``LabelParams.score_calibration`` (:mod:`jaxtrack.context.scores`; identity by default).
 
 On the 11 MOT15 training sequences (``jaxtrack track --benchmark``), the precedence, the
 duplicate check and the velocity smoothing together raised the combined IDF1 from 45.6 to
@@ -28,7 +29,7 @@ All of it runs inside the filter's ``lax.scan`` with a fixed table of ``max_trac
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
@@ -43,6 +44,7 @@ from jaxtrack.association.track_table import (
     start_tracks,
 )
 from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix
+from jaxtrack.context.scores import ScoreCalibration
 from jaxtrack.models.dynamics import MEASURED, VELOCITY
 
 
@@ -65,6 +67,10 @@ class LabelParams(NamedTuple):
         velocity_smoothing: ``alpha`` in ``[0, 1)``: a linked track's velocity becomes
             ``alpha v + (1 - alpha) d``, ``d`` the displacement of its box per frame since it
             was last linked; a new track starts with its estimate's (PHD) velocity.
+        score_calibration: the detector's ``p(target | s)`` at knot scores, read by
+            :func:`confirm_by_evidence` (:mod:`jaxtrack.context.scores`; the identity
+            :func:`~jaxtrack.context.scores.identity_calibration` reads scores as
+            probabilities).
     """
 
     min_iou: Float[Array, ""]
@@ -72,6 +78,7 @@ class LabelParams(NamedTuple):
     confirm_score: Float[Array, ""]
     new_track_max_iou: Float[Array, ""]
     velocity_smoothing: Float[Array, ""]
+    score_calibration: ScoreCalibration
 
 
 class LabelState(NamedTuple):
@@ -117,24 +124,24 @@ def init_labels(max_tracks: int) -> LabelState:
     )
 
 
-#: ``(evidence, scores, continuing, confirm_score) -> (passed, evidence)``: per track slot,
-#: its running evidence, the detection score of the estimate it holds on this frame, whether
-#: it is an existing track (else it starts on this frame), and the threshold; returns which
-#: tracks pass the confirmation test on this frame and the updated evidence (only the slots
-#: that hold an estimate keep it).
+#: ``(evidence, scores, continuing, params) -> (passed, evidence)``: per track slot, its
+#: running evidence, the detection score of the estimate it holds on this frame, whether it
+#: is an existing track (else it starts on this frame), and the :class:`LabelParams`; returns
+#: which tracks pass the confirmation test on this frame and the updated evidence (only the
+#: slots that hold an estimate keep it).
 ConfirmationRule = Callable[
-    [Float[Array, " max_tracks"], Float[Array, " max_tracks"], Bool[Array, " max_tracks"], Array],
+    [Float[Array, " max_tracks"], Float[Array, " max_tracks"], Bool[Array, " max_tracks"], Any],
     tuple[Bool[Array, " max_tracks"], Float[Array, " max_tracks"]],
 ]
 
 
-def confirm_by_score(evidence, scores, continuing, confirm_score):
+def confirm_by_score(evidence, scores, continuing, params):
     """Confirmed by one estimate whose detection score reaches ``confirm_score`` (the default).
 
-    The evidence is not used (returned unchanged).
+    The evidence and the calibration are not used.
     """
     del continuing
-    return scores >= confirm_score, evidence
+    return scores >= params.confirm_score, evidence
 
 
 def score_log_odds(scores: Array) -> Array:
@@ -143,22 +150,25 @@ def score_log_odds(scores: Array) -> Array:
     return jnp.log(clipped) - jnp.log1p(-clipped)
 
 
-def confirm_by_evidence(evidence, scores, continuing, confirm_score):
-    """Confirmed when the score log-odds of the estimates a track has held reach a threshold.
+def confirm_by_evidence(evidence, scores, continuing, params):
+    """Confirmed when the log-odds of the estimates a track has held reach a threshold.
 
-    ``E_k = E_{k-1} + logit(s_k)`` over the frames on which the track holds an estimate
-    (``s_k`` its detection score; a new track starts from ``E = logit(s)``; frames without
-    an estimate leave ``E`` as it is), confirmed once ``E_k >= logit(confirm_score)``. For a
-    calibrated detector (``p(target | s) = s``) and independent detections, ``E`` is the
-    log-odds of "a target" against "clutter" after the track's detections, with even prior
-    odds: Wald's sequential test with one (upper) threshold. One detection scoring
-    ``confirm_score`` or more confirms at once, as under :func:`confirm_by_score`; a target
-    whose detections all score 0.8 is confirmed on its third (``3 logit(0.8) = 4.16 >=
-    logit(0.97) = 3.48``), which :func:`confirm_by_score` never confirms; a detection
-    scoring below 0.5 lowers ``E``.
+    ``E_k = E_{k-1} + logit p(target | s_k)`` over the frames on which the track holds an
+    estimate (``s_k`` its detection score, ``p(target | s)`` the detector's calibration
+    ``params.score_calibration``, linear between its knots; a new track starts from ``E =
+    logit p(target | s)``; frames without an estimate leave ``E`` as it is), confirmed once
+    ``E_k >= logit(confirm_score)``. For independent detections ``E`` is the log-odds of "a
+    target" against "clutter" after the track's detections: Wald's sequential test with one
+    (upper) threshold. With the identity calibration (scores read as probabilities), one
+    detection scoring ``confirm_score`` or more confirms at once, as under
+    :func:`confirm_by_score`; a target whose detections all score 0.8 is confirmed on its
+    third (``3 logit(0.8) = 4.16 >= logit(0.97) = 3.48``), which :func:`confirm_by_score`
+    never confirms; a detection scoring below 0.5 lowers ``E``.
     """
-    total = jnp.where(continuing, evidence, 0.0) + score_log_odds(scores)
-    return total >= score_log_odds(confirm_score), total
+    calibration = params.score_calibration
+    probability = jnp.interp(scores, calibration.scores, calibration.probabilities)
+    total = jnp.where(continuing, evidence, 0.0) + score_log_odds(probability)
+    return total >= score_log_odds(params.confirm_score), total
 
 
 def label_step(
@@ -198,9 +208,7 @@ def label_step(
     held = jnp.where(new.born, new.source, linked_to)
     holds = held < num_estimates
     safe_held = jnp.minimum(held, num_estimates - 1)
-    passed, evidence = confirmation(
-        state.evidence, estimates.scores[safe_held], linked, params.confirm_score
-    )
+    passed, evidence = confirmation(state.evidence, estimates.scores[safe_held], linked, params)
     confirmed = jnp.where(
         holds,
         (linked & table.confirmed) | passed,

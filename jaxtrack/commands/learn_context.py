@@ -76,6 +76,12 @@ size, length and frame rate (--fps overrides it) come from the video.
 Trajectories that start in the first --warmup frames of the span are the population already
 in view, not births.
 
+With a ground-truth source, the detector's score calibration p(target | s) is learned too
+(isotonic fit of "matched to gt at IoU 0.5" on the score) and stored in the context: the
+tracker's "evidence" confirmation (--config '{"confirmation": "evidence"}' for
+`jaxtrack track --context`, every --variant, UM included) reads the scores through it, and
+the UM run that yields the birth events uses it.
+
 Writes OUT (.npz, read with jaxtrack.context.load_context) with the sample counts,
 magnitudes and settings in its metadata; with --plot DIR also intensities.png (heat maps;
 beside the true ones when SEQ_DIR holds context_truth.npz from `jaxtrack simulate`),
@@ -212,9 +218,10 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([output_file("--out", args.out), *_plot_outputs(args.plot)], _inputs(args))
 
     start = time.perf_counter()
-    # steps: loading, (tracking,) collecting events, (birth check,) birth density,
-    # (clutter check,) clutter density, (plots)
+    # steps: loading, (score calibration,) (tracking,) collecting events, (birth check,)
+    # birth density, (clutter check,) clutter density, (plots)
     steps = (5 if "tracks" in (args.birth_from, clutter_from) else 4) + 2 * args.heldout
+    steps += "gt" in (args.birth_from, clutter_from)
     total = steps + (1 if args.plot else 0)
     with tqdm(total=total, desc="learn-context", unit="step", disable=args.quiet) as bar:
         progress = step_progress(bar)
@@ -263,9 +270,27 @@ def run(args: argparse.Namespace) -> int:
         held = info.get("heldout")
         if held is not None:
             print("    " + heldout_line(held))
+    print("  " + calibration_line(meta.get("score_calibration", {})))
     if args.plot:
         print(f"  figures: {', '.join(str(path) for path in paths)}")
     return 0
+
+
+def calibration_line(record: dict) -> str:
+    """One line on the detector's score calibration (:mod:`jaxtrack.context.scores`)."""
+    if record.get("source") is None:
+        return "score calibration: none (no ground truth); scores read as probabilities"
+    if not record.get("learned"):
+        return (
+            f"score calibration: not learned ({record['detections']} detections, too few or "
+            "all of one kind); scores read as probabilities"
+        )
+    values = ", ".join(f"{p:.2f} at {s}" for s, p in record["p_at"].items())
+    return (
+        f"score calibration from gt on {record['detections']} detections "
+        f"({100 * record['target_share']:.0f} % targets): p(target | s) = {values} "
+        '(read by --config \'{"confirmation": "evidence"}\')'
+    )
 
 
 def heldout_line(held: dict) -> str:

@@ -6,7 +6,10 @@ Layout (NumPy ``.npz``, no pickled objects), the same field naming as
 ``birth_uniform_weight``, ``birth_lower``, ``birth_upper``, ``birth_weights``, ``birth_means``,
 ``birth_covs``), the clutter intensity likewise as ``clutter_<field>``, and
 ``metadata_json``: a JSON object (a 0-d string array) holding the caller's metadata (e.g. the
-source sequence, training frames, sample counts, magnitudes) plus ``format_version``.
+source sequence, training frames, sample counts, magnitudes) plus ``format_version``. A
+context learned with ground truth also records the detector's score calibration there
+(``score_calibration``: ``scores`` and ``probabilities`` at the knots, and a summary;
+:mod:`jaxtrack.context.scores`), checked on loading.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.context.intensity import Intensity
+from jaxtrack.context.scores import invalid_calibration
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.limits import FLOAT32_MAX, MAX_COORDINATE, Rule, float32_trouble
 from jaxtrack.linalg import cholesky
@@ -113,6 +117,10 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
                 MAGNITUDE.check(f"metadata_json {prefix}.magnitude", recorded["magnitude"])
             except InputError as err:
                 raise FileFormatError(path, None, str(err)) from None
+    if "score_calibration" in metadata:
+        reason = invalid_calibration(metadata["score_calibration"])
+        if reason is not None:
+            raise FileFormatError(path, None, f"metadata_json: {reason}")
     intensities = []
     for prefix in PREFIXES:
         fields = {}

@@ -266,13 +266,7 @@ def clutter_samples_from_gt(
         The unmatched detections as ``(y1, y2, w, h)``, source ``"gt"``.
     """
 
-    every_gt = MotTable.from_arrays(gt_table.frames, gt_table.ids, gt_table.boxes)
-    numbered = MotTable.from_arrays(det_table.frames, np.arange(len(det_table)), det_table.boxes)
-    data = prepare_sequence(every_gt, numbered, span)
-    mapped = detection_mapping(data, iou_threshold)
-    # tracker ids are the row numbers 0..n-1, relabelled in increasing order: id == row
-    matched = np.zeros(len(det_table), bool)
-    matched[data.tracker_id[data.pairs.tracker_row[mapped]]] = True
+    matched = matched_detections(det_table, gt_table, span, iou_threshold)
     overlapping = _overlaps_objects(det_table, gt_table, object_overlap)
     kept = ~matched & ~overlapping
     return _detection_events(
@@ -283,6 +277,31 @@ def clutter_samples_from_gt(
         ~matched & overlapping,
         _coverage(det_table, kept, gt_table, span, object_overlap),
     )
+
+
+def matched_detections(
+    det_table: MotTable,
+    gt_table: MotTable,
+    span: tuple[int, int],
+    iou_threshold: float = IOU_THRESHOLD,
+) -> np.ndarray:
+    """Which detections the per-frame one-to-one mapping to the ground truth matches.
+
+    The mapping is :func:`jaxtrack.metrics.vace.detection_mapping` (most pairs with IoU >=
+    ``iou_threshold``, then the largest summed IoU), every gt row taking part (``conf == 0``
+    rows included).
+
+    Returns:
+        ``[len(det_table)]`` booleans.
+    """
+    every_gt = MotTable.from_arrays(gt_table.frames, gt_table.ids, gt_table.boxes)
+    numbered = MotTable.from_arrays(det_table.frames, np.arange(len(det_table)), det_table.boxes)
+    data = prepare_sequence(every_gt, numbered, span)
+    mapped = detection_mapping(data, iou_threshold)
+    # tracker ids are the row numbers 0..n-1, relabelled in increasing order: id == row
+    matched = np.zeros(len(det_table), bool)
+    matched[data.tracker_id[data.pairs.tracker_row[mapped]]] = True
+    return matched
 
 
 def clutter_samples_from_tracks(

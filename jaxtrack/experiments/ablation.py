@@ -146,14 +146,13 @@ def variant_params(
 ) -> list[PHDParams]:
     """The parameters of every variant of :data:`VARIANTS`, in order.
 
-    UM has uniform intensities; A6 is GM with ``contexts["gt"]``, every other variant uses
-    ``contexts["tracks"]`` (:func:`ablation_contexts`). The parameters are not padded to
-    common shapes (:func:`~jaxtrack.pipelines.sweep.common_shapes` does that).
+    UM has uniform intensities; A6 is GM with ``contexts["gt"]``, every other variant, UM
+    included, uses ``contexts["tracks"]`` (:func:`ablation_contexts`; for UM only its detector
+    score calibration, which the ``"evidence"`` confirmation reads). The parameters are not
+    padded to common shapes (:func:`~jaxtrack.pipelines.sweep.common_shapes` does that).
     """
     return [
-        phd_params(config, info)
-        if name == "UM"
-        else phd_params(config, info, contexts["gt" if name == "A6" else "tracks"], name)
+        phd_params(config, info, contexts["gt" if name == "A6" else "tracks"], name)
         for name in VARIANTS
     ]
 

@@ -68,7 +68,8 @@ def context_gap(
     notify(f"{split.train.info.name}: learning context on frames 1:{split.train.last_frame}")
     context = Context.from_learned(learn_split(split, config, seed, "tracks"))
     info = split.test.info
-    params = common_shapes([phd_params(config, info), phd_params(config, info, context, "GM")])
+    # UM reads the context's detector score calibration too (the "evidence" confirmation).
+    params = common_shapes([phd_params(config, info, context, v) for v in GAP_VARIANTS])
     notify(f"{info.name}: tracking frames {split.test.first_frame}:{split.test.last_frame}")
     results = track_sequences([split.test] * len(params), config, seed, params, progress=False)
     return [

@@ -105,7 +105,8 @@ def variant_params(info, config: PHDConfig, context: Context) -> list[Any]:
         ``[UM, GM]`` :class:`~jaxtrack.filters.phd.PHDParams`, stackable into one batch
         (:func:`~jaxtrack.sweep.common_shapes`).
     """
-    return common_shapes([phd_params(config, info), phd_params(config, info, context, "GM")])
+    # UM reads the context's detector score calibration too (the "evidence" confirmation).
+    return common_shapes([phd_params(config, info, context, v) for v in ("UM", "GM")])
 
 
 def magnitude_batch(params: list[Any], clutter_rates: np.ndarray, birth_rates: np.ndarray):

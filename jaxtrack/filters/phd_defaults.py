@@ -8,6 +8,7 @@ configuration serves 640x480 to 1920x1080 images at 7 to 30 frames per second.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from jaxtrack.association.labelling import LabelParams
@@ -16,6 +17,7 @@ from jaxtrack.context.intensity import (
     uniform_birth_intensity,
     uniform_clutter_intensity,
 )
+from jaxtrack.context.scores import identity_calibration
 from jaxtrack.filters.phd import PHDParams
 
 #: SDV motion noise ``(sigma_n1, sigma_n2, sigma_nw, sigma_nh)``, relative to the box size.
@@ -74,5 +76,6 @@ def default_phd_params(
             confirm_score=jnp.asarray(0.97),
             new_track_max_iou=jnp.asarray(0.3),
             velocity_smoothing=jnp.asarray(0.8),
+            score_calibration=jax.tree.map(jnp.asarray, identity_calibration()),
         ),
     )

@@ -36,6 +36,7 @@ import numpy as np
 from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
 from jaxtrack.context.intensity import Intensity, birth_speed_limit, uniform_birth_intensity
 from jaxtrack.context.learn import volume_mass
+from jaxtrack.context.scores import ScoreCalibration, calibration_from_metadata
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.phd import CONFIRMATIONS, PHDParams, phd_filter
@@ -211,7 +212,9 @@ def phd_params(
         config: the configuration.
         info: the sequence's ``seqinfo.ini`` (image size, frame rate).
         context: a learned context; None gives UM (uniform intensities, the configuration's
-            magnitudes).
+            magnitudes). Its detector score calibration, when it records one
+            (:mod:`jaxtrack.context.scores`), goes into ``labelling.score_calibration`` for
+            every variant, UM included (read by the ``"evidence"`` confirmation only).
         variant: a key of :data:`VARIANTS` (used only with a context).
 
     Returns:
@@ -243,11 +246,22 @@ def phd_params(
         motion_noise_std=jnp.asarray(config.motion_noise_std, jnp.float32),
         measurement_noise_std=jnp.asarray(config.measurement_noise_std, jnp.float32),
     )
+    if context is not None:
+        params = with_score_calibration(params, calibration_from_metadata(context.metadata))
     if use.learned_birth:
         params = params._replace(birth_intensity=context.birth)
     if use.learned_clutter:
         params = params._replace(clutter_intensity=context.clutter)
     return params
+
+
+def with_score_calibration(params: PHDParams, calibration: ScoreCalibration | None) -> PHDParams:
+    """``params`` reading detector scores through ``calibration``
+    (``labelling.score_calibration``; None leaves ``params`` as they are)."""
+    if calibration is None:
+        return params
+    calibration = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32), calibration)
+    return params._replace(labelling=params.labelling._replace(score_calibration=calibration))
 
 
 def build_phd(

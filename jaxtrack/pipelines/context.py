@@ -43,14 +43,21 @@ from jaxtrack.context.samples import (
     clutter_samples_from_gt,
     clutter_samples_from_labels,
     clutter_samples_from_tracks,
+    matched_detections,
 )
+from jaxtrack.context.scores import ScoreCalibration, learn_score_calibration
 from jaxtrack.errors import InputError
-from jaxtrack.filters.phd_tracker import PHDConfig
+from jaxtrack.filters.phd_tracker import PHDConfig, phd_params, with_score_calibration
 from jaxtrack.io.motchallenge import MotSequence, load_sequence
 from jaxtrack.pipelines.tracking import track_sequences
 
 
-def uniform_tracker_rows(sequence: MotSequence, seed: int = 0, config: PHDConfig | None = None):
+def uniform_tracker_rows(
+    sequence: MotSequence,
+    seed: int = 0,
+    config: PHDConfig | None = None,
+    calibration: ScoreCalibration | None = None,
+):
     """Trajectories of the PHD tracker with uniform (UM) intensities on a sequence's span.
 
     The tracker configuration (default :class:`PHDConfig`) with uniform intensities and no
@@ -63,11 +70,15 @@ def uniform_tracker_rows(sequence: MotSequence, seed: int = 0, config: PHDConfig
         sequence: the loaded training span.
         seed: PRNG seed of the run.
         config: the tracker's configuration (its ``max_gap`` is ignored: gaps stay open).
+        calibration: the detector's score calibration (read by the ``"evidence"``
+            confirmation; None: scores read as probabilities).
 
     Returns:
         The rows (:class:`~jaxtrack.types.MotTable`).
     """
-    (rows,) = track_sequences([sequence], (config or PHDConfig()).replace(max_gap=0), seed)
+    config = (config or PHDConfig()).replace(max_gap=0)
+    params = with_score_calibration(phd_params(config, sequence.info), calibration)
+    (rows,) = track_sequences([sequence], config, seed, [params])
     return rows
 
 
@@ -160,10 +171,19 @@ def learn_context(
                 f"{labels_path}: no labelled frame inside the span {span[0]}:{span[1]}"
             )
 
+    calibration, calibration_summary = None, {"learned": False, "source": None}
+    if uses_gt:
+        notify("calibrating the detector's scores on the ground truth")
+        targets = matched_detections(sequence.det_table, sequence.gt_table, span)
+        calibration, calibration_summary = learn_score_calibration(
+            sequence.det_table.confs, targets
+        )
+        calibration_summary["source"] = "gt"
+
     rows = None
     if birth_from == "tracks" or str(clutter_from) == "tracks":
         notify(f"tracking frames {span[0]}:{span[1]} with uniform intensities")
-        rows = uniform_tracker_rows(sequence, seed, tracker_config)
+        rows = uniform_tracker_rows(sequence, seed, tracker_config, calibration)
 
     notify("collecting events")
     if birth_from == "gt":
@@ -226,6 +246,15 @@ def learn_context(
         "birth": _summary(births, birth_state, birth_check, birth_mass),
         "clutter": _summary(clutter, clutter_state, clutter_check, clutter_mass),
         "warmup_frames": warmup_frames,
+        "score_calibration": calibration_summary
+        | (
+            {}
+            if calibration is None
+            else {
+                "scores": np.asarray(calibration.scores).tolist(),
+                "probabilities": np.asarray(calibration.probabilities).tolist(),
+            }
+        ),
     }
     return LearnedContext(
         birth=birth,

@@ -19,6 +19,7 @@ from jaxtrack.association.labelling import (
     init_labels,
     label_step,
 )
+from jaxtrack.context.scores import identity_calibration
 
 PARAMS = LabelParams(
     min_iou=jnp.asarray(0.3),
@@ -26,6 +27,7 @@ PARAMS = LabelParams(
     confirm_score=jnp.asarray(0.0),
     new_track_max_iou=jnp.asarray(1.0),
     velocity_smoothing=jnp.asarray(0.0),
+    score_calibration=identity_calibration(),
 )
 
 

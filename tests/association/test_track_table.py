@@ -14,6 +14,7 @@ from jaxtrack.association.track_table import (
     count_missed,
     start_tracks,
 )
+from jaxtrack.context.scores import identity_calibration
 from jaxtrack.filters.kalman import default_kalman_params, kalman_filter
 from jaxtrack.types import Detections
 
@@ -80,6 +81,7 @@ def test_phd_labelling_and_kalman_tracker_share_the_table_rules():
         confirm_score=jnp.asarray(0.0),
         new_track_max_iou=jnp.asarray(1.0),
         velocity_smoothing=jnp.asarray(0.0),
+        score_calibration=identity_calibration(),
     )
     centres = boxes.at[:, :2].add(boxes[:, 2:] / 2)
     states = jnp.zeros((3, 6)).at[:, jnp.array([0, 2, 4, 5])].set(centres)

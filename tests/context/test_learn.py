@@ -8,6 +8,7 @@ One 400-frame scene (seed 5) is learned once from ground-truth events (about 25 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import jax
 import jax.numpy as jnp
@@ -23,6 +24,7 @@ from jaxtrack.context.learn import (
     marginal,
     uniform_volumes,
 )
+from jaxtrack.context.samples import matched_detections
 from jaxtrack.datasets import SceneConfig, generate_scene
 from jaxtrack.datasets.synthetic import write_scene
 from jaxtrack.errors import InputError
@@ -289,3 +291,24 @@ def test_errors_for_bad_input(scene_dir, tmp_path):
     no_gt = dataclasses.replace(sequence, gt_table=None, ground_truth=None)
     with pytest.raises(InputError, match="no ground truth"):
         learn_context(no_gt, birth_from="tracks", clutter_from="gt")
+
+
+def test_score_calibration_is_the_target_share_of_the_scores(scene_dir, learned):
+    """The learned p(target | s) against the share of gt-matched detections in score bins
+    (an independent binned estimate; bins of at least 200 detections)."""
+    record = learned.metadata["score_calibration"]
+    assert record["learned"] and record["source"] == "gt"
+    sequence = load_sequence(scene_dir, frames=(1, FRAMES))
+    targets = matched_detections(sequence.det_table, sequence.gt_table, (1, FRAMES))
+    scores = sequence.det_table.confs
+    assert record["detections"] == scores.size
+    edges = np.quantile(scores, np.linspace(0, 1, 9))
+    checked = 0
+    for low, high in itertools.pairwise(edges):
+        inside = (scores >= low) & (scores < high)
+        if inside.sum() < 200:
+            continue
+        learned_share = np.interp(scores[inside], record["scores"], record["probabilities"]).mean()
+        assert learned_share == pytest.approx(targets[inside].mean(), abs=0.05), (low, high)
+        checked += 1
+    assert checked >= 5
