@@ -171,17 +171,21 @@ def add_tracker(parser: argparse.ArgumentParser) -> None:
 
 
 def add_context_arguments(
-    parser: argparse.ArgumentParser, variants_doc: str, tracker_variants: tuple[str, ...] = ()
+    parser: argparse.ArgumentParser,
+    variants_doc: str,
+    tracker_variants: tuple[str, ...] = (),
+    with_um: bool = False,
 ) -> None:
     """Adds ``--context CTX.npz`` and ``--variant`` (``jaxtrack track``, ``track-video``);
     ``tracker_variants`` are further ``--variant`` choices that pick a tracker's variant
-    (CMT's ablation) rather than a context's parts."""
+    (CMT's ablation) rather than a context's parts; ``with_um`` also offers UM (uniform
+    intensities that read only the context's detector score calibration)."""
     parser.add_argument(
         "--context", metavar="CTX.npz", help="learned context (jaxtrack learn-context)"
     )
     parser.add_argument(
         "--variant",
-        choices=[name for name in VARIANTS if name != "UM"] + list(tracker_variants),
+        choices=[name for name in VARIANTS if with_um or name != "UM"] + list(tracker_variants),
         help=f"which parts of --context to use (default GM; {variants_doc})",
     )
 
@@ -195,6 +199,7 @@ def add_variant_and_scene_arguments(parser: argparse.ArgumentParser, see: str) -
         parser,
         f"{see}; mtb, cpd, cmt for --tracker cmt; kalman, managed, full for --tracker hierarchical",
         tuple(tracker_variant_names()),
+        with_um=True,
     )
     parser.add_argument(
         "--zones",

@@ -55,6 +55,7 @@ from jaxtrack.experiments.context_generalisation import (
 )
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
+from jaxtrack.filters.phd import CONFIRMATIONS
 
 #: The data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -215,6 +216,14 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
         help="runs of each real sequence, seeds --seed .. --seed + K - 1 (default "
         f"{len(REAL_SEEDS)}; with --quick 1): one run's MOTA moves by points with the seed",
     )
+    parser.add_argument(
+        "--confirmation",
+        choices=tuple(CONFIRMATIONS),
+        default="score",
+        help="the PHD tracker's track confirmation in every run (PHDConfig.confirmation; "
+        "default score): 'evidence' adds up the log-odds of a track's detections, read through "
+        "the detector's calibration learned with each context (UM included)",
+    )
 
 
 def _context_generalisation(args: argparse.Namespace) -> int:
@@ -252,6 +261,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
         quick=args.quick,
         real_seeds=real_seeds,
         particles=args.particles,
+        confirmation=args.confirmation,
         progress=not args.quiet,
     )
     print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))

@@ -12,11 +12,13 @@ from tqdm import tqdm
 from jaxtrack.commands.arguments import (
     EPOCHS,
     FRAMES_OR_NONE,
+    add_config,
     add_frames,
     add_json,
     add_out,
     add_quiet,
     add_seed,
+    load_config,
     ranged,
     refuse_ignored,
     step_progress,
@@ -78,9 +80,10 @@ in view, not births.
 
 With a ground-truth source, the detector's score calibration p(target | s) is learned too
 (isotonic fit of "matched to gt at IoU 0.5" on the score) and stored in the context: the
-tracker's "evidence" confirmation (--config '{"confirmation": "evidence"}' for
+tracker's "evidence" confirmation (a --config file with {"confirmation": "evidence"}, for
 `jaxtrack track --context`, every --variant, UM included) reads the scores through it, and
-the UM run that yields the birth events uses it.
+so does the UM run that yields the birth events when this command's --config (the tracker
+configuration of that run) asks for it.
 
 Writes OUT (.npz, read with jaxtrack.context.load_context) with the sample counts,
 magnitudes and settings in its metadata; with --plot DIR also intensities.png (heat maps;
@@ -176,6 +179,7 @@ def register(subparsers) -> None:
         metavar="N",
         help=f"frames at the start of the span without births (default {WARMUP_FRAMES})",
     )
+    add_config(parser)
     add_quiet(parser)
     add_json(parser)
     parser.set_defaults(func=run)
@@ -237,6 +241,7 @@ def run(args: argparse.Namespace) -> int:
             clutter_epochs=args.clutter_epochs or CLUTTER_EPOCHS,
             heldout=args.heldout,
             warmup_frames=args.warmup,
+            tracker_config=load_config(args.config),
             progress=progress,
         )
         bar.update(1)
@@ -289,7 +294,7 @@ def calibration_line(record: dict) -> str:
     return (
         f"score calibration from gt on {record['detections']} detections "
         f"({100 * record['target_share']:.0f} % targets): p(target | s) = {values} "
-        '(read by --config \'{"confirmation": "evidence"}\')'
+        '(read by the "evidence" confirmation)'
     )
 
 

@@ -1,7 +1,7 @@
 """``jaxtrack track``: run the particle PHD tracker on MOTChallenge sequences.
 
 One sequence:  ``jaxtrack track SEQ_DIR --out RES.txt [--frames A:B] [--config FILE]
-[--detections DET.txt|det|bs] [--context CTX.npz [--variant GM|A1..A6]] [--figure PNG
+[--detections DET.txt|det|bs] [--context CTX.npz [--variant GM|A1..A6|UM]] [--figure PNG
 [--figure-frame N]]``
 All sequences: ``jaxtrack track --benchmark MOT_ROOT --out RES_DIR`` (one ``<SEQ>.txt`` each,
 one compile per detection capacity; each sequence's result is the one it gets alone)
@@ -30,7 +30,9 @@ types and out-of-range values are errors naming the key.
 picks the parts (PHD-context Sec. V): GM (default) learned birth and clutter; A1 learned birth
 + uniform clutter; A2 uniform birth + learned clutter; A3 uniform both with the magnitudes
 measured on the training span; A4 = A3 with learned birth; A5 = A3 with learned clutter; A6 =
-GM (learn the context with ``--birth-from gt``).
+GM (learn the context with ``--birth-from gt``); UM uniform intensities at the configuration's
+magnitudes, reading only the context's detector score calibration (which the
+``"evidence"`` confirmation uses; every variant reads it).
 
 ``--tracker kalman`` runs the baseline data-association tracker instead (a bank of
 constant-velocity Kalman filters, gating, optimal assignment, M-of-N confirmation, no clutter

@@ -505,6 +505,7 @@ def run_context_generalisation(
     quick: bool = False,
     real_seeds: Sequence[int] = REAL_SEEDS,
     particles: int | None = None,
+    confirmation: str = "score",
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -530,6 +531,9 @@ def run_context_generalisation(
             once per seed (a group of ``len(real_seeds)`` runs, summarised like a family).
         particles: the tracker's particles (``PHDConfig.num_particles``; also those of the UM
             run that yields the births); None: the configuration's (2048, quick 256).
+        confirmation: the tracker's track confirmation (``PHDConfig.confirmation``:
+            ``"score"`` or ``"evidence"``, the latter reading the scores through each
+            context's calibration, UM included).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -544,6 +548,7 @@ def run_context_generalisation(
     config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
     if particles is not None:
         config = dataclasses.replace(config, num_particles=particles)
+    config = dataclasses.replace(config, confirmation=confirmation)
     notes = []
     if tuned and not tuning_takes_context():
         tuned = False
@@ -654,7 +659,8 @@ def summary_markdown(
         "the second half (births from a UM run for GM and A1-A5, from the ground truth for "
         "A6; clutter from the ground truth; GM+tuned: the GM context tuned on the training "
         f"half by the likelihood). {config.num_particles} particles, "
-        f"{config.births_per_detection} births per detection{', quick run' if quick else ''}. "
+        f"{config.births_per_detection} births per detection, confirmation "
+        f"'{config.confirmation}'{', quick run' if quick else ''}. "
         "MOTA in %; per group (bank family over its scenes' seeds, or a real sequence over "
         "its tracker seeds) the mean over seeds; `gain %` = 100 (MOTA - MOTA_UM) / |MOTA_UM| "
         "per scene, averaged over the seeds; `GM-UM` in points between the means.\n",
