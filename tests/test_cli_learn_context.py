@@ -111,6 +111,19 @@ def test_learns_from_a_tracker_run(run_cli, scene_dir, tmp_path):
     assert meta["clutter"]["magnitude"] < 2 * SceneConfig().total_clutter_rate
 
 
+def test_learns_with_the_evidence_confirmation(run_cli, scene_dir, tmp_path, capsys):
+    """The documented flow: --config makes the UM run that yields the births use the evidence
+    rule through the calibration learned first on the ground truth."""
+    config = tmp_path / "evidence.json"
+    config.write_text('{"confirmation": "evidence", "num_particles": 512}')
+    out = tmp_path / "ctx.npz"
+    assert run_cli(scene_dir, "--frames", "1:150", "--config", config, "--out", out) == 0
+    _, _, meta = load_context(out)
+    assert meta["birth"]["source"] == "tracks" and meta["birth"]["num_events"] > 0
+    assert meta["score_calibration"]["learned"]
+    assert "score calibration from gt" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -121,6 +134,7 @@ def test_learns_from_a_tracker_run(run_cli, scene_dir, tmp_path):
         (("--birth-epochs", "0"), "--birth-epochs"),
         (("--warmup", "-1"), "--warmup"),
         (("--video", "missing.avi"), "--video"),
+        (("--config", "missing.json"), "missing.json"),
     ],
 )
 def test_bad_arguments_exit_2(run_cli, scene_dir, tmp_path, capsys, args, message):

@@ -12,6 +12,7 @@ from matplotlib.image import imread
 from jaxtrack.cli import main
 from jaxtrack.commands.arguments import load_config
 from jaxtrack.context.io import save_context
+from jaxtrack.context.scores import knot_scores
 from jaxtrack.errors import FileFormatError
 from jaxtrack.filters.phd_tracker import PHDConfig, phd_params
 from jaxtrack.io import read_mot_file, read_seqinfo
@@ -101,6 +102,38 @@ def test_track_with_context_variant_and_figure(mot15_root, tmp_path, capsys):
     assert len(read_mot_file(out, "res")) > 0
     assert main([*args, "--figure", str(figure), "--figure-frame", "99"]) == 2
     assert "outside the frames tracked" in capsys.readouterr().err
+
+
+def test_track_with_a_context_variant_um_reads_its_score_calibration(mot15_root, tmp_path):
+    """--variant UM with a context: uniform intensities, the context's calibration. A
+    calibration that makes every detection near-certain (0.99) confirms every track on its
+    first detection under the evidence rule, as does the score rule only for detections of
+    0.97 or more, so the evidence run outputs at least the score run's boxes."""
+    info = read_seqinfo(mot15_root / "TUD-Campus" / "seqinfo.ini")
+    uniform = phd_params(PHDConfig(), info)
+    knots = knot_scores()
+    record = {"scores": knots.tolist(), "probabilities": [0.99] * len(knots)}
+    context = tmp_path / "ctx.npz"
+    save_context(
+        context,
+        uniform.birth_intensity,
+        uniform.clutter_intensity,
+        {"score_calibration": {"learned": True, "source": "gt", **record}},
+    )
+    config = tmp_path / "evidence.json"
+    config.write_text('{"confirmation": "evidence", "num_particles": 256}')
+    runs = {}
+    for name, extra in (("um", ["--variant", "UM"]), ("plain", [])):
+        out = tmp_path / f"{name}.txt"
+        args = ["track", str(mot15_root / "TUD-Campus"), "--out", str(out), "--frames", "1:30"]
+        args += ["--config", str(config), *(["--context", str(context)] if extra else [])]
+        assert main([*args, *extra]) == 0
+        runs[name] = read_mot_file(out, "res")
+    used = json.loads((tmp_path / "um.config.json").read_text())
+    assert used["variant"] == "UM" and used["confirmation"] == "evidence"
+    # Without the context the scores are read as probabilities (median 0.99 on TUD-Campus,
+    # some below 0.7): the 0.99 calibration confirms every track at once, so more boxes.
+    assert len(runs["um"]) > len(runs["plain"]) > 0
 
 
 def test_context_from_another_image_size_is_refused(mot15_root, tmp_path, capsys):

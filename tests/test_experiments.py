@@ -365,7 +365,7 @@ def test_context_generalisation_quick(tmp_path, capsys):
     assert "| group | seeds | UM | GM | A1 | A2 | A3 | A4 | A5 | A6 |" in text  # no GM+tuned
     assert "## Goals (issue 15)" in text and "Run time" in text
     assert "run by run" not in text  # no real sequence
-    assert "200 particles, 8 births per detection, quick run" in text
+    assert "200 particles, 8 births per detection, confirmation 'score', quick run" in text
     assert contexts[0]["seed"] == contexts[1]["seed"] == "1"
 
 
@@ -392,6 +392,29 @@ def test_generalisation_real_runs_pair_um_and_gm_per_seed():
     assert video["GM"]["seeds"] == 3
     assert video["GM"]["minus_UM"] == pytest.approx(0.23, abs=0.01)
     assert goal_checks(summarise(rows))[0].status == "PASS"
+
+
+def test_generalisation_confirmation_reaches_the_experiment(tmp_path, monkeypatch, capsys):
+    """``--confirmation`` is passed to the experiment (its run is stubbed: the rule itself is
+    tested in tests/association and tests/filters/test_confirmation.py)."""
+    from jaxtrack.commands import experiment as command
+
+    seen = {}
+
+    def stub(*args, **kwargs):
+        seen.update(kwargs)
+        raise SystemExit(0)
+
+    monkeypatch.setattr(command, "run_context_generalisation", stub)
+    argv = ("--out", tmp_path / "cg", "--no-real", "--quick")
+    with pytest.raises(SystemExit):
+        _experiment("context-generalisation", *argv, "--confirmation", "evidence")
+    assert seen["confirmation"] == "evidence"
+    with pytest.raises(SystemExit):
+        _experiment("context-generalisation", *argv)
+    assert seen["confirmation"] == "score"
+    assert _experiment("context-generalisation", *argv, "--confirmation", "votes") == 2
+    assert "invalid choice: 'votes'" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
