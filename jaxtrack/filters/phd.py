@@ -42,6 +42,7 @@ from jaxtrack.association.labelling import (
     confirm_by_score,
     init_labels,
     label_step,
+    score_log_odds,
 )
 from jaxtrack.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from jaxtrack.context.intensity import Intensity, log_intensity
@@ -325,8 +326,7 @@ def score_log_ratio(
     Returns:
         ``log r(s) = beta * logit(s)`` per detection.
     """
-    clipped = jnp.clip(scores, 1e-6, 1 - 1e-6)
-    return score_weight * (jnp.log(clipped) - jnp.log1p(-clipped))
+    return score_weight * score_log_odds(scores)
 
 
 #: Detection x particle pairs per block of :func:`phd_update` by default (the
