@@ -63,7 +63,8 @@ import numpy as np
 
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import log_intensity
-from jaxtrack.filters import PHDParams, default_phd_params, phd_filter, resample
+from jaxtrack.filters import PHDParams, default_phd_params, draws, phd_filter, resample
+from jaxtrack.filters.births import birth_requests
 from jaxtrack.filters.phd import (
     default_block_size,
     join_particles,
@@ -164,9 +165,26 @@ def jax_recursion(num_particles: int, block_size: int | None = None) -> Callable
     def recursion(key, particles, log_weights, params, frame):
         key_motion, key_birth, key_resample = jax.random.split(key, 3)
         measurements = xywh_to_cxcywh(frame.boxes, jnp)
-        survivors, survivor_log_weights = predict(key_motion, particles, log_weights, params)
+        # The motion noise and the births' random numbers from one Threefry evaluation, as
+        # the tracker's step draws them (the same numbers as the stages' own draws).
+        motion, *birth_random = draws.draw(
+            [
+                draws.normal(key_motion, (particles.shape[0], 4), particles.dtype),
+                *birth_requests(
+                    key_birth, frame.mask.shape[0], BIRTHS_PER_DETECTION, frame.boxes.dtype
+                ),
+            ]
+        )
+        survivors, survivor_log_weights = predict(
+            key_motion, particles, log_weights, params, normal=motion
+        )
         born, birth_log_weights = births(
-            key_birth, measurements, frame.mask, params, jnp.asarray(True)
+            key_birth,
+            measurements,
+            frame.mask,
+            params,
+            jnp.asarray(True),
+            random=tuple(birth_random),
         )
         predicted = join_particles(survivors, born)
         updated = update(
