@@ -90,3 +90,19 @@ def test_tracker_step_gives_the_same_frame_with_stages_drawing_for_themselves():
     assert phd_module._joint_draws(own_draws, None, key, key, state, frame) == ({}, {})
     for got, expected in zip(jax.tree.leaves(joint), jax.tree.leaves(separate), strict=True):
         np.testing.assert_array_equal(got, expected)
+
+
+def test_hash_equals_jax_threefry_on_every_word():
+    """The written-out hash gives ``threefry2x32_p``'s two output words for per-element keys
+    and counters, high counter words and the words' extreme values included (independent
+    oracle: JAX's own primitive)."""
+    from jax.extend.random import threefry2x32_p
+
+    rng = np.random.default_rng(7)
+    words = rng.integers(0, 2**32, (4, 1000), dtype=np.uint64).astype(np.uint32)
+    words[:, :4] = [[0, 0xFFFFFFFF, 0, 0xFFFFFFFF]] * 4
+    key_hi, key_lo, count_hi, count_lo = (jnp.asarray(w) for w in words)
+    expected = threefry2x32_p.bind(key_hi, key_lo, count_hi, count_lo)
+    got = jax.jit(draws.threefry2x32)(key_hi, key_lo, count_hi, count_lo)
+    for want, have in zip(expected, got, strict=True):
+        np.testing.assert_array_equal(np.asarray(have), np.asarray(want))
