@@ -8,8 +8,9 @@ number of particles and of detections it times (median of repeats; 3 at 1e6 part
 
 * ``jax_recursion``: prediction, measurement-driven births, the eq. 10 update and systematic
   resampling, composed from the PHD tracker's public stages (:mod:`jaxtrack.filters.phd`)
-  under one ``jax.jit`` (compile excluded and reported apart, ``block_until_ready`` on every
-  call);
+  under one ``jax.jit``, their random numbers drawn as the tracker's step draws them (one
+  Threefry evaluation, :func:`jaxtrack.filters.draws.draw`) (compile excluded and reported
+  apart, ``block_until_ready`` on every call);
 * ``update_memory``: peak temporary memory of the blocked update (``phd_update`` with its
   default block) and of the unblocked form (one block of all the particles, which writes
   ``[num_detections, num_particles]`` arrays), from XLA's ``memory_analysis()`` of the
