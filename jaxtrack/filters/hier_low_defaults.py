@@ -27,7 +27,10 @@ turns that remark into numbers for the unit-scale model of :mod:`~jaxtrack.filte
   is chi-square with ``m`` dof and independent of the others, so the mean of ``U`` of them is
   ``chi2(U m) / U``; the threshold is its ``msd_confidence`` quantile;
 * **gate**: the ``gate_confidence`` quantile of chi-square with ``m`` dof (the paper's
-  Mahalanobis radius of the gate's confidence interval).
+  Mahalanobis radius of the gate's confidence interval);
+* **recovery_gate**: the ``recovery_confidence`` quantile (99.99 %), within which a confirmed
+  track that took no measurement takes one no track took (:mod:`~jaxtrack.filters.hier_low`,
+  step 3's recovery); ``recovery_confidence = gate_confidence`` turns the recovery off.
 
 Default noise (unit scale, relative to the box height or the ellipse's major axis; chosen a
 priori for pedestrians in background-subtraction blobs, not tuned): acceleration 0.01 s per
@@ -60,6 +63,9 @@ DEFAULT_NOISE: dict[str, tuple[tuple[float, ...], tuple[float, ...], tuple[float
 }
 #: Default probability mass of the validation gate (``gate_confidence``).
 GATE_CONFIDENCE = 0.99
+#: Default probability mass of the recovery gate (``recovery_confidence``): a measurement no
+#: track took is offered to a confirmed track that took none within this wider gate.
+RECOVERY_CONFIDENCE = 0.9999
 #: Riccati iterations of :func:`steady_state` (converged to float64 precision long before).
 RICCATI_ITERATIONS = 2000
 
@@ -139,6 +145,7 @@ def low_params(
     coast_frames: int = 12,
     gate_confidence: float = GATE_CONFIDENCE,
     msd_confidence: float = 0.99,
+    recovery_confidence: float = RECOVERY_CONFIDENCE,
 ) -> LowParams:
     """:class:`~jaxtrack.filters.hier_low.LowParams` with thresholds derived from the noise.
 
@@ -153,9 +160,12 @@ def low_params(
             frame without measurement.
         gate_confidence: probability mass of the validation gate, in (0, 1).
         msd_confidence: quantile of the mean MSD of ``U`` updates that still confirms.
+        recovery_confidence: probability mass of the recovery gate, in
+            ``[gate_confidence, 1)``.
 
     Raises:
-        InputError: a count or probability out of range, a noise vector of the wrong length
+        InputError: a count or probability out of range (``recovery_confidence`` below
+            ``gate_confidence``), a noise vector of the wrong length
             or not positive, or ratios that do not fall while updating (an initial
             covariance below the steady state), so that no ratio threshold confirms on the
             ``U``-th update.
@@ -166,9 +176,18 @@ def low_params(
         raise InputError(f"confirm_updates must be at least 2, got {confirm_updates}")
     if coast_frames < 1:
         raise InputError(f"coast_frames must be positive, got {coast_frames}")
-    for name, value in (("gate_confidence", gate_confidence), ("msd_confidence", msd_confidence)):
+    for name, value in (
+        ("gate_confidence", gate_confidence),
+        ("msd_confidence", msd_confidence),
+        ("recovery_confidence", recovery_confidence),
+    ):
         if not 0.0 < value < 1.0:
             raise InputError(f"{name} must be in (0, 1), got {value}")
+    if recovery_confidence < gate_confidence:
+        raise InputError(
+            f"recovery_confidence ({recovery_confidence}) must be at least gate_confidence "
+            f"({gate_confidence})"
+        )
     stds = {"process_std": process_std, "measurement_std": measurement_std}
     for name, value, size in (
         *((k, v, m) for k, v in stds.items()),
@@ -196,6 +215,7 @@ def low_params(
         measurement_std=jnp.asarray(measurement_std, jnp.float32),
         initial_std=jnp.asarray(initial_std, jnp.float32),
         gate=jnp.asarray(chi2.ppf(gate_confidence, m), jnp.float32),
+        recovery_gate=jnp.asarray(chi2.ppf(recovery_confidence, m), jnp.float32),
         log_steady_sqrt_det=jnp.asarray(0.5 * np.linalg.slogdet(steady_innovation)[1], jnp.float32),
         confirm_ratio=jnp.asarray(np.sqrt(confirm[u - 2] * confirm[u - 1]), jnp.float32),
         confirm_msd=jnp.asarray(chi2.ppf(msd_confidence, u * m) / u, jnp.float32),
@@ -210,6 +230,7 @@ def default_low_params(
     coast_frames: int = 12,
     gate_confidence: float = GATE_CONFIDENCE,
     msd_confidence: float = 0.99,
+    recovery_confidence: float = RECOVERY_CONFIDENCE,
 ) -> LowParams:
     """:func:`low_params` with the default pedestrian noise :data:`DEFAULT_NOISE`."""
     measurement_model(measurement)  # an unknown name is an InputError, not a KeyError
@@ -223,4 +244,5 @@ def default_low_params(
         coast_frames=coast_frames,
         gate_confidence=gate_confidence,
         msd_confidence=msd_confidence,
+        recovery_confidence=recovery_confidence,
     )

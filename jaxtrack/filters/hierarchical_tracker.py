@@ -284,10 +284,10 @@ def hierarchical_properties(params: Any) -> Any:
     """The parameter-properties tree: every parameter frozen (the tracker is not tuned by
     gradient: its decisions are thresholds); named, for sweeps
     (:func:`~jaxtrack.pipelines.sweep.sweep_frames`): the low level's ``process_std``,
-    ``measurement_std``, ``gate`` (MSD gate), ``confirm_ratio``, ``confirm_msd`` and
-    ``remove_ratio``; the high level's ``gate_sigmas`` (appearance gate, Sec. 5.4),
-    ``max_lost`` and ``search_rate``; the event machine's ``min_overlap`` (collision); and
-    ``min_score`` (the configuration key)."""
+    ``measurement_std``, ``gate`` (MSD gate), ``recovery_gate``, ``confirm_ratio``,
+    ``confirm_msd`` and ``remove_ratio``; the high level's ``gate_sigmas`` (appearance gate,
+    Sec. 5.4), ``max_lost`` and ``search_rate``; the event machine's ``min_overlap``
+    (collision); and ``min_score`` (the configuration key)."""
     props = frozen_properties(params)
 
     def named(name: str) -> ParameterProperties:
@@ -299,6 +299,7 @@ def hierarchical_properties(params: Any) -> Any:
             "process_std",
             "measurement_std",
             "gate",
+            "recovery_gate",
             "confirm_ratio",
             "confirm_msd",
             "remove_ratio",

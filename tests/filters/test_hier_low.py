@@ -19,7 +19,15 @@ from jaxtrack.filters.hier_low_defaults import (
     ratio_sequences,
     steady_state,
 )
-from jaxtrack.filters.hier_low_model import box_to_ellipse, ellipse_to_box, wrap_angle
+from jaxtrack.filters.hier_low_model import (
+    box_to_ellipse,
+    ellipse_to_box,
+    innovation_covariance,
+    low_predict,
+    mahalanobis_square_distances,
+    track_scale,
+    wrap_angle,
+)
 
 MODELS = ("box", "ellipse")
 
@@ -56,8 +64,10 @@ def _wrap(residual, measurement):
     return residual
 
 
-def reference_step(state, params, measurements, valid, measurement):
-    """One frame with Python loops in float64; ``state`` is a dict of NumPy arrays."""
+def reference_step(state, params, measurements, valid, measurement, recovered=None):
+    """One frame with Python loops in float64; ``state`` is a dict of NumPy arrays;
+    ``recovered[0]`` counts the recovery pass's pairs."""
+    recovered = [0] if recovered is None else recovered
     F, G, H, len_m, len_n, scale_index = _reference_model(measurement)
     p = {k: np.asarray(v, float) for k, v in params._asdict().items()}
     num_tracks, num_meas = len(state["alive"]), len(measurements)
@@ -85,6 +95,22 @@ def reference_step(state, params, measurements, valid, measurement):
     for _, j, t in sorted(pairs):
         if track_of[j] < 0 and meas_of[t] < 0:
             track_of[j], meas_of[t] = t, j
+    # Recovery: left-over measurements, left-over confirmed tracks, the wider gate.
+    recovery = [
+        (msd[j, t] + 2 * np.log(ratios[t]), j, t)
+        for j in range(num_meas)
+        for t in range(num_tracks)
+        if valid[j]
+        and track_of[j] < 0
+        and state["alive"][t]
+        and state["confirmed"][t]
+        and meas_of[t] < 0
+        and msd[j, t] <= p["recovery_gate"]
+    ]
+    for _, j, t in sorted(recovery):
+        if track_of[j] < 0 and meas_of[t] < 0:
+            track_of[j], meas_of[t] = t, j
+            recovered[0] += 1
     new = {k: np.array(v, copy=True) for k, v in state.items()}
     info = {
         "born": np.zeros(num_tracks, bool),
@@ -204,6 +230,28 @@ def test_step_matches_loop_reference(measurement):
             )
         )
     assert all(count > 0 for count in seen.values()), seen
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_step_matches_loop_reference_with_recoveries(measurement):
+    """As above, with the recovery gate wide open (every left-over pair is a recovery
+    candidate), so that the recovery pass is exercised on every kind of frame."""
+    params = default_low_params(measurement, confirm_updates=2, coast_frames=1)
+    params = params._replace(recovery_gate=jnp.float32(1e4))
+    rng = np.random.default_rng(0)
+    frames, masks = _random_frames(rng, measurement, num_frames=10, num_meas=5)
+    step = jax.jit(functools.partial(low_step, measurement=measurement))
+    state = init_low(4, measurement)
+    reference = _numpy_state(state)
+    recovered = [0]
+    for z, valid in zip(frames, masks, strict=True):
+        state, info = step(state, params, jnp.asarray(z, jnp.float32), jnp.asarray(valid))
+        reference, expected = reference_step(reference, params, z, valid, measurement, recovered)
+        for key in ("alive", "confirmed", "ids", "next_id", "hits"):
+            np.testing.assert_array_equal(np.asarray(getattr(state, key)), reference[key], key)
+        np.testing.assert_allclose(state.mean, reference["mean"], rtol=2e-3, atol=2e-3)
+        np.testing.assert_array_equal(np.asarray(info.assignment), expected["assignment"])
+    assert recovered[0] > 0
 
 
 # --- single tracks: steady state and the derived thresholds --------------------------------
@@ -504,3 +552,66 @@ def test_an_uncertain_new_track_does_not_take_a_settled_tracks_measurement():
     _, info = _step("box", state, params, z, [True])
     settled = int(np.flatnonzero(np.asarray(state.confirmed))[0])
     assert info.assignment.tolist() == [settled]
+
+
+@pytest.mark.parametrize("measurement", MODELS)
+def test_recovery_a_confirmed_track_takes_a_left_over_measurement_in_the_wider_gate(
+    measurement,
+):
+    """A measurement outside a settled track's 99 % gate but inside its 99.99 % one, which no
+    other track takes, updates the track instead of starting a tentative one; with the
+    recovery gate at the gate (recovery off) it starts one, as the paper's low level does."""
+    params = default_low_params(measurement)
+    state, rows = _settled(measurement, params, [100.0])
+    scale = track_scale(state.mean[0], measurement)
+    mean, cov = low_predict(state.mean[0], state.cov[0], params.process_std, scale, measurement)
+    innovation_cov, _ = innovation_covariance(cov, params.measurement_std, scale, measurement)
+    z = rows[:1].copy()
+    chosen = None  # the first x offset whose MSD lies between the two gates
+    for offset in np.arange(1.0, 40.0, 0.25):
+        z[0, 0] = 100.0 + offset
+        msd = float(mahalanobis_square_distances(mean, innovation_cov, z, measurement)[0])
+        if float(params.gate) < msd <= float(params.recovery_gate):
+            chosen = offset
+            break
+    assert chosen is not None
+    new, info = _step(measurement, state, params, z, [True])
+    assert info.assignment.tolist() == [0] and not info.born.any()
+    assert int(new.misses[0]) == 0 and int(new.alive.sum()) == 1
+    off = params._replace(recovery_gate=params.gate)
+    new, info = _step(measurement, state, off, z, [True])
+    assert info.born.sum() == 1 and int(new.misses[0]) == 1 and int(new.alive.sum()) == 2
+
+
+def test_recovery_only_for_confirmed_tracks_and_only_left_overs():
+    """A tentative track takes nothing through the recovery gate; a confirmed track that took
+    a measurement in its gate takes no second one; the nearer track still wins a measurement
+    in both gates."""
+    params = default_low_params("box")
+    wide = params._replace(recovery_gate=jnp.float32(1e4))
+    # Tentative: one birth, then a measurement far outside its gate is a new birth.
+    state = init_low(CAPACITY, "box")
+    box = np.array([[100.0, 200.0, 40.0, 100.0]], np.float32)
+    state, _ = _step("box", state, wide, box, [True])
+    far = box.copy()
+    far[0, 0] = 300.0
+    new, info = _step("box", state, wide, far, [True])
+    assert not bool(state.confirmed[0]) and info.born.sum() == 1 and int(new.misses[0]) == 1
+    # Confirmed and updated: a second measurement is an orphan, not a recovery.
+    settled, rows = _settled("box", params, [100.0])
+    z = np.concatenate([rows[:1], far])
+    new, info = _step("box", settled, wide, z, [True, True])
+    assert info.assignment[0] == 0 and info.born.sum() == 1 and int(new.alive.sum()) == 2
+    # Two confirmed tracks, one measurement near the first: only the first takes it.
+    two, rows = _settled("box", params, [100.0, 300.0])
+    _, info = _step("box", two, wide, rows[:1], [True])
+    assert info.assignment.tolist() == [0]
+
+
+def test_recovery_confidence_below_the_gate_is_refused():
+    with pytest.raises(InputError, match="recovery_confidence"):
+        default_low_params("box", recovery_confidence=0.9)
+    with pytest.raises(InputError, match="recovery_confidence"):
+        default_low_params("box", recovery_confidence=1.0)
+    params = default_low_params("box", recovery_confidence=0.99)
+    assert float(params.recovery_gate) == float(params.gate)
