@@ -64,14 +64,14 @@ import numpy as np
 
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import log_intensity
-from jaxtrack.filters import PHDParams, default_phd_params, draws, phd_filter, resample
-from jaxtrack.filters.births import birth_requests
+from jaxtrack.filters import PHDParams, default_phd_params, phd_filter, resample
 from jaxtrack.filters.phd import (
     default_block_size,
     join_particles,
     phd_births,
     phd_update,
     predict,
+    recursion_draws,
 )
 from jaxtrack.types import Detections
 
@@ -168,13 +168,9 @@ def jax_recursion(num_particles: int, block_size: int | None = None) -> Callable
         measurements = xywh_to_cxcywh(frame.boxes, jnp)
         # The motion noise and the births' random numbers from one Threefry evaluation, as
         # the tracker's step draws them (the same numbers as the stages' own draws).
-        motion, *birth_random = draws.draw(
-            [
-                draws.normal(key_motion, (particles.shape[0], 4), particles.dtype),
-                *birth_requests(
-                    key_birth, frame.mask.shape[0], BIRTHS_PER_DETECTION, frame.boxes.dtype
-                ),
-            ]
+        births_drawn = (frame.mask.shape[0], BIRTHS_PER_DETECTION, frame.boxes.dtype)
+        motion, birth_random = recursion_draws(
+            key_motion, key_birth, particles.shape[0], particles.dtype, births_drawn
         )
         survivors, survivor_log_weights = predict(
             key_motion, particles, log_weights, params, normal=motion
@@ -185,7 +181,7 @@ def jax_recursion(num_particles: int, block_size: int | None = None) -> Callable
             frame.mask,
             params,
             jnp.asarray(True),
-            random=tuple(birth_random),
+            random=birth_random,
         )
         predicted = join_particles(survivors, born)
         updated = update(

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -694,13 +694,41 @@ def _joint_draws(predict_stage, births_stage, key_motion, key_birth, state, dete
         births_stage is not None and not _is_stage(births_stage, phd_births)
     ):
         return {}, {}
-    requests = [draws.normal(key_motion, (state.particles.shape[0], 4), state.particles.dtype)]
+    births = None
     if births_stage is not None:
         slots = births_stage.keywords.get("draw_slots") or detections.mask.shape[0]
-        per_slot = births_stage.keywords["births_per_detection"]
-        requests += birth_requests(key_birth, slots, per_slot, detections.boxes.dtype)
+        births = (slots, births_stage.keywords["births_per_detection"], detections.boxes.dtype)
+    normal, random = recursion_draws(
+        key_motion, key_birth, state.particles.shape[0], state.particles.dtype, births
+    )
+    return {"normal": normal}, ({"random": random} if births_stage else {})
+
+
+def recursion_draws(
+    key_motion: Array,
+    key_birth: Array,
+    num_particles: int,
+    dtype,
+    births: tuple[int, int, Any] | None = None,
+) -> tuple[Array, tuple[Array, ...] | None]:
+    """The random numbers of one PHD recursion from one Threefry evaluation
+    (:func:`~jaxtrack.filters.draws.draw`): the motion noise :func:`predict` draws from
+    ``key_motion`` (``[num_particles, 4]`` standard normals of ``dtype``) and, with ``births
+    = (draw_slots, births_per_detection, birth_dtype)``, the births' numbers
+    :func:`phd_births` draws from ``key_birth``
+    (:func:`~jaxtrack.filters.births.birth_requests`). The same numbers as the stages' own
+    draws, bit for bit; pass them as ``predict(..., normal=)`` and ``phd_births(...,
+    random=)``.
+
+    Returns:
+        ``(normal, random)``; ``random`` is None without ``births``.
+    """
+    requests = [draws.normal(key_motion, (num_particles, 4), dtype)]
+    if births is not None:
+        slots, per_slot, birth_dtype = births
+        requests += birth_requests(key_birth, slots, per_slot, birth_dtype)
     drawn = draws.draw(requests)
-    return {"normal": drawn[0]}, ({"random": tuple(drawn[1:])} if births_stage else {})
+    return drawn[0], (tuple(drawn[1:]) if births is not None else None)
 
 
 def _is_stage(stage, function) -> bool:

@@ -106,3 +106,19 @@ def test_hash_equals_jax_threefry_on_every_word():
     got = jax.jit(draws.threefry2x32)(key_hi, key_lo, count_hi, count_lo)
     for want, have in zip(expected, got, strict=True):
         np.testing.assert_array_equal(np.asarray(have), np.asarray(want))
+
+
+def test_recursion_draws_are_the_stages_own_draws():
+    # The benchmark's recursion and the tracker's step share phd.recursion_draws: motion noise
+    # as predict draws it from its key, births' numbers as draw_births splits and draws its key.
+    key_motion, key_birth = jax.random.split(jax.random.key(21))
+    normal, random = phd_module.recursion_draws(
+        key_motion, key_birth, 96, jnp.float32, (5, 3, jnp.float32)
+    )
+    np.testing.assert_array_equal(normal, jax.random.normal(key_motion, (96, 4)))
+    key_gauss, key_velocity = jax.random.split(key_birth)
+    np.testing.assert_array_equal(random[0], jax.random.normal(key_gauss, (5, 3, 4)))
+    np.testing.assert_array_equal(random[1], jax.random.uniform(key_velocity, (15, 2)))
+    alone, none = phd_module.recursion_draws(key_motion, key_birth, 96, jnp.float32)
+    np.testing.assert_array_equal(alone, normal)
+    assert none is None
