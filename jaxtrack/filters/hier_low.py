@@ -299,23 +299,6 @@ def low_step(
     recovered_track, recovered_measurement = nearest_gated_pairs(cost, left)
     track_of = jnp.where(track_of >= 0, track_of, recovered_track)
     measurement_of = jnp.where(measurement_of >= 0, measurement_of, recovered_measurement)
-    import os
-
-    if os.environ.get("GATE2"):
-        from scipy.stats import chi2 as _chi2
-
-        gate2 = float(_chi2.ppf(float(os.environ["GATE2"]), measurements.shape[1]))
-        second = (
-            valid[:, None]
-            & state.alive[None]
-            & state.confirmed[None]
-            & (track_of < 0)[:, None]
-            & (measurement_of < 0)[None, :]
-            & (distances <= gate2)
-        )
-        track2, meas2 = nearest_gated_pairs(cost, second)
-        track_of = jnp.where(track_of >= 0, track_of, track2)
-        measurement_of = jnp.where(measurement_of >= 0, measurement_of, meas2)
 
     hit = measurement_of >= 0
     pair = jnp.maximum(measurement_of, 0)
