@@ -66,7 +66,9 @@ entering, exiting) written beside the results as ``<RES>.events.csv`` (``frame,i
 ``--detections bs`` detects by background subtraction on the frames first (the paper's
 blobs; ``jaxtrack detect``'s defaults), ``--detections det`` (default) uses ``det/det.txt``.
 Its configuration (``HierarchicalConfig``) takes ``variant``, ``measurement`` ("box" or
-"ellipse"), ``max_tracks``, ``max_trackers``, ``lost_seconds``, ``noise`` ("auto": the low
+"ellipse"), ``max_tracks``, ``max_trackers``, ``lost_seconds``, ``resume_seconds`` (a track
+resuming after coasting this long is checked against its tracker's appearance; 0: never),
+``noise`` ("auto": the low
 level's noise measured on the tracked detections, except on the ``bs`` blobs, which keep the
 a priori noise; "estimated"; "default"), ``min_score``, ``output``, ``max_gap``; the noise used
 is printed and recorded in ``RES.config.json`` (``low_noise``).

@@ -39,6 +39,43 @@ from jaxtrack.filters.hier_appearance import (
 )
 
 
+def _pool_gate(table: AppearanceTable, params: AppearanceParams):
+    """Per tracker and pooled feature: the feature index (-1 read as 0), the model's mean
+    histogram ``[S, P, bins]``, the gate's threshold ``mu + k max(sigma, sigma_min)`` and
+    whether the model has ``min_updates`` updates (``[S, P]``)."""
+    safe = jnp.maximum(table.features, 0)
+    take = jax.vmap(lambda leaf, index: leaf[index])
+    model_hist = take(table.models.histogram, safe)
+    spread = jnp.maximum(jnp.sqrt(jnp.maximum(table.models.distance_var, 0.0)), params.min_std)
+    threshold = take(table.models.distance_mean + params.gate_sigmas * spread, safe)
+    trained = take(table.models.count >= params.min_updates, safe)
+    return safe, model_hist, threshold, trained
+
+
+def own_track_gate(
+    table: AppearanceTable,
+    histograms: Float[Array, "num_slots 49 64"],
+    params: AppearanceParams,
+) -> tuple[Bool[Array, " num_slots"], Bool[Array, " num_slots"]]:
+    """Whether each tracker's own model gates the histograms of its track's box (Sec. 5.4's
+    gate, a tracker against its own track: every pooled feature is coincident).
+
+    Args:
+        table: the trackers' appearance.
+        histograms: per tracker, the normalised histograms of its track's box on the frame.
+        params: ``gate_sigmas``, ``min_std``, ``min_updates``.
+
+    Returns:
+        ``(gated, testable)``: at least one pooled, trained feature is within the gate; the
+        tracker has at least one pooled, trained feature (without one nothing is tested).
+    """
+    safe, model_hist, threshold, trained = _pool_gate(table, params)
+    take = jax.vmap(lambda leaf, index: leaf[index])
+    trained = trained & (table.features >= 0)
+    distance = bhattacharyya_distance(model_hist, take(histograms, safe))  # [S, P]
+    return jnp.any(trained & (distance <= threshold), axis=-1), jnp.any(trained, axis=-1)
+
+
 def association_distances(
     table: AppearanceTable,
     lost: Bool[Array, " num_slots"],
@@ -79,12 +116,7 @@ def association_distances(
             f"{candidate_features.shape}"
         )
     features = table.features
-    safe = jnp.maximum(features, 0)
-    take = jax.vmap(lambda leaf, index: leaf[index])
-    model_hist = take(table.models.histogram, safe)  # [S, P, bins]
-    spread = jnp.maximum(jnp.sqrt(jnp.maximum(table.models.distance_var, 0.0)), params.min_std)
-    threshold = take(table.models.distance_mean + params.gate_sigmas * spread, safe)  # [S, P]
-    trained = take(table.models.count >= params.min_updates, safe)
+    safe, model_hist, threshold, trained = _pool_gate(table, params)
 
     in_candidate_pool = jnp.any(
         candidate_features[:, :, None] == jnp.arange(NUM_FEATURES), axis=1

@@ -11,6 +11,13 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
    track is removed (a long occlusion, a group), the high-level tracker is *lost*: it keeps
    its appearance model and is propagated by its motion model (constant velocity, the last
    estimate of its track) for at most ``max_lost`` frames.
+2b. **Resumption check** (beyond the paper): a track that takes a measurement after coasting
+   ``resume_frames`` or more frames may have taken someone else's (a person stepping out
+   from behind an occluder where another went in). Its tracker checks the measurement's box
+   against its own appearance model with the Sec. 5.4 gate; when no trained pooled feature
+   is within the gate, the tracker lets the track go and is lost (propagated from where it
+   was), and the track is renamed (a new low-level identity) and treated as confirmed on this
+   frame: offered to the lost trackers (except the one that let it go), else a new tracker.
 3. **Appearance association** (Sec. 5.4, :mod:`~jaxtrack.filters.hier_appearance`): a
    low-level track confirmed on this frame is first offered to the lost trackers: gated on
    the coincident features' Bhattacharyya distances, it goes to the nearest lost tracker
@@ -79,7 +86,11 @@ from jaxtrack.filters.hier_low import (
     low_velocity,
 )
 from jaxtrack.filters.hier_low_model import box_to_ellipse
-from jaxtrack.filters.hier_reassociation import association_distances, reassociate
+from jaxtrack.filters.hier_reassociation import (
+    association_distances,
+    own_track_gate,
+    reassociate,
+)
 from jaxtrack.types import PAD_BOX, FrameInputs, Tracks
 
 #: The variants this module steps (``"kalman"`` is the Kalman baseline's filter).
@@ -123,6 +134,9 @@ class HierarchicalParams(NamedTuple):
         background: the background model's image, RGB ``uint8`` ``[height, width, 3]``
             (:func:`~jaxtrack.pipelines.background.median_background`).
         min_score: detections scoring below this are ignored.
+        resume_frames: a followed track that takes a measurement after coasting at least
+            this many frames is checked against its tracker's appearance (the module's step
+            2b); ``inf``: never.
     """
 
     low: LowParams
@@ -133,6 +147,7 @@ class HierarchicalParams(NamedTuple):
     search_rate: Float[Array, ""]
     background: UInt8[Array, "height width 3"]
     min_score: Float[Array, ""]
+    resume_frames: Float[Array, ""]
 
 
 class HighState(NamedTuple):
@@ -361,6 +376,60 @@ def _start(high: HighState, starts, low: LowState, boxes, velocity, group_of):
     return high._replace(group=jnp.where(born, group_of(born, high), high.group)), new
 
 
+def _check_resumed(
+    previous: HierarchicalState,
+    high: HighState,
+    low: LowState,
+    measured: Bool[Array, " T"],
+    histograms: Float[Array, "T 49 64"],
+    params: HierarchicalParams,
+) -> tuple[HighState, LowState, Bool[Array, " T"], Bool[Array, "S T"]]:
+    """Step 2b: trackers whose track resumed after coasting ``resume_frames`` frames and
+    whose appearance model does not gate the track's measured box let the track go.
+
+    Args:
+        previous: the state before the frame (the tracks' coasting counts, the trackers'
+            boxes, velocities and appearance models).
+        high: the trackers after :func:`_follow` on this frame.
+        low: the low level after this frame's step.
+        measured: the low-level slots measured on the frame.
+        histograms: each low-level slot's box histograms on the frame.
+        params: ``resume_frames`` and the appearance gate's parameters.
+
+    Returns:
+        The trackers (those that let go are lost, at their propagated box and velocity),
+        the low level (the released tracks renamed), the released slots ``[T]`` and the
+        released (tracker, slot) pairs ``[S, T]`` (not to be re-associated on this frame).
+    """
+    num_tracks = low.alive.shape[0]
+    slot = jnp.clip(high.low_slot, 0)
+    following = (high.ids >= 0) & (high.low_slot >= 0)
+    resumed = following & measured[slot] & (previous.low.misses[slot] >= params.resume_frames)
+    gated, testable = own_track_gate(previous.appearance, histograms[slot], params.appearance)
+    release = resumed & testable & ~gated
+    released = (
+        jnp.zeros((num_tracks,), bool)
+        .at[jnp.where(release, slot, num_tracks)]
+        .set(True, mode="drop")
+    )
+    order = jnp.cumsum(released) - 1
+    low = low._replace(
+        ids=jnp.where(released, low.next_id + order, low.ids).astype(low.ids.dtype),
+        next_id=(low.next_id + jnp.sum(released)).astype(low.next_id.dtype),
+    )
+    old = previous.high
+    shift = jnp.concatenate([old.velocity, jnp.zeros_like(old.velocity)], axis=-1)
+    high = high._replace(
+        low_slot=jnp.where(release, -1, high.low_slot),
+        low_id=jnp.where(release, -1, high.low_id),
+        boxes=jnp.where(release[:, None], old.boxes + shift, high.boxes),
+        velocity=jnp.where(release[:, None], old.velocity, high.velocity),
+        lost=jnp.where(release, old.lost + 1, high.lost),
+    )
+    pairs = release[:, None] & (jnp.arange(num_tracks)[None, :] == slot[:, None])
+    return high, low, released, pairs
+
+
 def hierarchical_step(
     key: Array,
     state: HierarchicalState,
@@ -404,8 +473,11 @@ def hierarchical_step(
     high = _follow(state.high, low, boxes, velocity, params.max_lost, (width, height))
     histograms = box_histograms(inputs.frame, boxes, patch_shape)
     background = box_histograms(params.background, boxes, patch_shape)
+    high, low, released, released_pairs = _check_resumed(
+        state, high, low, measured, histograms, params
+    )
     lost = (high.ids >= 0) & (high.low_slot < 0)
-    confirmed_now = low_info.newly_confirmed & low.alive
+    confirmed_now = (low_info.newly_confirmed & low.alive) | released
     owner = _owners(high, num_tracks)
     newborn = _newborn(high, params.max_newborn)
     owned = owner >= 0
@@ -418,7 +490,8 @@ def hierarchical_step(
     distance, gated = association_distances(
         state.appearance, lost, histograms, pools, candidate, params.appearance
     )
-    match = reassociate(distance, gated & _within_reach(high, boxes, params.search_rate))
+    reachable = _within_reach(high, boxes, params.search_rate) & ~released_pairs
+    match = reassociate(distance, gated & reachable)
     high, merged = _take(high, match, owner, low, boxes, velocity)
     taken = (
         jnp.zeros((num_tracks,), bool)

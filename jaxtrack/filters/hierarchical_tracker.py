@@ -58,6 +58,10 @@ COAST_SECONDS = 0.48
 SEARCH_HEIGHTS_PER_SECOND = 0.5
 #: Seconds a new tracker is new-born: a lost tracker may take its track (and identity).
 NEWBORN_SECONDS = 0.0
+#: Seconds a track must have coasted for its next measurement to be checked against its
+#: tracker's appearance (8 frames at 25 fps, two thirds of the coasting the low level allows:
+#: time enough for one person to step out where another went behind something).
+RESUME_SECONDS = 0.32
 #: Seconds a new tracker is entering (the event module's default, 25 frames at 25 fps).
 ENTERING_SECONDS = 1.0
 #: Frame rate assumed when ``seqinfo.ini`` gives none.
@@ -91,6 +95,17 @@ class HierarchicalConfig(TrackerConfig):
     lost_seconds: float = setting(
         4.0,
         Rule("seconds a lost tracker waits to be re-associated", float, 0.0, 3600.0),
+    )
+    resume_seconds: float = setting(
+        RESUME_SECONDS,
+        Rule(
+            "a track that takes a measurement after coasting this long is checked against "
+            "its tracker's appearance, and let go when the appearance gate refuses it "
+            "(0: never checked, the paper's tracker)",
+            float,
+            0.0,
+            3600.0,
+        ),
     )
     noise: str = setting(
         "auto",
@@ -207,6 +222,9 @@ def hierarchical_params(
         search_rate=jnp.float32(SEARCH_HEIGHTS_PER_SECOND / fps),
         background=jnp.asarray(background),
         min_score=jnp.float32(config.min_score),
+        resume_frames=jnp.float32(
+            max(round(config.resume_seconds * fps), 1) if config.resume_seconds > 0 else jnp.inf
+        ),
     )
 
 
@@ -286,7 +304,8 @@ def hierarchical_properties(params: Any) -> Any:
     (:func:`~jaxtrack.pipelines.sweep.sweep_frames`): the low level's ``process_std``,
     ``measurement_std``, ``gate`` (MSD gate), ``recovery_gate``, ``confirm_ratio``,
     ``confirm_msd`` and ``remove_ratio``; the high level's ``gate_sigmas`` (appearance gate,
-    Sec. 5.4), ``max_lost`` and ``search_rate``; the event machine's ``min_overlap``
+    Sec. 5.4), ``max_lost``, ``search_rate`` and ``resume_frames``; the event machine's
+    ``min_overlap``
     (collision); and ``min_score`` (the configuration key)."""
     props = frozen_properties(params)
 
@@ -311,5 +330,6 @@ def hierarchical_properties(params: Any) -> Any:
         events=props.events._replace(min_overlap=named("min_overlap")),
         max_lost=named("max_lost"),
         search_rate=named("search_rate"),
+        resume_frames=named("resume_frames"),
         min_score=named("min_score"),
     )

@@ -24,7 +24,11 @@ from jaxtrack.filters.hier_appearance import (
     reset_slots,
     update_appearance,
 )
-from jaxtrack.filters.hier_reassociation import association_distances, reassociate
+from jaxtrack.filters.hier_reassociation import (
+    association_distances,
+    own_track_gate,
+    reassociate,
+)
 
 PATCH = (6, 4)
 PARAMS = default_params(PATCH)
@@ -338,6 +342,34 @@ def test_lost_model_needs_min_updates():
     _, gated, match = _match(table, lost, PARAMS._replace(min_updates=jnp.float32(9)))
     assert not np.any(gated)
     np.testing.assert_array_equal(match, [-1] * 4)
+
+
+def test_own_track_gate_is_the_diagonal_of_the_association_gate():
+    # Slots 0-1 (red, green models) against their own slot's box, drawn red, green, lilac.
+    rng = np.random.default_rng(8)
+    table = _learn(init_table(2, M, N), rng, (RED, GREEN), [0, 1], 8)
+    frame, _ = _scene(rng, (RED, LILAC))
+    drawn = _histograms(frame, BOXES[:2], patch_shape=PATCH)  # slot 0 red, slot 1 lilac
+    every = jnp.ones(2, bool)
+    gated, testable = jax.jit(own_track_gate)(table, drawn, PARAMS)
+    _, pairs = _distances(table, every, drawn, table.features, every, PARAMS)
+    np.testing.assert_array_equal(gated, np.diagonal(np.asarray(pairs)))
+    assert gated.tolist() == [True, False] and testable.tolist() == [True, True]
+    # by hand: a feature is within the gate when d <= mu + k max(sigma, sigma_min)
+    models = table.models
+    for s in range(2):
+        pool = np.asarray(table.features[s])
+        bc = np.sum(np.sqrt(np.asarray(models.histogram[s, pool] * drawn[s, pool])), axis=-1)
+        d = np.sqrt(np.maximum(1.0 - bc, 0.0))
+        spread = np.maximum(
+            np.sqrt(np.maximum(np.asarray(models.distance_var[s, pool]), 0)), float(PARAMS.min_std)
+        )
+        bar = np.asarray(models.distance_mean[s, pool]) + float(PARAMS.gate_sigmas) * spread
+        assert bool(np.any(d <= bar + 1e-6)) == bool(gated[s])
+    # a model short of min_updates tests nothing: not testable, not gated
+    strict = PARAMS._replace(min_updates=jnp.float32(9))
+    gated, testable = own_track_gate(table, drawn, strict)
+    assert not np.any(testable) and not np.any(gated)
 
 
 def test_two_lost_trackers_gating_one_candidate_match_one_to_one():

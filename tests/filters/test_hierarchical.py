@@ -52,9 +52,9 @@ def occlusion_scene(reappearing_colours=None, num_slots=4, lower_y=72.0):
     return frame_inputs(frames, kept, num_slots=num_slots)
 
 
-def tracked(variant, inputs):
+def tracked(variant, inputs, **settings):
     """The per-frame infos of a run, identities merged (as the pipelines do)."""
-    config = HierarchicalConfig(variant=variant, max_tracks=8, max_trackers=8)
+    config = HierarchicalConfig(variant=variant, max_tracks=8, max_trackers=8, **settings)
     filt, params = build_hierarchical(config, INFO, BACKGROUND)
     _, info = jax.jit(lambda k, p, i: run(filt, k, p, i))(jax.random.PRNGKey(0), params, inputs)
     info = jax.device_get(info)
@@ -93,6 +93,79 @@ def test_a_differently_dressed_target_is_not_reassociated():
     before, after = target_ids(rows, 20.0)
     assert len(before) == 1 and len(after) == 1 and after != before
     assert (info.merged >= 0).sum() == 0
+
+
+def resumption_scene(gap, reappearing_colours=None):
+    """Target 0 walks right and is not detected for ``gap`` frames from frame 18 (fewer than
+    the 12 its track coasts at 25 fps: the track resumes); from then on it wears
+    ``reappearing_colours`` (default: its own): someone else stepping out where it went in.
+    Target 1 walks left far below."""
+    hidden = range(18, 18 + gap)
+    frames, kept = [], []
+    for t in range(NUM_FRAMES):
+        image = BACKGROUND.copy()
+        truth = [(10.0 + 1.5 * t, 20.0, 16.0, 36.0), (130.0 - 1.5 * t, 72.0, 16.0, 36.0)]
+        colours = list(COLOURS)
+        if reappearing_colours is not None and t >= hidden[-1]:
+            colours[0] = reappearing_colours
+        shown = [t not in hidden, True]
+        for box, (top, bottom), visible in zip(truth, colours, shown, strict=True):
+            if visible:
+                two_tone(image, box, top, bottom)
+        frames.append(image)
+        kept.append([box for box, visible in zip(truth, shown, strict=True) if visible])
+    return frame_inputs(frames, kept), hidden
+
+
+def _upper_ids(rows, hidden):
+    """Target 0's identities before and after its undetected frames."""
+    near = np.abs(rows.boxes[:, 1] - 20.0) < 8
+    before = set(rows.ids[near & (rows.frames <= hidden[0])].tolist())
+    after = set(rows.ids[near & (rows.frames > hidden[-1] + 1)].tolist())
+    return before, after
+
+
+WHITE_BLACK = ((250, 250, 250), (10, 10, 10))
+
+
+def test_a_track_resuming_on_someone_else_is_let_go():
+    # 9 undetected frames (>= 8 = 0.32 s at 25 fps): the resumed measurement is checked
+    inputs, hidden = resumption_scene(9, WHITE_BLACK)
+    info, rows = tracked("full", inputs)
+    before, after = _upper_ids(rows, hidden)
+    assert len(before) == 1 and len(after) == 1 and after != before
+    # the tracker that let the track go is lost from that frame (not re-associated to it)
+    lost = np.asarray(info.high_lost)
+    first = hidden[-1] + 1
+    assert lost[first].sum() == 1 and lost[first - 1].sum() == 0
+    assert (np.asarray(info.merged) >= 0).sum() == 0
+    # the other target keeps its one identity
+    near = np.abs(rows.boxes[:, 1] - 72.0) < 8
+    assert len(set(rows.ids[near].tolist())) == 1
+    # the paper's tracker (no check): the track, and its identity, go on with the newcomer
+    _, plain = tracked("full", inputs, resume_seconds=0.0)
+    before, after = _upper_ids(plain, hidden)
+    assert len(before) == 1 and after == before
+
+
+def test_a_track_resuming_on_its_own_target_keeps_its_identity():
+    inputs, hidden = resumption_scene(9)
+    info, rows = tracked("full", inputs)
+    before, after = _upper_ids(rows, hidden)
+    assert len(before) == 1 and after == before
+    assert not np.asarray(info.high_lost).any()
+
+
+def test_a_short_gap_is_not_checked():
+    # 5 undetected frames (< 8): not checked, even in other colours
+    inputs, hidden = resumption_scene(5, WHITE_BLACK)
+    _, rows = tracked("full", inputs)
+    before, after = _upper_ids(rows, hidden)
+    assert len(before) == 1 and after == before
+    # a threshold of 0.2 s (5 frames) checks it
+    _, rows = tracked("full", inputs, resume_seconds=0.2)
+    before, after = _upper_ids(rows, hidden)
+    assert len(before) == 1 and len(after) == 1 and after != before
 
 
 def test_lost_tracker_is_dropped_after_max_lost_frames():
