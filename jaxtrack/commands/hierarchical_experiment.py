@@ -40,7 +40,8 @@ three variants of `jaxtrack track --tracker hierarchical` with default configura
 Writes into --out: table.md (MOTA/IDF1/HOTA/IDSW/Frag/MT/ML per sequence and source, pooled
 over the MOT15 sequences and over the scenes; the full tracker's event precision/recall
 against the scenes' scripted group/split/entry/exit events; the identity kept across their
-scripted occlusions, crossings and group walks; the issue's goals as PASS/FAIL),
+scripted occlusions, crossings and group walks, and the full tracker's cases not kept (event,
+person, identity before and after); the issue's goals as PASS/FAIL),
 results.json (the same with the configurations and run times) and
 sequences/SEQ/SOURCE/VARIANT.txt (every result; .events.csv beside the full tracker's; the bs
 detections as det.txt). Logic: jaxtrack.experiments.hierarchical.

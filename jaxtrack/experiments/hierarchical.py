@@ -18,8 +18,9 @@ with ``|S_k|^1/2`` track management) and ``full`` (both levels and events).
 MOT15 sequences and over the scenes (TrackEval's combination); on the scenes, the event
 precision and recall of the full tracker (:func:`~jaxtrack.metrics.events.score_events`)
 and the identity kept across the scripted occlusions, crossings and group walks
-(:func:`~jaxtrack.metrics.reassociation.identity_kept`). :func:`goal_checks` tests the
-issue's goals.
+(:func:`~jaxtrack.metrics.reassociation.identity_cases`, counted by ``count_cases``; the full
+tracker's cases are kept in ``results.json`` as ``identity_cases``, and those it did not
+keep are listed in ``table.md``). :func:`goal_checks` tests the issue's goals.
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ from jaxtrack.io import write_mot_file
 from jaxtrack.io.events import write_events
 from jaxtrack.metrics.evaluate import Evaluation, combine_sequences
 from jaxtrack.metrics.events import DEFAULT_TOLERANCE, pool_scores, score_events
-from jaxtrack.metrics.reassociation import identity_kept
+from jaxtrack.metrics.reassociation import count_cases, identity_cases
 from jaxtrack.pipelines.tracking import tracker_description
 
 #: The compared variants, table name -> ``HierarchicalConfig.variant``.
@@ -136,6 +137,7 @@ def run_experiment(
     evaluations: dict[RunKey, Evaluation] = {}
     events: dict[str, dict] = {}
     kept: dict[str, dict] = {}
+    cases: dict[str, list[dict]] = {}
     seconds = dict.fromkeys(configs, 0.0)
     for run in frame_tracker_runs(sequences, configs, out, seed, progress):
         scene, config = scenes.get(run.sequence.name), configs[run.name]
@@ -150,7 +152,10 @@ def run_experiment(
             events[label] = score_events(run.events, run.rows, run.loaded.gt_table, scene.events)
         if scene is not None:
             label = f"{run.sequence.name} {run.source} {run.name}"
-            kept[label] = identity_kept(run.rows, run.loaded.gt_table, scene.events)
+            run_cases = identity_cases(run.rows, run.loaded.gt_table, scene.events)
+            kept[label] = count_cases(run_cases)
+            if config.variant == "full":
+                cases[f"{run.sequence.name} {run.source}"] = run_cases
     rows_table = _table(sequences, configs, evaluations)
     record = {
         "quick": quick,
@@ -163,6 +168,7 @@ def run_experiment(
         "event_tolerance_frames": DEFAULT_TOLERANCE,
         "exiting_frames": DEFAULT_EXITING_FRAMES,
         "identity_kept": kept,
+        "identity_cases": cases,
         "tracking_seconds": {k: round(v, 1) for k, v in seconds.items()},
         "seconds": round(time.perf_counter() - start, 1),
     }
@@ -317,6 +323,28 @@ def table_markdown(record: dict[str, Any]) -> str:
     ]
     columns = ("run", "occlusion", "crossing", "group", "overall")
     lines += [markdown_table(kept_rows, columns), ""]
+    missed = [
+        {
+            "run": run,
+            "event": f"{case['kind']} {case['frames'][0]}-{case['frames'][1]}",
+            "person": case["person"],
+            "before": case["before"],
+            "after": "-" if case["after"] is None else case["after"],
+            "outcome": case["outcome"],
+        }
+        for run, run_cases in record.get("identity_cases", {}).items()
+        for case in run_cases
+        if case["outcome"] in ("switched", "lost")
+    ]
+    if missed:
+        lines += [
+            "Cases the full tracker did not keep (identities as in its result file; before: "
+            "the last match before the event, a group walk's first; after: the first match "
+            "after it):",
+            "",
+            markdown_table(missed, ("run", "event", "person", "before", "after", "outcome")),
+            "",
+        ]
     # the pooled rows only (a quick run has none, and no section)
     pooled = [r for r in record["rows"] if r["sequence"] in POOLED]
     section = switch_section(pooled, ("sequence", "detections", "tracker"), POOLED)

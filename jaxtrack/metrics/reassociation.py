@@ -35,13 +35,18 @@ KINDS = ("occlusion", "crossing", "group")
 DEFAULT_WINDOW = 50
 
 
-def identity_kept(
+#: A case's outcome: kept, another identity after (switched), not picked up again (lost),
+#: or not scored (unmatched before the event, or gone after it).
+OUTCOMES = ("kept", "switched", "lost", "unscored")
+
+
+def identity_cases(
     results: MotTable,
     gt: MotTable,
     scripted: Sequence[Scripted],
     window: int = DEFAULT_WINDOW,
-) -> dict:
-    """The share of scripted events after which each person keeps their tracker identity.
+) -> list[dict]:
+    """Every (scripted event, person) case of :data:`KINDS`, with its identities.
 
     Args:
         results: the tracker's output boxes.
@@ -50,12 +55,13 @@ def identity_kept(
         window: frames searched on each side of an event.
 
     Returns:
-        ``{kind: {"cases", "kept", "lost", "unscored", "rate"}}`` for each of :data:`KINDS`
-        and ``"overall"`` (``lost`` cases are among ``cases``; ``rate = kept / cases``, None
-        without cases), and ``"window"``.
+        One dict per case, in the events' order: ``kind``, ``person``, ``frames`` (the
+        event's ``[first, last]``), ``before`` and ``after`` (the tracker identities the
+        module docstring defines, None where there is no match) and ``outcome`` (one of
+        :data:`OUTCOMES`).
     """
     matches = matched_identities(results, gt)
-    counts = {kind: [0, 0, 0, 0] for kind in KINDS}
+    cases = []
     for event in scripted:
         if event.kind not in KINDS:
             continue
@@ -68,16 +74,64 @@ def identity_kept(
             before = own[(own[:, 0] >= start) & (own[:, 0] <= stop)]
             after = own[(own[:, 0] > last) & (own[:, 0] <= last + window)]
             seen = gt.frames[(gt.ids == person) & (gt.frames > last) & (gt.frames <= last + window)]
-            tally = counts[event.kind]
-            if not len(before) or not (len(after) or len(seen)):
-                tally[3] += 1
-                continue
-            tally[0] += 1
-            if not len(after):
-                tally[2] += 1
-                continue
-            identity = before[0, 2] if event.kind == "group" else before[-1, 2]
-            tally[1] += int(identity == after[0, 2])
+            identity = None
+            if len(before):
+                identity = int(before[0, 2] if event.kind == "group" else before[-1, 2])
+            successor = int(after[0, 2]) if len(after) else None
+            if identity is None or not (len(after) or len(seen)):
+                outcome = "unscored"
+            elif successor is None:
+                outcome = "lost"
+            else:
+                outcome = "kept" if identity == successor else "switched"
+            cases.append(
+                {
+                    "kind": event.kind,
+                    "person": int(person),
+                    "frames": [int(first), int(last)],
+                    "before": identity,
+                    "after": successor,
+                    "outcome": outcome,
+                }
+            )
+    return cases
+
+
+def identity_kept(
+    results: MotTable,
+    gt: MotTable,
+    scripted: Sequence[Scripted],
+    window: int = DEFAULT_WINDOW,
+) -> dict:
+    """The share of scripted events after which each person keeps their tracker identity
+    (the cases of :func:`identity_cases`, counted).
+
+    Args:
+        results: the tracker's output boxes.
+        gt: the ground truth.
+        scripted: the scene's scripted events (others than :data:`KINDS` are ignored).
+        window: frames searched on each side of an event.
+
+    Returns:
+        ``{kind: {"cases", "kept", "lost", "unscored", "rate"}}`` for each of :data:`KINDS`
+        and ``"overall"`` (``lost`` cases are among ``cases``; ``rate = kept / cases``, None
+        without cases), and ``"window"``.
+    """
+    return count_cases(identity_cases(results, gt, scripted, window), window)
+
+
+def count_cases(cases: Sequence[dict], window: int = DEFAULT_WINDOW) -> dict:
+    """:func:`identity_kept`'s counts of the cases of :func:`identity_cases`."""
+    counts = {kind: [0, 0, 0, 0] for kind in KINDS}
+    for case in cases:
+        tally = counts[case["kind"]]
+        outcome = case["outcome"]
+        if outcome == "unscored":
+            tally[3] += 1
+            continue
+        tally[0] += 1
+        tally[1] += int(outcome == "kept")
+        tally[2] += int(outcome == "lost")
     counts["overall"] = [sum(column) for column in zip(*counts.values(), strict=True)]
     scores = {
         kind: {

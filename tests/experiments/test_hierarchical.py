@@ -109,6 +109,19 @@ def test_table_markdown_lists_goals():
     assert "| s det | 1.00 / 0.50 |" in text and "| s det Hierarchical | 1/2 |" in text
     assert text.count("FAIL") + text.count("PASS") == len(data["goals"])
     assert "Identity switches by kind" not in text  # rows without the kinds (older records)
+    assert "did not keep" not in text  # no cases recorded (older records)
+    case = {"kind": "occlusion", "person": 3, "frames": [10, 20], "before": 7}
+    data["identity_cases"] = {
+        "s det": [
+            {**case, "after": 7, "outcome": "kept"},
+            {**case, "person": 4, "after": 9, "outcome": "switched"},
+            {**case, "person": 5, "after": None, "outcome": "lost"},
+        ]
+    }
+    text = table_markdown(data)
+    assert "| s det | occlusion 10-20 | 4 | 7 | 9 | switched |" in text
+    assert "| s det | occlusion 10-20 | 5 | 7 | - | lost |" in text
+    assert "| s det | occlusion 10-20 | 3 |" not in text  # kept: not listed
     kinds = {"IDSW_exchange": 2, "IDSW_drift": 1, "IDSW_takeover": 0, "IDSW_lost": 2}
     for r in data["rows"]:
         r.update(kinds, IDSW_replaced=r["IDSW"] - 5)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from jaxtrack.datasets.video_scene import ScriptedEvent
-from jaxtrack.metrics.reassociation import identity_kept
+from jaxtrack.metrics.reassociation import count_cases, identity_cases, identity_kept
 from jaxtrack.types import MotTable
 
 
@@ -71,3 +71,31 @@ def test_group_identity_swapped_during_the_walk_is_not_kept():
     same = table(walk(4, range(3, 31)))  # picked up on frame 3, the same identity throughout
     kept = identity_kept(same, gt, [ScriptedEvent("group", (3,), (1, 20))], window=5)
     assert kept["group"] == {"cases": 1, "kept": 1, "lost": 0, "unscored": 0, "rate": 1.0}
+
+
+def test_cases_name_each_person_identities_and_outcome():
+    gt = table(
+        walk(1, [*range(1, 10), *range(21, 31)]) + walk(2, [*range(1, 10), *range(21, 31)], 100)
+    )
+    results = table(
+        walk(7, range(1, 10)) + walk(7, range(21, 31)) + walk(8, range(1, 10), 100)
+        + walk(9, range(21, 31), 100)
+    )  # fmt: skip
+    events = [
+        ScriptedEvent("entry", (1,), (1, 1), "a"),
+        ScriptedEvent("occlusion", (1,), (10, 20)),
+        ScriptedEvent("crossing", (2,), (10, 20)),
+    ]
+    cases = identity_cases(results, gt, events, window=5)
+    assert cases == [
+        {"kind": "occlusion", "person": 1, "frames": [10, 20], "before": 7, "after": 7,
+         "outcome": "kept"},
+        {"kind": "crossing", "person": 2, "frames": [10, 20], "before": 8, "after": 9,
+         "outcome": "switched"},
+    ]  # fmt: skip
+    assert count_cases(cases, 5) == identity_kept(results, gt, events, window=5)
+    late = table(walk(7, range(1, 10)) + walk(7, range(27, 31)))
+    (lost,) = identity_cases(late, gt, events[1:2], window=5)
+    assert (lost["before"], lost["after"], lost["outcome"]) == (7, None, "lost")
+    (unmatched,) = identity_cases(table(walk(7, range(21, 31))), gt, events[1:2], window=5)
+    assert (unmatched["before"], unmatched["after"], unmatched["outcome"]) == (None, 7, "unscored")
