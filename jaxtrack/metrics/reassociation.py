@@ -104,13 +104,7 @@ def identity_kept(
     window: int = DEFAULT_WINDOW,
 ) -> dict:
     """The share of scripted events after which each person keeps their tracker identity
-    (the cases of :func:`identity_cases`, counted).
-
-    Args:
-        results: the tracker's output boxes.
-        gt: the ground truth.
-        scripted: the scene's scripted events (others than :data:`KINDS` are ignored).
-        window: frames searched on each side of an event.
+    (the cases of :func:`identity_cases`, whose arguments these are, counted).
 
     Returns:
         ``{kind: {"cases", "kept", "lost", "unscored", "rate"}}`` for each of :data:`KINDS`
