@@ -272,6 +272,12 @@ def _measured(info: LowInfo, num_tracks: int) -> Bool[Array, " T"]:
     return jnp.zeros((num_tracks,), bool).at[slot].set(True, mode="drop")
 
 
+def _propagated(high: HighState) -> Float[Array, "S 4"]:
+    """The trackers' boxes moved one frame at their constant velocity (a lost tracker's
+    motion model)."""
+    return high.boxes + jnp.concatenate([high.velocity, jnp.zeros_like(high.velocity)], axis=-1)
+
+
 def _follow(high: HighState, low: LowState, boxes, velocity, max_lost, size) -> HighState:
     """Tracker matching (Sec. 5.1): a tracker follows its track while the track lives;
     a lost one is propagated at constant velocity, and dropped after ``max_lost`` frames or
@@ -279,8 +285,7 @@ def _follow(high: HighState, low: LowState, boxes, velocity, max_lost, size) -> 
     slot = jnp.clip(high.low_slot, 0)
     alive = high.ids >= 0
     followed = alive & (high.low_slot >= 0) & low.alive[slot] & (low.ids[slot] == high.low_id)
-    shift = jnp.concatenate([high.velocity, jnp.zeros_like(high.velocity)], axis=-1)
-    moved = jnp.where(followed[:, None], boxes[slot], high.boxes + shift)
+    moved = jnp.where(followed[:, None], boxes[slot], _propagated(high))
     centre = moved[:, :2] + moved[:, 2:] / 2
     inside = jnp.all((centre >= 0) & (centre < jnp.asarray(size, centre.dtype)), axis=-1)
     lost = jnp.where(followed, 0, high.lost + alive)
@@ -418,11 +423,10 @@ def _check_resumed(
         next_id=(low.next_id + jnp.sum(released)).astype(low.next_id.dtype),
     )
     old = previous.high
-    shift = jnp.concatenate([old.velocity, jnp.zeros_like(old.velocity)], axis=-1)
     high = high._replace(
         low_slot=jnp.where(release, -1, high.low_slot),
         low_id=jnp.where(release, -1, high.low_id),
-        boxes=jnp.where(release[:, None], old.boxes + shift, high.boxes),
+        boxes=jnp.where(release[:, None], _propagated(old), high.boxes),
         velocity=jnp.where(release[:, None], old.velocity, high.velocity),
         lost=jnp.where(release, old.lost + 1, high.lost),
     )

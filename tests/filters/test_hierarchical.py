@@ -32,17 +32,17 @@ HIDDEN = range(18, 40)
 BACKGROUND = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
 
 
-def occlusion_scene(reappearing_colours=None, num_slots=4, lower_y=72.0):
-    """Target 0 walks right and is not detected in :data:`HIDDEN` frames (and not drawn);
+def occlusion_scene(reappearing_colours=None, num_slots=4, lower_y=72.0, hidden=HIDDEN):
+    """Target 0 walks right and is not detected in the ``hidden`` frames (and not drawn);
     target 1 walks left below it (top edge at ``lower_y``). From the first frame after the
     gap target 0 wears ``reappearing_colours`` (default: its own)."""
     frames, kept = [], []
     for t in range(NUM_FRAMES):
         image = BACKGROUND.copy()
         truth = [(10.0 + 1.5 * t, 20.0, 16.0, 36.0), (130.0 - 1.5 * t, lower_y, 16.0, 36.0)]
-        shown = [t not in HIDDEN, True]
+        shown = [t not in hidden, True]
         colours = list(COLOURS)
-        if reappearing_colours is not None and t > HIDDEN[-1]:
+        if reappearing_colours is not None and t > hidden[-1]:
             colours[0] = reappearing_colours
         for box, (top, bottom), visible in zip(truth, colours, shown, strict=True):
             if visible:
@@ -63,11 +63,11 @@ def tracked(variant, inputs, **settings):
     return info, output_rows(info, config, 1)
 
 
-def target_ids(rows: MotTable, row_y: float) -> tuple[set, set]:
-    """The identities of the boxes near ``row_y`` before and after :data:`HIDDEN`."""
+def target_ids(rows: MotTable, row_y: float, hidden=HIDDEN) -> tuple[set, set]:
+    """The identities of the boxes near ``row_y`` before and after the ``hidden`` frames."""
     near = np.abs(rows.boxes[:, 1] - row_y) < 8
-    before = set(rows.ids[near & (rows.frames <= HIDDEN[0])].tolist())
-    after = set(rows.ids[near & (rows.frames > HIDDEN[-1] + 1)].tolist())
+    before = set(rows.ids[near & (rows.frames <= hidden[0])].tolist())
+    after = set(rows.ids[near & (rows.frames > hidden[-1] + 1)].tolist())
     return before, after
 
 
@@ -96,33 +96,16 @@ def test_a_differently_dressed_target_is_not_reassociated():
 
 
 def resumption_scene(gap, reappearing_colours=None):
-    """Target 0 walks right and is not detected for ``gap`` frames from frame 18 (fewer than
-    the 12 its track coasts at 25 fps: the track resumes); from then on it wears
-    ``reappearing_colours`` (default: its own): someone else stepping out where it went in.
-    Target 1 walks left far below."""
+    """:func:`occlusion_scene` with target 0 undetected for ``gap`` frames from frame 18
+    (fewer than the 12 its track coasts at 25 fps: the track resumes), then in
+    ``reappearing_colours``: someone else stepping out where it went in."""
     hidden = range(18, 18 + gap)
-    frames, kept = [], []
-    for t in range(NUM_FRAMES):
-        image = BACKGROUND.copy()
-        truth = [(10.0 + 1.5 * t, 20.0, 16.0, 36.0), (130.0 - 1.5 * t, 72.0, 16.0, 36.0)]
-        colours = list(COLOURS)
-        if reappearing_colours is not None and t >= hidden[-1]:
-            colours[0] = reappearing_colours
-        shown = [t not in hidden, True]
-        for box, (top, bottom), visible in zip(truth, colours, shown, strict=True):
-            if visible:
-                two_tone(image, box, top, bottom)
-        frames.append(image)
-        kept.append([box for box, visible in zip(truth, shown, strict=True) if visible])
-    return frame_inputs(frames, kept), hidden
+    return occlusion_scene(reappearing_colours, hidden=hidden), hidden
 
 
 def _upper_ids(rows, hidden):
     """Target 0's identities before and after its undetected frames."""
-    near = np.abs(rows.boxes[:, 1] - 20.0) < 8
-    before = set(rows.ids[near & (rows.frames <= hidden[0])].tolist())
-    after = set(rows.ids[near & (rows.frames > hidden[-1] + 1)].tolist())
-    return before, after
+    return target_ids(rows, 20.0, hidden)
 
 
 WHITE_BLACK = ((250, 250, 250), (10, 10, 10))
