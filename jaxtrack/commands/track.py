@@ -52,7 +52,8 @@ are learned on the fly from the PHD tracker's trajectories on the tracked span (
 which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
 ``variant``, ``max_components``, ``particles_per_component``,
 ``max_misses``, ``appearance_weight``, ``group_area_ratio`` (group blobs, off by default),
-``output``, ``max_gap``.
+``velocity_rate`` (0.1: a component keeps its long-run velocity while one blob covers it
+and another; 0 gives the paper's tracker), ``output``, ``max_gap``.
 
 ``--tracker hierarchical`` runs the Hierarchical tracker (SPEC section 4,
 ``jaxtrack.filters.hierarchical``): a bank of constant-velocity Kalman filters whose tracks

@@ -27,9 +27,12 @@ model look at the scene's context. One :func:`cmt_step` on
    proposal while another component is in its field of context: a *merge*, the target
    hidden behind another), or whose ``pi_m`` falls below ``min_mixture_weight``, is deleted
    (CMT Algorithm 1);
-5. resample per component; **enter**: a blob that no component explains starts one (the
-   dispelling rule: a blob explained by another component's hypothesis starts none; nor
-   does a group blob);
+5. resample per component; **merge velocity** (``velocity_rate`` > 0, contextual
+   proposal only): a component whose predicted centre shares a blob with another's
+   (:func:`~jaxtrack.filters.cmt_conditions.sharing_blob`: one box over two targets) keeps
+   its long-run velocity (:func:`held_velocities`); **enter**: a blob that no component
+   explains starts one (the dispelling rule: a blob explained by another component's
+   hypothesis starts none; nor does a group blob);
 6. **update** the appearance models and decayed histograms at the local decisions, except
    for components whose particles mostly drew *merge* (appearance frozen, Sec. IV-B).
 
@@ -55,7 +58,7 @@ from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.births import LOG_ZERO
-from jaxtrack.filters.cmt_conditions import group_members, predicted_mean
+from jaxtrack.filters.cmt_conditions import group_members, predicted_mean, sharing_blob
 from jaxtrack.filters.cmt_observation import (
     NUM_LEVELS,
     NUM_VALUES,
@@ -90,7 +93,7 @@ from jaxtrack.filters.mixture_models import (
     nearest_detection_log_likelihood,
 )
 from jaxtrack.filters.mixture_state import MixtureParams, MixtureState, init_mixture
-from jaxtrack.models.dynamics import MEASURED, POSITION, SIZE
+from jaxtrack.models.dynamics import MEASURED, POSITION, SIZE, VELOCITY
 from jaxtrack.models.likelihood import log_likelihood
 from jaxtrack.models.noise import state_dependent_std
 from jaxtrack.types import PAD_BOX, Detections, FrameInputs, Tracks
@@ -121,6 +124,9 @@ class CMTParams(NamedTuple):
             zone), or on the run's first frame (CMT initialises from every blob, Sec. VI).
         zone_boxes: ``[MAX_ZONES, 4]`` entry/exit zones ``(x, y, w, h)`` (padded).
         zone_mask: ``[MAX_ZONES]`` True for the real zones.
+        velocity_rate: rate ``alpha`` of each component's long-run velocity ``v_bar <- (1 -
+            alpha) v_bar + alpha v`` (:func:`held_velocities`; read only when the step is
+            built with ``hold_velocity``).
     """
 
     mixture: MixtureParams
@@ -132,6 +138,7 @@ class CMTParams(NamedTuple):
     enter_distance: Float[Array, ""]
     zone_boxes: Float[Array, "max_zones 4"]
     zone_mask: Bool[Array, " max_zones"]
+    velocity_rate: Float[Array, ""]
 
 
 class CMTState(NamedTuple):
@@ -144,6 +151,10 @@ class CMTState(NamedTuple):
         confirmed: True once a confident blob explained the slot's component.
         misses: consecutive frames each component went unsupported.
         frame: frames stepped on.
+        mean_velocity: ``[max_components, 2]`` each component's long-run velocity average
+            (exponential, not yet corrected for its start at zero; :func:`held_velocities`).
+        averaged: the frames that average holds.
+        merged_frames: consecutive frames each component has shared a blob with another.
     """
 
     mixture: MixtureState
@@ -152,6 +163,9 @@ class CMTState(NamedTuple):
     confirmed: Bool[Array, " max_components"]
     misses: Int[Array, " max_components"]
     frame: Int[Array, ""]
+    mean_velocity: Float[Array, "max_components 2"]
+    averaged: Float[Array, " max_components"]
+    merged_frames: Float[Array, " max_components"]
 
 
 class CMTInfo(NamedTuple):
@@ -212,6 +226,7 @@ def cmt_step(
     variant: str,
     max_misses: int,
     group_blobs: bool = True,
+    hold_velocity: bool = False,
     step: float = STEP,
     patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
     num_levels: int = NUM_LEVELS,
@@ -229,6 +244,8 @@ def cmt_step(
             membership test and grouped likelihood and never reads
             ``params.proposal.group_area_ratio``: 10-14 % faster, the same outputs as a
             ratio of 0).
+        hold_velocity: with the contextual proposal, hold a merged component's long-run
+            velocity (static; :func:`held_velocities`).
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
         num_levels: quantisation levels of eq. 17 (static).
@@ -240,6 +257,9 @@ def cmt_step(
     mixture, blobs, frame = state.mixture, inputs_t.detections, inputs_t.frame
     alive = mixture.alive
     predictions = predicted_mean(state.estimates)
+    merged = jnp.zeros_like(alive)
+    if variant != "mtb" and hold_velocity:
+        merged = sharing_blob(predictions, alive, blobs)
     groups = jnp.zeros((alive.shape[0], blobs.mask.shape[0]), bool)
     if variant != "mtb" and group_blobs:
         groups = group_members(predictions, alive, blobs, params.proposal.group_area_ratio)
@@ -332,6 +352,15 @@ def cmt_step(
     tracks = _tracks(estimates, mixture.ids, shown & confirmed, log_pi)
 
     new_particles, new_log_weights = resample_components(key_resample, particles, log_weights)
+    mean_velocity, averaged, merged_frames = (
+        state.mean_velocity,
+        state.averaged,
+        state.merged_frames,
+    )
+    if variant != "mtb" and hold_velocity:
+        new_particles, estimates, mean_velocity, averaged, merged_frames = held_velocities(
+            new_particles, estimates, state, merged, survivors, params.velocity_rate
+        )
     resampled = MixtureState(
         particles=new_particles,
         log_weights=new_log_weights,
@@ -367,6 +396,9 @@ def cmt_step(
         confirmed=confirmed & ~born,
         misses=jnp.where(new_mixture.alive & ~born, misses, 0),
         frame=state.frame + 1,
+        mean_velocity=jnp.where(born[:, None], 0.0, mean_velocity),
+        averaged=jnp.where(born, 0.0, averaged),
+        merged_frames=jnp.where(born, 0.0, merged_frames),
     )
     info = CMTInfo(
         tracks=tracks,
@@ -399,6 +431,9 @@ def init_cmt(
         confirmed=jnp.zeros((max_components,), bool),
         misses=jnp.zeros((max_components,), jnp.int32),
         frame=jnp.zeros((), jnp.int32),
+        mean_velocity=jnp.zeros((max_components, 2), jnp.float32),
+        averaged=jnp.zeros((max_components,), jnp.float32),
+        merged_frames=jnp.zeros((max_components,), jnp.float32),
     )
 
 
@@ -408,6 +443,7 @@ def cmt_filter(
     particles_per_component: int = PARTICLES_PER_COMPONENT,
     max_misses: int = 5,
     group_blobs: bool = True,
+    hold_velocity: bool = False,
 ) -> Filter:
     """Builds CMT; all arguments are static.
 
@@ -434,7 +470,11 @@ def cmt_filter(
             f"{max_components} and {particles_per_component}"
         )
     step = functools.partial(
-        cmt_step, variant=variant, max_misses=max_misses, group_blobs=group_blobs
+        cmt_step,
+        variant=variant,
+        max_misses=max_misses,
+        group_blobs=group_blobs,
+        hold_velocity=hold_velocity,
     )
     init = functools.partial(
         init_cmt,
@@ -573,6 +613,62 @@ def grouped_log_likelihood(
     per_blob = -0.5 * jnp.sum(residual**2, axis=-1) - log_norm[:, None, None]
     per_blob = jnp.where(groups[:, None, :], per_blob, LOG_ZERO)
     return jnp.max(per_blob, axis=-1, initial=LOG_ZERO)
+
+
+def held_velocities(
+    particles: Float[Array, "max_components num_particles 6"],
+    estimates: Float[Array, "max_components 6"],
+    state: CMTState,
+    merged: Bool[Array, " max_components"],
+    survivors: Bool[Array, " max_components"],
+    rate: Float[Array, ""],
+) -> tuple[
+    Float[Array, "max_components num_particles 6"],
+    Float[Array, "max_components 6"],
+    Float[Array, "max_components 2"],
+    Float[Array, " max_components"],
+    Float[Array, " max_components"],
+]:
+    """The merge condition's motion (CMT Sec. IV-B: a merged target follows its own motion
+    model, frozen like its appearance) for the velocity part of the state.
+
+    While one blob holds two components' predicted centres (``merged``,
+    :func:`~jaxtrack.filters.cmt_conditions.sharing_blob`), the box follows the pair's
+    centre, which stands still as two people pass: the velocity the particles infer from it
+    is the pair's, not the target's, and the component comes out of the merge moving the
+    wrong way (CMT's identity exchanges at crossings). So each component keeps a long-run
+    velocity, the exponential average of its decisions' velocities outside merges,
+
+        v_bar_t = (1 - alpha) v_bar_{t-1} + alpha v_t     (not merged; held while merged),
+
+    started at zero when the component is born and read with the bias correction
+    ``v_bar / (1 - (1 - alpha)^n)`` after ``n`` averaged frames. A surviving merged
+    component whose average holds at least ``1 / alpha`` frames (one time constant) gets
+    ``v_bar`` as the velocity of all its resampled particles and of its decision; positions
+    and sizes still follow the blob. A younger one is left alone (its average says little).
+    A merge is held for its first ``1 / alpha`` frames only: one that lasts longer (two
+    people walking or standing together) is the pair's motion, which is then the target's
+    own, so the component is treated as not merged (its average resumes).
+
+    Returns:
+        ``(particles, estimates, mean_velocity, averaged, merged_frames)``: the resampled
+        particles and the decisions with the held velocities, the updated averages, their
+        frame counts and the merges' lengths.
+    """
+    old, count = state.mean_velocity, state.averaged
+    frames = jnp.where(merged, state.merged_frames + 1.0, 0.0)
+    merged = merged & (state.merged_frames * rate < 1.0 - 1e-6)
+    corrected = old / jnp.maximum(1.0 - (1.0 - rate) ** count, 1e-6)[:, None]
+    hold = survivors & merged & (count * rate >= 1.0 - 1e-6)
+    velocity = jnp.array(VELOCITY)
+    particles = particles.at[..., velocity].set(
+        jnp.where(hold[:, None, None], corrected[:, None, :], particles[..., velocity])
+    )
+    estimates = estimates.at[:, velocity].set(
+        jnp.where(hold[:, None], corrected, estimates[:, velocity])
+    )
+    averaged = jnp.where(merged[:, None], old, (1.0 - rate) * old + rate * estimates[:, velocity])
+    return particles, estimates, averaged, count + (~merged).astype(count.dtype), frames
 
 
 def _merging(

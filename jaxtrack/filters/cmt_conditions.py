@@ -195,6 +195,31 @@ def group_members(
     return jnp.any(grouped, axis=1)
 
 
+def sharing_blob(
+    predictions: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    blobs: Detections,
+) -> Bool[Array, " max_components"]:
+    """True for a living component whose predicted centre lies inside a real blob that also
+    holds another living component's predicted centre: one box over two targets (a merge,
+    CMT Sec. IV-B), which says where the pair is but not how each of them moves.
+
+    Args:
+        predictions: the components' constant-velocity predictions.
+        alive: the living components.
+        blobs: the frame's padded foreground blobs (padded slots hold nothing).
+
+    Returns:
+        ``[max_components]``.
+    """
+    centres = predictions[:, POSITION]
+    low, high = blobs.boxes[:, :2], blobs.boxes[:, :2] + blobs.boxes[:, 2:]
+    inside = jnp.all((centres[:, None] >= low) & (centres[:, None] <= high), axis=-1)
+    inside = (inside & alive[:, None] & blobs.mask[None, :]).astype(jnp.float32)
+    shared = (inside @ inside.T) > 0  # [m, k]: some blob holds both centres
+    return jnp.any(shared & ~jnp.eye(alive.shape[0], dtype=bool), axis=1)
+
+
 def object_distances(
     estimates: Float[Array, "max_components 6"], alive: Bool[Array, " max_components"]
 ) -> tuple[Float[Array, " max_components"], Bool[Array, " max_components"]]:

@@ -92,6 +92,17 @@ class CMTConfig(TrackerConfig):
             1.0,
         ),
     )
+    velocity_rate: float = setting(
+        0.1,
+        Rule(
+            "merge velocity: rate of each component's long-run velocity average, held while "
+            "one blob covers two components (cpd and cmt variants; 0: off, the paper's "
+            "tracker)",
+            float,
+            0.0,
+            1.0,
+        ),
+    )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
 
@@ -135,6 +146,7 @@ def cmt_params(config: CMTConfig, zones: SceneZones | None = None) -> CMTParams:
         enter_distance=jnp.float32(ENTER_DISTANCE),
         zone_boxes=boxes,
         zone_mask=mask,
+        velocity_rate=jnp.float32(config.velocity_rate),
     )
 
 
@@ -158,15 +170,19 @@ def build_cmt(
         config.particles_per_component,
         config.max_misses,
         config.group_area_ratio > 0,
+        config.velocity_rate > 0,
     )
     return filt, cmt_params(config, context)
 
 
 @functools.lru_cache(maxsize=8)
-def _cmt_filter(variant, max_components, particles, max_misses, group_blobs) -> Filter:
+def _cmt_filter(
+    variant, max_components, particles, max_misses, group_blobs, hold_velocity
+) -> Filter:
     # Group blobs off (a ratio of 0): their code is compiled out (the ratio is a frozen
-    # parameter, so no sweep or tuning can turn them on behind the configuration's back).
-    return cmt_filter(variant, max_components, particles, max_misses, group_blobs)
+    # parameter, so no sweep or tuning can turn them on behind the configuration's back);
+    # likewise the merge velocity at a rate of 0.
+    return cmt_filter(variant, max_components, particles, max_misses, group_blobs, hold_velocity)
 
 
 def cmt_memory_estimate(config: CMTConfig, capacity: int, chunk_frames: int) -> MemoryEstimate:
