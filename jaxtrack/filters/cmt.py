@@ -257,8 +257,9 @@ def cmt_step(
     mixture, blobs, frame = state.mixture, inputs_t.detections, inputs_t.frame
     alive = mixture.alive
     predictions = predicted_mean(state.estimates)
+    holding = variant != "mtb" and hold_velocity  # the merge velocity is compiled in
     merged = jnp.zeros_like(alive)
-    if variant != "mtb" and hold_velocity:
+    if holding:
         merged = sharing_blob(predictions, alive, blobs)
     groups = jnp.zeros((alive.shape[0], blobs.mask.shape[0]), bool)
     if variant != "mtb" and group_blobs:
@@ -357,7 +358,7 @@ def cmt_step(
         state.averaged,
         state.merged_frames,
     )
-    if variant != "mtb" and hold_velocity:
+    if holding:
         new_particles, estimates, mean_velocity, averaged, merged_frames = held_velocities(
             new_particles, estimates, state, merged, survivors, params.velocity_rate
         )

@@ -146,6 +146,19 @@ def near_blobs(
     return blobs.mask & (jnp.sum(gap * gap, axis=-1) <= (radius * radius)[..., None])
 
 
+def centres_inside(
+    predictions: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    blobs: Detections,
+) -> Bool[Array, "max_components max_detections"]:
+    """``inside[m, j]``: living component ``m``'s predicted centre lies in real blob ``j``
+    (edges included)."""
+    centres = predictions[:, POSITION]
+    low, high = blobs.boxes[:, :2], blobs.boxes[:, :2] + blobs.boxes[:, 2:]
+    inside = jnp.all((centres[:, None] >= low) & (centres[:, None] <= high), axis=-1)
+    return inside & alive[:, None] & blobs.mask[None, :]
+
+
 def group_members(
     predictions: Float[Array, "max_components 6"],
     alive: Bool[Array, " max_components"],
@@ -181,10 +194,7 @@ def group_members(
     area = boxes[:, 2] * boxes[:, 3]
     hull_area = hulls[..., 2] * hulls[..., 3]
     widened = jnp.maximum(area[:, None], area[None, :]) <= group_area_ratio * hull_area
-    centres = predictions[:, POSITION]
-    blob_low, blob_high = blobs.boxes[:, :2], blobs.boxes[:, :2] + blobs.boxes[:, 2:]
-    inside = jnp.all((centres[:, None] >= blob_low) & (centres[:, None] <= blob_high), axis=-1)
-    inside = inside & alive[:, None] & blobs.mask[None, :]
+    inside = centres_inside(predictions, alive, blobs)
     pairs = alive[:, None] & alive[None, :] & ~jnp.eye(alive.shape[0], dtype=bool) & widened
     own = iou_matrix(boxes, blobs.boxes, jnp)
     better = (overlap > own[:, None, :]) & (overlap > own[None, :, :])
@@ -212,10 +222,7 @@ def sharing_blob(
     Returns:
         ``[max_components]``.
     """
-    centres = predictions[:, POSITION]
-    low, high = blobs.boxes[:, :2], blobs.boxes[:, :2] + blobs.boxes[:, 2:]
-    inside = jnp.all((centres[:, None] >= low) & (centres[:, None] <= high), axis=-1)
-    inside = (inside & alive[:, None] & blobs.mask[None, :]).astype(jnp.float32)
+    inside = centres_inside(predictions, alive, blobs).astype(jnp.float32)
     shared = (inside @ inside.T) > 0  # [m, k]: some blob holds both centres
     return jnp.any(shared & ~jnp.eye(alive.shape[0], dtype=bool), axis=1)
 
