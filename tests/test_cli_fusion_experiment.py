@@ -37,7 +37,7 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
         for sequence in ("TUD-Campus", "video-101")
         for source in ("det", "bs")
         for scored in ("whole", "held-out")
-        for tracker in ("Proposed", "PHD")
+        for tracker in ("Proposed", "PHD", "True identities")
     ]
     spans = {"trained": [1, 12], "held-out": [13, 24]}  # the first half of frames 1:24
     assert record["spans"] == {"TUD-Campus": spans, "video-101": spans}
@@ -58,6 +58,9 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
         )
         assert row["MT %"] == round(100 * scores["MT"] / scores["GT_IDs"], 1)
         assert sum(row[key] for key in SWITCH_KEYS) == row["IDS"]
+    # the reference: perfectly associated detections, no switch, no false positive
+    oracle = [row for row in rows if row["tracker"] == "True identities"]
+    assert len(oracle) == 8 and all(row["IDS"] == 0 and row["MT"] > 0 for row in oracle)
     # the bs detections are written beside the results and differ from MOT15's
     bs = (out / "sequences" / "TUD-Campus" / "bs" / "det.txt").read_text()
     assert bs and bs != (mot15_root / "TUD-Campus" / "det" / "det.txt").read_text()

@@ -19,6 +19,13 @@ thresholds calibrated against the ground truth) on the first
 :attr:`~jaxtrack.filters.fusion_tracker.FusionConfig.train_fraction` of the sequence
 (:func:`~jaxtrack.pipelines.fusion_context.training_frames`; PETS09-S2L1: frames 1:398).
 
+**Reference** (:data:`ORACLE`, ``True identities``; not a tracker): the same detections
+mapped to the ground truth frame by frame (IoU >= 0.5), each under its true identity
+(:func:`~jaxtrack.metrics.detection.true_identity_rows`): what perfect association scores
+with the detector's own boxes. It has no identity switch and no false positive; its MT and
+FM say how many trajectories the detector places well on 80 % of their frames and how often
+it breaks them, so a tracker's MT above it comes from the boxes it fills in itself.
+
 **Protocols** (:data:`PROTOCOLS`): every run is scored on the ``whole`` sequence and on the
 ``held-out`` frames after the training span (ground truth and results cut to them, as
 ``jaxtrack eval --frames`` does). The paper's Table 4 scores the whole PETS09-S2L1 sequence
@@ -64,7 +71,8 @@ from jaxtrack.experiments.common import (
 from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
 from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.filters.phd_tracker import PHDConfig
-from jaxtrack.io import MotSequence, write_mot_file
+from jaxtrack.io import MotSequence, read_mot_file, write_mot_file
+from jaxtrack.metrics.detection import true_identity_rows
 from jaxtrack.metrics.evaluate import Evaluation, combine_sequences
 from jaxtrack.pipelines.fusion_context import training_frames
 from jaxtrack.pipelines.tracking import tracker_description
@@ -82,6 +90,9 @@ SINGLE_MEMBERS = ("Detector", "Classifier", "Predictor")
 NAIVE, PROPOSED = "Naive fusion", "Proposed"
 #: The motion-only baseline.
 BASELINE = "PHD"
+#: The reference row: the detections mapped to the ground truth, under its identities
+#: (:func:`~jaxtrack.metrics.detection.true_identity_rows`), not a tracker.
+ORACLE = "True identities"
 #: The trackers of ``--quick`` runs (smoke runs: the proposed fusion and PHD).
 QUICK_TRACKERS = (PROPOSED, BASELINE)
 #: Scored spans: the whole sequence, the frames after the training span.
@@ -214,6 +225,8 @@ def run_experiment(
     frames = dict.fromkeys(trackers, 0)
     for run in frame_tracker_runs(sequences, trackers, out, seed, progress):
         name = run.sequence.name
+        if run.name == next(iter(trackers)):
+            _score_oracle(run, evaluations)
         seconds[run.name] += run.seconds
         frames[run.name] += run.loaded.num_frames
         write_mot_file(run.folder / f"{result_name(run.name)}.txt", run.rows)
@@ -227,7 +240,7 @@ def run_experiment(
         for protocol, scored in zip(PROTOCOLS, (None, held_out), strict=True):
             key = RunKey(name, run.source, protocol, run.name)
             evaluations[key] = evaluate_rows(run.loaded, run.rows, scored)
-    rows = _table(sequences, trackers, evaluations)
+    rows = _table(sequences, [*trackers, ORACLE], evaluations)
     record = {
         "quick": quick,
         "seed": seed,
@@ -248,6 +261,24 @@ def run_experiment(
     (out / "results.json").write_text(json.dumps(record, indent=1) + "\n")
     (out / "table.md").write_text(table_markdown(record))
     return record
+
+
+def _score_oracle(run, evaluations: dict[RunKey, Evaluation]) -> None:
+    """The :data:`ORACLE` rows of a run's sequence and detections (the ``bs`` detections
+    are the ``det.txt`` written beside the results), written and scored like a result."""
+    loaded = run.loaded
+    detections = (
+        read_mot_file(run.folder / "det.txt", kind="det")
+        if run.source == "bs"
+        else loaded.det_table
+    )
+    span = (loaded.first_frame, loaded.last_frame)
+    rows = true_identity_rows(detections.frame_span(*span), loaded.gt_table, span)
+    write_mot_file(run.folder / f"{result_name(ORACLE)}.txt", rows)
+    held_out = held_out_frames(loaded)
+    for protocol, scored in zip(PROTOCOLS, (None, held_out), strict=True):
+        key = RunKey(run.sequence.name, run.source, protocol, ORACLE)
+        evaluations[key] = evaluate_rows(loaded, rows, scored)
 
 
 def result_name(tracker: str) -> str:
@@ -333,6 +364,12 @@ def _table4_goal(by) -> list[dict[str, Any]]:
     reported = [
         f"{k.source} {k.protocol}: {trajectory_summary(by[k])}" for k in variants if k in by
     ]
+    oracle = key._replace(tracker=ORACLE)
+    if oracle in by:
+        reported.append(
+            f"reference, the MOT15 detections perfectly associated (det {PAPER_PROTOCOL}): "
+            f"{trajectory_summary(by[oracle])}"
+        )
     goal = (
         f"{PETS} (det, {PAPER_PROTOCOL}: the paper's protocol): MT >= {least_mt}/{row['GT']}, "
         f"ML 0, IDS <= {paper['IDS']}, FM <= {paper['FM']} (Table 4)"
@@ -433,8 +470,8 @@ def _baseline_goals(rows, by) -> list[dict[str, Any]]:
 
 
 def table4_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The paper's Table 4 row and the proposed fusion's on PETS09-S2L1 (each source and
-    protocol present), as rows of :data:`TABLE4_COLUMNS`."""
+    """The paper's Table 4 row, then the proposed fusion's and the :data:`ORACLE` reference's
+    on PETS09-S2L1 (each source and protocol present), as rows of :data:`TABLE4_COLUMNS`."""
     paper = dict(zip(PAPER_COLUMNS, PAPER_TABLE4, strict=True))
     table = [{"run": paper.pop("tracker"), **paper, **PAPER_TABLE4_COUNTS}]
     by = _by_key(rows)
@@ -444,6 +481,12 @@ def table4_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             if row is not None:
                 note = " (the paper's protocol)" if protocol == PAPER_PROTOCOL else ""
                 table.append({**row, "run": f"{PROPOSED}, {source}, {protocol}{note}"})
+    for source in SOURCES:
+        for protocol in PROTOCOLS:
+            row = by.get(RunKey(PETS, source, protocol, ORACLE))
+            if row is not None:
+                run = f"{ORACLE} (the detections, perfectly associated), {source}, {protocol}"
+                table.append({**row, "run": run})
     return table
 
 
@@ -478,7 +521,10 @@ def table_markdown(record: dict[str, Any]) -> str:
         "TUD-Campus + TUD-Stadtmitte, whole sequences.\n",
         markdown_table(record["peers"], PEER_COLUMNS),
         *switch_section(
-            record["rows"], ("sequence", "detections", "scored", "tracker"), POOLED, "IDS"
+            [row for row in record["rows"] if row["tracker"] != ORACLE],
+            ("sequence", "detections", "scored", "tracker"),
+            POOLED,
+            "IDS",
         ),
         "## Goals\n",
         *(
