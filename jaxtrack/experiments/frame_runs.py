@@ -46,6 +46,8 @@ class FrameRun(NamedTuple):
         events: the event rows of a tracker that writes events, else None.
         used: what the tracker's context was (``streamed_params``'s description).
         seconds: the tracking time (compile included; context learning excluded).
+        detections: the detections tracked (the source's: ``loaded``'s own, or the ``bs``
+            detections written to ``folder/det.txt``).
     """
 
     sequence: ExperimentSequence
@@ -57,6 +59,7 @@ class FrameRun(NamedTuple):
     events: EventRows | None
     used: dict[str, str]
     seconds: float
+    detections: MotTable
 
 
 def frame_tracker_runs(
@@ -102,4 +105,15 @@ def frame_tracker_runs(
                     begin = time.perf_counter()
                     (rows,), events = track_sequences([tracked], config, seed, [params]), None
                 seconds = time.perf_counter() - begin
-                yield FrameRun(sequence, source, name, loaded, folder, rows, events, used, seconds)
+                yield FrameRun(
+                    sequence,
+                    source,
+                    name,
+                    loaded,
+                    folder,
+                    rows,
+                    events,
+                    used,
+                    seconds,
+                    tracked.det_table,
+                )

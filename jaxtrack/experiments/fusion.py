@@ -71,11 +71,12 @@ from jaxtrack.experiments.common import (
 from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
 from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.filters.phd_tracker import PHDConfig
-from jaxtrack.io import MotSequence, read_mot_file, write_mot_file
+from jaxtrack.io import MotSequence, write_mot_file
 from jaxtrack.metrics.detection import true_identity_rows
 from jaxtrack.metrics.evaluate import Evaluation, combine_sequences
 from jaxtrack.pipelines.fusion_context import training_frames
 from jaxtrack.pipelines.tracking import tracker_description
+from jaxtrack.types import MotTable
 
 #: The ablation's rows (the paper's Table 1), table name -> configuration.
 ABLATION = {
@@ -223,10 +224,9 @@ def run_experiment(
     training: dict[str, str] = {}
     seconds = dict.fromkeys(trackers, 0.0)
     frames = dict.fromkeys(trackers, 0)
+    first_tracker = next(iter(trackers))
     for run in frame_tracker_runs(sequences, trackers, out, seed, progress):
         name = run.sequence.name
-        if run.name == next(iter(trackers)):
-            _score_oracle(run, evaluations)
         seconds[run.name] += run.seconds
         frames[run.name] += run.loaded.num_frames
         write_mot_file(run.folder / f"{result_name(run.name)}.txt", run.rows)
@@ -237,9 +237,11 @@ def run_experiment(
         }
         if "training" in run.used:
             training[f"{name} {run.source}"] = run.used["training"]
-        for protocol, scored in zip(PROTOCOLS, (None, held_out), strict=True):
-            key = RunKey(name, run.source, protocol, run.name)
-            evaluations[key] = evaluate_rows(run.loaded, run.rows, scored)
+        _score(evaluations, run, run.name, run.rows, held_out)
+        if run.name == first_tracker:  # once per sequence and source
+            reference = _oracle_rows(run)
+            write_mot_file(run.folder / f"{result_name(ORACLE)}.txt", reference)
+            _score(evaluations, run, ORACLE, reference, held_out)
     rows = _table(sequences, [*trackers, ORACLE], evaluations)
     record = {
         "quick": quick,
@@ -263,22 +265,18 @@ def run_experiment(
     return record
 
 
-def _score_oracle(run, evaluations: dict[RunKey, Evaluation]) -> None:
-    """The :data:`ORACLE` rows of a run's sequence and detections (the ``bs`` detections
-    are the ``det.txt`` written beside the results), written and scored like a result."""
-    loaded = run.loaded
-    detections = (
-        read_mot_file(run.folder / "det.txt", kind="det")
-        if run.source == "bs"
-        else loaded.det_table
-    )
-    span = (loaded.first_frame, loaded.last_frame)
-    rows = true_identity_rows(detections.frame_span(*span), loaded.gt_table, span)
-    write_mot_file(run.folder / f"{result_name(ORACLE)}.txt", rows)
-    held_out = held_out_frames(loaded)
+def _score(evaluations: dict[RunKey, Evaluation], run, tracker, rows, held_out) -> None:
+    """Scores ``rows`` of a run's sequence and source under each of :data:`PROTOCOLS`."""
     for protocol, scored in zip(PROTOCOLS, (None, held_out), strict=True):
-        key = RunKey(run.sequence.name, run.source, protocol, ORACLE)
-        evaluations[key] = evaluate_rows(loaded, rows, scored)
+        key = RunKey(run.sequence.name, run.source, protocol, tracker)
+        evaluations[key] = evaluate_rows(run.loaded, rows, scored)
+
+
+def _oracle_rows(run) -> MotTable:
+    """The :data:`ORACLE` rows of a run's sequence and detections."""
+    loaded = run.loaded
+    span = (loaded.first_frame, loaded.last_frame)
+    return true_identity_rows(run.detections.frame_span(*span), loaded.gt_table, span)
 
 
 def result_name(tracker: str) -> str:
