@@ -39,6 +39,15 @@ tracks did (jaxtrack.metrics.switches): exchange (the tracks traded objects), dr
 track left for another object), takeover (the new track came from another object), lost
 (the old track ended; what re-identification fixes), replaced (the old track stayed on
 nothing). The kinds add up to IDSW.
+
+--errors (one sequence) sorts every miss and false positive by what the detections the
+tracker was given offered in that frame (jaxtrack.metrics.errors; "overlaps" = IoU >= 0.3,
+"well detected" = the detections' one-to-one mapping at the match threshold gives the
+object a box). Misses: not_detected (no detection overlaps the object), detection_misplaced
+(one overlaps it, none well), output_misplaced (well detected, and an unmatched output box
+overlaps it), dropped (well detected, no output box there). False positives: misplaced (on
+a missed object), duplicate (on a matched object), clutter (on a detection mapped to no
+object), phantom (on nothing). The detections are SEQ_DIR/det/det.txt unless --det FILE.
 """
 
 from __future__ import annotations
@@ -64,6 +73,7 @@ from jaxtrack.io import parse_frame_span, read_mot_file, read_seqinfo
 from jaxtrack.metrics import SUMMARY_KEYS, EvalConfig, combine_sequences, evaluate_sequence
 from jaxtrack.metrics.cmt import ADDITIVE_FIELDS as CMT_COUNTS
 from jaxtrack.metrics.cmt import DEFAULT_TOLERANCE
+from jaxtrack.metrics.errors import ErrorTable, classify_errors
 from jaxtrack.metrics.evaluate import switch_table
 from jaxtrack.metrics.switches import SCORE_NAMES as SWITCH_SCORE_NAMES
 from jaxtrack.metrics.switches import SwitchTable
@@ -195,6 +205,18 @@ def register(subparsers) -> None:
         help="also list every identity switch and its kind (exchange, drift, takeover, lost, "
         "replaced; one sequence only); with --json, under the key 'switches'",
     )
+    parser.add_argument(
+        "--errors",
+        action="store_true",
+        help="also sort the misses and false positives by what the detections offered "
+        "(not_detected, detection_misplaced, output_misplaced, dropped; misplaced, duplicate, "
+        "clutter, phantom; one sequence only); with --json, under the key 'errors'",
+    )
+    parser.add_argument(
+        "--det",
+        metavar="DET.txt",
+        help="the detections the tracker was given, for --errors (default SEQ_DIR/det/det.txt)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -212,8 +234,12 @@ def run(args) -> int:
         delay_tolerance=args.delay_tolerance,
     )
     if args.benchmark or args.results:
-        refuse_ignored(args, ["switches"], "lists one sequence's switches: give SEQ_DIR RES.txt")
+        refuse_ignored(
+            args, ["switches", "errors", "det"], "lists one sequence's errors: give SEQ_DIR RES.txt"
+        )
         return _run_benchmark(args, config)
+    if args.det and not args.errors:
+        raise InputError("--det gives the detections for --errors; add --errors")
     gt_path, res_path, seqinfo_path = _single_inputs(args)
     info = read_seqinfo(seqinfo_path) if seqinfo_path else None
     gt = read_mot_file(gt_path, "gt", info=info)
@@ -228,17 +254,59 @@ def run(args) -> int:
         gt, result = gt.frame_span(first, last), result.frame_span(first, last)
     scores = evaluate_sequence(gt, result, (first, last), config).scores()
     switches = switch_table(gt, result, (first, last), config) if args.switches else None
+    errors = None
+    if args.errors:
+        errors = _error_table(args, gt, result, gt_path, info, (first, last), config)
     if args.json:
         record = {key: scores[key] for key in SUMMARY_KEYS}
         if switches is not None:
             record["switches"] = {"counts": switches.counts(), "rows": switches.rows()}
+        if errors is not None:
+            record["errors"] = errors.counts()
         print(json.dumps(record))
     else:
         print(f"ground truth  {gt_path}\nresults       {res_path}\nframes        {first}..{last}")
         print(_score_listing(scores))
         if switches is not None:
             print(_switch_listing(switches))
+        if errors is not None:
+            print(_error_listing(errors))
     return 0
+
+
+def _error_table(args, gt, result, gt_path, info, span, config) -> ErrorTable:
+    """The classified misses and false positives, with the detections of ``--det`` or of the
+    sequence folder."""
+    if args.det:
+        det_path = Path(args.det)
+    elif args.inputs:
+        det_path = Path(args.inputs[0]) / "det" / "det.txt"
+    else:
+        raise InputError("--errors with --gt/--res needs --det DET.txt (the tracker's detections)")
+    if not det_path.is_file():
+        raise FileFormatError(det_path, None, "detection file not found (--det)")
+    detections = read_mot_file(det_path, "det", info=info).frame_span(*span)
+    return classify_errors(
+        gt,
+        result,
+        detections,
+        span,
+        threshold=config.match_threshold,
+        centre_threshold=config.centre_threshold,
+        distractors=config.distractors,
+    )
+
+
+def _error_listing(errors: ErrorTable) -> str:
+    """The count of each kind of miss and false positive, with its share."""
+    lines = []
+    for name, counts in errors.counts().items():
+        total = sum(counts.values())
+        lines.append(f"{name} by what the detections offered ({total}):")
+        lines += [
+            f"  {kind:<22}{n:>8}  {100 * n / max(total, 1):5.1f} %" for kind, n in counts.items()
+        ]
+    return "\n".join(lines)
 
 
 def _switch_listing(switches: SwitchTable) -> str:

@@ -229,3 +229,36 @@ def test_switches_refused_for_a_benchmark(capsys, small_benchmark):
     root, results = small_benchmark
     code, _, err = run_cli(capsys, "--benchmark", root, "--results", results, "--switches")
     assert code == 2 and "--switches" in err and "one sequence" in err
+
+
+def test_errors_listing_and_json(capsys, campus):
+    # TUD-Campus's reference tracker, sorted against the sequence's own detections
+    folder, result = campus
+    code, out, _ = run_cli(capsys, folder, result, "--errors", "--json")
+    assert code == 0
+    report = json.loads(out)
+    assert sum(report["errors"]["FN"].values()) == report["FN"]
+    assert sum(report["errors"]["FP"].values()) == report["FP"]
+    det = folder / "det" / "det.txt"
+    code, out, _ = run_cli(capsys, "--gt", folder / "gt" / "gt.txt", "--res", result,
+                           "--errors", "--det", det)  # fmt: skip
+    assert code == 0
+    for name in ("FN", "FP"):
+        total = report[name]
+        assert f"{name} by what the detections offered ({total}):" in out
+        for kind, n in report["errors"][name].items():
+            assert any(line.split()[:2] == [kind, str(n)] for line in out.splitlines())
+
+
+def test_errors_need_their_detections(capsys, campus, small_benchmark, tmp_path):
+    folder, result = campus
+    gt = folder / "gt" / "gt.txt"
+    code, _, err = run_cli(capsys, "--gt", gt, "--res", result, "--errors")
+    assert code == 2 and "--det" in err
+    code, _, err = run_cli(capsys, folder, result, "--errors", "--det", tmp_path / "none.txt")
+    assert code == 2 and "none.txt" in err and "not found" in err
+    code, _, err = run_cli(capsys, folder, result, "--det", folder / "det" / "det.txt")
+    assert code == 2 and "--errors" in err
+    root, results = small_benchmark
+    code, _, err = run_cli(capsys, "--benchmark", root, "--results", results, "--errors")
+    assert code == 2 and "--errors" in err and "one sequence" in err
