@@ -47,7 +47,8 @@ object a box). Misses: not_detected (no detection overlaps the object), detectio
 (one overlaps it, none well), output_misplaced (well detected, and an unmatched output box
 overlaps it), dropped (well detected, no output box there). False positives: misplaced (on
 a missed object), duplicate (on a matched object), clutter (on a detection mapped to no
-object), phantom (on nothing). The detections are SEQ_DIR/det/det.txt unless --det FILE.
+object), phantom (on nothing). The detections are SEQ_DIR/det/det.txt unless --det FILE;
+with --benchmark, each sequence's det/det.txt, one row per sequence and the summed row.
 """
 
 from __future__ import annotations
@@ -210,7 +211,8 @@ def register(subparsers) -> None:
         action="store_true",
         help="also sort the misses and false positives by what the detections offered "
         "(not_detected, detection_misplaced, output_misplaced, dropped; misplaced, duplicate, "
-        "clutter, phantom; one sequence only); with --json, under the key 'errors'",
+        "clutter, phantom); with --benchmark, per sequence and summed; with --json, under the "
+        "key 'errors'",
     )
     parser.add_argument(
         "--det",
@@ -234,9 +236,9 @@ def run(args) -> int:
         delay_tolerance=args.delay_tolerance,
     )
     if args.benchmark or args.results:
-        refuse_ignored(
-            args, ["switches", "errors", "det"], "lists one sequence's errors: give SEQ_DIR RES.txt"
-        )
+        refuse_ignored(args, ["switches"], "lists one sequence's switches: give SEQ_DIR RES.txt")
+        refuse_ignored(args, ["det"], "names one sequence's detections; a benchmark reads "
+                       "each sequence's det/det.txt")  # fmt: skip
         return _run_benchmark(args, config)
     if args.det and not args.errors:
         raise InputError("--det gives the detections for --errors; add --errors")
@@ -286,6 +288,11 @@ def _error_table(args, gt, result, gt_path, info, span, config) -> ErrorTable:
     if not det_path.is_file():
         raise FileFormatError(det_path, None, "detection file not found (--det)")
     detections = read_mot_file(det_path, "det", info=info).frame_span(*span)
+    return _classified(gt, result, detections, span, config)
+
+
+def _classified(gt, result, detections, span, config) -> ErrorTable:
+    """:func:`classify_errors` with the evaluation's matching settings."""
     return classify_errors(
         gt,
         result,
@@ -355,7 +362,7 @@ def _run_benchmark(args, config) -> int:
     sequences = sorted(p.name for p in root.iterdir() if (p / "seqinfo.ini").is_file())
     if not sequences:
         raise FileFormatError(root, None, "no sequence folders (with seqinfo.ini) inside")
-    evaluations = {}
+    evaluations, errors = {}, {}
     for name in sequences:
         info = read_seqinfo(root / name / "seqinfo.ini")
         result_path = results_dir / f"{name}.txt"
@@ -363,16 +370,51 @@ def _run_benchmark(args, config) -> int:
             raise FileFormatError(result_path, None, f"no result file for sequence {name}")
         gt = read_mot_file(root / name / "gt" / "gt.txt", "gt", info=info)
         result = read_mot_file(result_path, "res", info=info)
-        evaluations[name] = evaluate_sequence(gt, result, (1, info.seq_length), config)
+        span = (1, info.seq_length)
+        evaluations[name] = evaluate_sequence(gt, result, span, config)
+        if args.errors:
+            det_path = root / name / "det" / "det.txt"
+            if not det_path.is_file():
+                raise FileFormatError(
+                    det_path, None, f"no detections for sequence {name} (--errors)"
+                )
+            detections = read_mot_file(det_path, "det", info=info)
+            errors[name] = _classified(gt, result, detections, span, config).counts()
     rows = {name: evaluation.scores() for name, evaluation in evaluations.items()}
     rows["COMBINED"] = combine_sequences(evaluations.values()).scores()
+    if errors:
+        errors["COMBINED"] = {
+            side: {kind: sum(e[side][kind] for e in errors.values()) for kind in counts}
+            for side, counts in next(iter(errors.values())).items()
+        }
     if args.json:
         summary = {name: {key: row[key] for key in SUMMARY_KEYS} for name, row in rows.items()}
         combined = summary.pop("COMBINED")
-        print(json.dumps({"sequences": summary, "combined": combined}))
+        report = {"sequences": summary, "combined": combined}
+        if errors:
+            report["errors"] = errors
+        print(json.dumps(report))
     else:
         print(_table(rows))
+        if errors:
+            print(_error_columns(errors))
     return 0
+
+
+def _error_columns(errors: dict) -> str:
+    """Misses and false positives by kind, one row per sequence and the combined row."""
+    columns = [(side, kind) for side, counts in errors["COMBINED"].items() for kind in counts]
+    width = max(len("Sequence"), *(len(name) for name in errors)) + 2
+    cells = [f"{side} {kind}" for side, kind in columns]
+    lines = ["", "Sequence".ljust(width) + "".join(c.rjust(max(len(c) + 2, 9)) for c in cells)]
+    for name, counts in errors.items():
+        values = [str(counts[side][kind]) for side, kind in columns]
+        lines.append(
+            name.ljust(width)
+            + "".join(v.rjust(max(len(c) + 2, 9)) for v, c in zip(values, cells, strict=True))
+        )
+    lines.append("(misses and false positives by what the detections offered: --help)")
+    return "\n".join(lines)
 
 
 def _format(key: str, value) -> str:

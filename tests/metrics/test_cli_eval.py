@@ -260,5 +260,29 @@ def test_errors_need_their_detections(capsys, campus, small_benchmark, tmp_path)
     code, _, err = run_cli(capsys, folder, result, "--det", folder / "det" / "det.txt")
     assert code == 2 and "--errors" in err
     root, results = small_benchmark
-    code, _, err = run_cli(capsys, "--benchmark", root, "--results", results, "--errors")
-    assert code == 2 and "--errors" in err and "one sequence" in err
+    code, _, err = run_cli(capsys, "--benchmark", root, "--results", results, "--errors",
+                           "--det", folder / "det" / "det.txt")  # fmt: skip
+    assert code == 2 and "--det" in err and "det/det.txt" in err
+
+
+def test_benchmark_errors_per_sequence_and_summed(capsys, small_benchmark):
+    root, results = small_benchmark
+    code, out, _ = run_cli(capsys, "--benchmark", root, "--results", results, "--errors", "--json")
+    assert code == 0
+    report = json.loads(out)
+    errors = report["errors"]
+    assert list(errors) == ["KITTI-17", "TUD-Campus", "COMBINED"]
+    for name, scores in [*report["sequences"].items(), ("COMBINED", report["combined"])]:
+        assert sum(errors[name]["FN"].values()) == scores["FN"]
+        assert sum(errors[name]["FP"].values()) == scores["FP"]
+    for side in ("FN", "FP"):
+        for kind, n in errors["COMBINED"][side].items():
+            assert n == errors["KITTI-17"][side][kind] + errors["TUD-Campus"][side][kind]
+    code, table, _ = run_cli(capsys, "--benchmark", root, "--results", results, "--errors")
+    assert code == 0
+    lines = table[table.index("FN not_detected") - 30 :].splitlines()
+    header = next(line for line in lines if "FN not_detected" in line)
+    assert header.split()[0] == "Sequence"
+    combined = next(line for line in lines if line.startswith("COMBINED") and "FN" not in line)
+    row = [int(v) for v in combined.split()[1:]]
+    assert row == [*errors["COMBINED"]["FN"].values(), *errors["COMBINED"]["FP"].values()]
