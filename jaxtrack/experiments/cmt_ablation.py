@@ -60,8 +60,11 @@ from jaxtrack.experiments.cmt_analysis import (
     scene_crossings,
 )
 from jaxtrack.experiments.common import (
+    ERROR_KEYS,
     QUICK_TRACKER_CONFIG,
     SWITCH_KEYS,
+    error_counts,
+    error_section,
     evaluate_rows,
     markdown_table,
     output_folder,
@@ -266,11 +269,13 @@ def score_row(
     synthetic: bool,
     evaluation: Evaluation,
     crossings: dict[str, int] | None = None,
+    errors: dict[str, int] | None = None,
 ) -> dict[str, Any]:
     """One table row: :data:`PERCENT_KEYS` in percent (rounded to 0.01), :data:`COUNT_KEYS`,
     and whether the sequence (or group) is synthetic; with ``crossings``
     (:func:`~jaxtrack.metrics.cmt.crossing_swap_fields` or their sums), also
-    :data:`CROSSING_KEYS`."""
+    :data:`CROSSING_KEYS`; with ``errors`` (:func:`~jaxtrack.experiments.common.error_counts`
+    or their sums), also :data:`~jaxtrack.experiments.common.ERROR_KEYS`."""
     summary = evaluation.summary()
     row: dict[str, Any] = {"sequence": sequence, "tracker": tracker, "synthetic": synthetic}
     row.update({key: round(100 * summary[key], 2) for key in PERCENT_KEYS})
@@ -279,6 +284,8 @@ def score_row(
     if crossings is not None:
         row["SE_crossings"] = round(100 * crossing_swap_rate(crossings), 2)
         row.update({key: int(crossings[key]) for key in CROSSING_KEYS[1:]})
+    if errors is not None:
+        row.update({key: int(errors[key]) for key in ERROR_KEYS})
     return row
 
 
@@ -340,6 +347,7 @@ def ablation_table(
     evaluations: dict[tuple[str, str], Evaluation] = {}
     scripted: dict[str, list] = {}
     crossings: dict[tuple[str, str], dict[str, int]] = {}
+    errors: dict[tuple[str, str], dict[str, int]] = {}
     results: dict[str, dict[str, MotTable]] = {}
     seconds = dict.fromkeys(trackers, 0.0)
     for sequence, name in bar:
@@ -358,6 +366,7 @@ def ablation_table(
         seconds[name] += time.perf_counter() - start
         results.setdefault(sequence.name, {})[name] = rows
         evaluations[sequence.name, name] = evaluate_rows(loaded[sequence.name], rows)
+        errors[sequence.name, name] = error_counts(loaded[sequence.name], rows)
         if sequence.synthetic:
             crossings[sequence.name, name] = crossing_counts(
                 loaded[sequence.name], rows, scripted[sequence.name]
@@ -374,6 +383,7 @@ def ablation_table(
                         synthetic,
                         evaluations[sequence_name, name],
                         crossings.get((sequence_name, name)),
+                        errors[sequence_name, name],
                     )
                 )
         if len(group) > 1:
@@ -385,7 +395,8 @@ def ablation_table(
                         key: sum(crossings[s, name][key] for s in group)
                         for key in CROSSING_KEYS[1:]
                     }
-                table.append(score_row(combined, name, synthetic, pooled, summed))
+                kinds = {key: sum(errors[s, name][key] for s in group) for key in ERROR_KEYS}
+                table.append(score_row(combined, name, synthetic, pooled, summed, kinds))
     return AblationResult(table, results, seconds, zones, notes)
 
 
@@ -493,12 +504,13 @@ def seed_mean_rows(rows_by_seed: Sequence[Sequence[dict[str, Any]]]) -> list[dic
     means = []
     for index, row in enumerate(first):
         mean = {k: row[k] for k in ("sequence", "tracker", "synthetic")}
-        for key in (*PERCENT_KEYS, *COUNT_KEYS, *SWITCH_KEYS, *CROSSING_KEYS):
+        counts = (*COUNT_KEYS, *SWITCH_KEYS, *CROSSING_KEYS[1:], *ERROR_KEYS)
+        for key in (*PERCENT_KEYS, *COUNT_KEYS, *SWITCH_KEYS, *CROSSING_KEYS, *ERROR_KEYS):
             if key not in row:
                 continue
             values = [rows[index][key] for rows in rows_by_seed]
             mean[key] = round(float(np.mean(values)), 2)
-            if len(rows_by_seed) == 1 and key in (*COUNT_KEYS, *SWITCH_KEYS, *CROSSING_KEYS[1:]):
+            if len(rows_by_seed) == 1 and key in counts:
                 mean[key] = int(values[0])
         means.append(mean)
     return means
@@ -694,6 +706,7 @@ def table_markdown(record: dict[str, Any]) -> str:
         "as TrackEval does.\n",
         markdown_table(record["rows"], TABLE_COLUMNS),
         *switch_section(record["rows"], ("sequence", "tracker"), POOLED),
+        *error_section(record["rows"], ("sequence", "tracker"), POOLED),
         *_crossing_section(record["rows"]),
         *_seed_section(record),
         "## Off-the-shelf peers (quoted from issue 17, not re-run)\n",

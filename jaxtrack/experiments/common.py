@@ -33,6 +33,7 @@ from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import MotSequence, MotTable, load_sequence
 from jaxtrack.io.motchallenge import read_seqinfo
+from jaxtrack.metrics.errors import FN_KINDS, FP_KINDS, classify_errors
 from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
 from jaxtrack.metrics.switches import SCORE_NAMES
 from jaxtrack.pipelines.context import learn_context
@@ -44,6 +45,8 @@ SCORE_KEYS = ("MOTA", "MOTP", "MODA", "MODP", "IDF1", "HOTA")
 COUNT_KEYS = ("FP", "FN", "IDSW")
 #: The identity switches of each kind (:mod:`jaxtrack.metrics.switches`), as row keys.
 SWITCH_KEYS = tuple(SCORE_NAMES.values())
+#: Row keys of the misses and false positives by kind (:mod:`jaxtrack.metrics.errors`).
+ERROR_KEYS = (*(f"FN_{kind}" for kind in FN_KINDS), *(f"FP_{kind}" for kind in FP_KINDS))
 #: The short synthetic scene of ``--quick`` runs: 120 frames, a short burn-in (fewer targets
 #: in view, so fast runs) and more births than the default scene, so that a 60-frame
 #: training half still holds birth events.
@@ -202,6 +205,35 @@ def score_summary(evaluation: Evaluation) -> dict[str, float | int]:
 def switch_counts(evaluation: Evaluation) -> dict[str, int]:
     """The :data:`SWITCH_KEYS` of an evaluation (they add up to its ``IDSW``)."""
     return {key: int(evaluation.switches.get(kind, 0)) for kind, key in SCORE_NAMES.items()}
+
+
+def error_counts(sequence: MotSequence, rows: MotTable) -> dict[str, int]:
+    """The :data:`ERROR_KEYS` of a tracker's rows on a sequence span, against the detections
+    it was given (``sequence.det_table``); they add up to its ``FN`` and ``FP``."""
+    span = (sequence.first_frame, sequence.last_frame)
+    counts = classify_errors(sequence.gt_table, rows, sequence.det_table, span).counts()
+    return {f"{side}_{kind}": n for side, kinds in counts.items() for kind, n in kinds.items()}
+
+
+def error_section(rows: Sequence[dict], labels: Sequence[str], pooled: Sequence[str]) -> list[str]:
+    """``table.md`` lines on the misses and false positives by kind, for the rows whose
+    ``sequence`` is one of ``pooled`` (every row when none is); no lines when no row has
+    the kinds (records written before they existed)."""
+    shown = [row for row in rows if row["sequence"] in pooled] or list(rows)
+    shown = [row for row in shown if ERROR_KEYS[0] in row]
+    if not shown:
+        return []
+    return [
+        "## Misses and false positives by kind\n",
+        "What the detections offered in each error's frame (`jaxtrack eval --errors`, "
+        "`jaxtrack.metrics.errors`; overlap = IoU >= 0.3): misses not detected (no detection "
+        "overlaps the object), detection misplaced (one overlaps, none well), output "
+        "misplaced (well detected, an unmatched output box overlaps it), dropped (well "
+        "detected, no output box there); false positives misplaced (on a missed object), "
+        "duplicate (on a matched one), clutter (on a detection mapped to no object), "
+        "phantom (on nothing). Each side adds up to the row's FN or FP.\n",
+        markdown_table(shown, (*labels, *ERROR_KEYS)),
+    ]
 
 
 def switch_section(

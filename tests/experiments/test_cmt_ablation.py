@@ -29,9 +29,9 @@ from jaxtrack.experiments.cmt_ablation import (
     seed_mean_rows,
 )
 from jaxtrack.experiments.cmt_analysis import likelihood_gaps, pair_boxes, proposal_distances
-from jaxtrack.experiments.common import SWITCH_KEYS
+from jaxtrack.experiments.common import ERROR_KEYS, SWITCH_KEYS
 from jaxtrack.io.motchallenge import read_mot_file
-from jaxtrack.metrics import switch_table
+from jaxtrack.metrics import classify_errors, switch_table
 from jaxtrack.metrics.cmt import DEFAULT_TOLERANCE as CROSSING_TOLERANCE
 from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.metrics.switches import KINDS
@@ -354,6 +354,8 @@ def test_quick_run_writes_what_it_prints(tmp_path, capsys):
     assert "norfair 2.3.0 (no ReID) | 62.3 | 58.6 | 42.8 | 25 | 47 | 175 | 55.8 / 35" in table
     # every row's scores are those of its result file
     gt = read_mot_file(Path(record["sequences"][1]["folder"]) / "gt" / "gt.txt", "gt")
+    det = read_mot_file(Path(record["sequences"][1]["folder"]) / "det" / "det.txt", "det")
+    det = det.frame_span(1, 24)
     for row in rows[5:]:
         name = row["tracker"].replace("+", "-")
         result = read_mot_file(out / "sequences" / "video-101" / f"{name}.txt", "res")
@@ -364,7 +366,15 @@ def test_quick_run_writes_what_it_prints(tmp_path, capsys):
         kinds = [row[key] for key in SWITCH_KEYS]
         assert sum(kinds) == row["IDSW"]
         assert kinds == [len(k) for k in _kinds(gt.frame_span(1, 24), result, (1, 24))]
+        errors = classify_errors(gt.frame_span(1, 24), result, det, (1, 24)).counts()
+        assert [row[key] for key in ERROR_KEYS] == [
+            *errors["FN"].values(),
+            *errors["FP"].values(),
+        ]
+        assert sum(errors["FN"].values()) == summary["FN"]
+        assert sum(errors["FP"].values()) == summary["FP"]
     assert "## Identity switches by kind" in table
+    assert "## Misses and false positives by kind" in table
     # the rows are those ``jaxtrack track`` writes with the same configuration and seed
     config = tmp_path / "cmt.json"
     values = {k: v for k, v in record["trackers"]["CMT"].items() if k != "tracker"}
