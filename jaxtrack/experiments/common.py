@@ -219,11 +219,8 @@ def error_section(rows: Sequence[dict], labels: Sequence[str], pooled: Sequence[
     """``table.md`` lines on the misses and false positives by kind, for the rows whose
     ``sequence`` is one of ``pooled`` (every row when none is); no lines when no row has
     the kinds (records written before they existed)."""
-    shown = [row for row in rows if row["sequence"] in pooled] or list(rows)
-    shown = [row for row in shown if ERROR_KEYS[0] in row]
-    if not shown:
-        return []
-    return [
+    shown = _pooled_rows(rows, pooled, ERROR_KEYS[0])
+    return shown and [
         "## Misses and false positives by kind\n",
         "What the detections offered in each error's frame (`jaxtrack eval --errors`, "
         "`jaxtrack.metrics.errors`; overlap = IoU >= 0.3): misses not detected (no detection "
@@ -243,11 +240,8 @@ def switch_section(
     columns, ``total`` and the :data:`SWITCH_KEYS`) of the rows whose ``sequence`` is one of
     ``pooled`` (every row when none is: a quick run). Rows without the kinds (records written
     before they existed) are left out; no lines when no row is left."""
-    shown = [row for row in rows if row["sequence"] in pooled] or list(rows)
-    shown = [row for row in shown if SWITCH_KEYS[0] in row]
-    if not shown:
-        return []
-    return [
+    shown = _pooled_rows(rows, pooled, SWITCH_KEYS[0])
+    return shown and [
         "## Identity switches by kind\n",
         "What each switch's two tracks did (`jaxtrack eval --switches`, "
         "`jaxtrack.metrics.switches`): exchange = the tracks traded objects, drift = the old "
@@ -255,6 +249,13 @@ def switch_section(
         "lost = the old track ended, replaced = the old track stayed on no object.\n",
         markdown_table(shown, (*labels, total, *SWITCH_KEYS)),
     ]
+
+
+def _pooled_rows(rows: Sequence[dict], pooled: Sequence[str], key: str) -> list[dict]:
+    """The rows whose ``sequence`` is one of ``pooled`` (every row when none is: a quick
+    run) that hold ``key``."""
+    shown = [row for row in rows if row["sequence"] in pooled] or list(rows)
+    return [row for row in shown if key in row]
 
 
 def percent_difference(value: float, reference: float) -> float:
