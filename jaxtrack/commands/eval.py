@@ -40,7 +40,7 @@ track left for another object), takeover (the new track came from another object
 (the old track ended; what re-identification fixes), replaced (the old track stayed on
 nothing). The kinds add up to IDSW.
 
---errors (one sequence) sorts every miss and false positive by what the detections the
+--errors sorts every miss and false positive by what the detections the
 tracker was given offered in that frame (jaxtrack.metrics.errors; "overlaps" = IoU >= 0.3,
 "well detected" = the detections' one-to-one mapping at the match threshold gives the
 object a box). Misses: not_detected (no detection overlaps the object), detection_misplaced
