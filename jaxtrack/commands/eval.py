@@ -258,7 +258,7 @@ def run(args) -> int:
     switches = switch_table(gt, result, (first, last), config) if args.switches else None
     errors = None
     if args.errors:
-        errors = _error_table(args, gt, result, gt_path, info, (first, last), config)
+        errors = _error_table(args, gt, result, info, (first, last), config)
     if args.json:
         record = {key: scores[key] for key in SUMMARY_KEYS}
         if switches is not None:
@@ -276,23 +276,24 @@ def run(args) -> int:
     return 0
 
 
-def _error_table(args, gt, result, gt_path, info, span, config) -> ErrorTable:
+def _error_table(args, gt, result, info, span, config) -> ErrorTable:
     """The classified misses and false positives, with the detections of ``--det`` or of the
     sequence folder."""
     if args.det:
-        det_path = Path(args.det)
+        det_path, missing = Path(args.det), "detection file not found (--det)"
     elif args.inputs:
-        det_path = Path(args.inputs[0]) / "det" / "det.txt"
+        det_path, missing = Path(args.inputs[0]) / "det" / "det.txt", "detection file not found"
     else:
         raise InputError("--errors with --gt/--res needs --det DET.txt (the tracker's detections)")
+    return _classified(gt, result, det_path, missing, info, span, config)
+
+
+def _classified(gt, result, det_path, missing, info, span, config) -> ErrorTable:
+    """:func:`classify_errors` against the detections of ``det_path`` (cut to ``span``; an
+    error with ``missing`` when the file is not there) with the evaluation's settings."""
     if not det_path.is_file():
-        raise FileFormatError(det_path, None, "detection file not found (--det)")
+        raise FileFormatError(det_path, None, missing)
     detections = read_mot_file(det_path, "det", info=info).frame_span(*span)
-    return _classified(gt, result, detections, span, config)
-
-
-def _classified(gt, result, detections, span, config) -> ErrorTable:
-    """:func:`classify_errors` with the evaluation's matching settings."""
     return classify_errors(
         gt,
         result,
@@ -374,12 +375,8 @@ def _run_benchmark(args, config) -> int:
         evaluations[name] = evaluate_sequence(gt, result, span, config)
         if args.errors:
             det_path = root / name / "det" / "det.txt"
-            if not det_path.is_file():
-                raise FileFormatError(
-                    det_path, None, f"no detections for sequence {name} (--errors)"
-                )
-            detections = read_mot_file(det_path, "det", info=info)
-            errors[name] = _classified(gt, result, detections, span, config).counts()
+            missing = f"no detections for sequence {name} (--errors)"
+            errors[name] = _classified(gt, result, det_path, missing, info, span, config).counts()
     rows = {name: evaluation.scores() for name, evaluation in evaluations.items()}
     rows["COMBINED"] = combine_sequences(evaluations.values()).scores()
     if errors:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxtrack.metrics.preprocess import prepare_sequence
+from jaxtrack.metrics.preprocess import SequenceData, prepare_sequence
 from jaxtrack.metrics.vace import detection_mapping
 from jaxtrack.types import MotTable
 
@@ -30,7 +30,7 @@ def detection_precision_recall(
     Returns:
         ``(precision, recall)``; a ratio with a zero denominator is 0.0.
     """
-    data, mapped = _mapping(det_table, gt_table, frames, iou_threshold)
+    data, mapped = map_detections(det_table, gt_table, frames, iou_threshold)
     matched = int(mapped.sum())
     num_gt = int(data.gt_frame.shape[0])
     precision = matched / len(det_table) if len(det_table) else 0.0
@@ -59,7 +59,7 @@ def true_identity_rows(
     Returns:
         The mapped detections (score 1), in the detections' row order.
     """
-    data, mapped = _mapping(det_table, gt_table, frames, iou_threshold)
+    data, mapped = map_detections(det_table, gt_table, frames, iou_threshold)
     det_rows = data.tracker_labels[data.tracker_id[data.pairs.tracker_row[mapped]]]
     identities = data.gt_labels[data.gt_id[data.pairs.gt_row[mapped]]]
     order = np.argsort(det_rows, kind="stable")
@@ -67,9 +67,28 @@ def true_identity_rows(
     return MotTable.from_arrays(det_table.frames[det_rows], identities, det_table.boxes[det_rows])
 
 
-def _mapping(det_table, gt_table, frames, iou_threshold):
-    """The scored boxes (the detections numbered by row as tracker ids) and the mapped
-    pairs."""
+def map_detections(
+    det_table: MotTable,
+    gt_table: MotTable,
+    frames: tuple[int, int],
+    iou_threshold: float = 0.5,
+    centre_threshold: float | None = None,
+    distractors: bool = False,
+) -> tuple[SequenceData, np.ndarray]:
+    """The detections' one-to-one mapping to the ground truth, frame by frame
+    (:func:`jaxtrack.metrics.vace.detection_mapping`).
+
+    Args:
+        det_table: detections (ids ignored).
+        gt_table: ground truth, all rows as read (the conventions are applied here).
+        frames: ``(first, last)`` 1-based inclusive span holding every row of both tables.
+        iou_threshold: minimum similarity of a mapped pair.
+        centre_threshold, distractors: as :func:`~jaxtrack.metrics.preprocess.prepare_sequence`.
+
+    Returns:
+        ``(data, mapped)``: the scored boxes, the detections numbered by row as tracker ids,
+        and the ``[P]`` mask of their mapped pairs.
+    """
     numbered = MotTable.from_arrays(det_table.frames, np.arange(len(det_table)), det_table.boxes)
-    data = prepare_sequence(gt_table, numbered, frames)
+    data = prepare_sequence(gt_table, numbered, frames, centre_threshold, distractors)
     return data, detection_mapping(data, iou_threshold)

@@ -7,7 +7,7 @@ detector's false alarms. This module gives every CLEAR MOT miss and false positi
 the same frame. "Overlaps" means similarity (IoU, or the centre similarity) of at least
 ``near`` (default 0.3, below ``T``: a box on the object but not well enough placed to
 count). A gt box is **well detected** when the detections' one-to-one mapping at ``T``
-(:func:`jaxtrack.metrics.vace.detection_mapping`, the mapping of
+(:func:`jaxtrack.metrics.detection.map_detections`, the mapping of
 :func:`jaxtrack.metrics.detection.true_identity_rows`) gives it a detection.
 
 Misses (gt boxes that no output box matched), first kind that applies:
@@ -50,9 +50,9 @@ import numpy as np
 
 from jaxtrack.errors import InputError
 from jaxtrack.metrics.clear import clear_matching
+from jaxtrack.metrics.detection import map_detections
 from jaxtrack.metrics.matching import EPS, box_similarity, build_pairs
 from jaxtrack.metrics.preprocess import prepare_sequence
-from jaxtrack.metrics.vace import detection_mapping
 from jaxtrack.types import MotTable
 
 #: Kinds of misses, in the order of the codes of :attr:`ErrorTable.fn_kind`.
@@ -129,15 +129,15 @@ def classify_errors(
     if not (0.0 < near <= threshold):
         raise InputError(f"near must lie in (0, threshold = {threshold}], got {near}")
     data = prepare_sequence(gt, result, frames, centre_threshold, distractors)
-    numbered = MotTable.from_arrays(detections.frames, np.arange(len(detections)), detections.boxes)
-    det_data = prepare_sequence(gt, numbered, frames, centre_threshold, distractors)
+    det_data, mapped = map_detections(
+        detections, gt, frames, threshold, centre_threshold, distractors
+    )
     num_gt, num_out = data.num_rows
     num_det = det_data.num_rows[1]
 
     matched = clear_matching(data, threshold).matched
     gt_matched = _rows(data.pairs.gt_row, matched, num_gt)
     out_matched = _rows(data.pairs.tracker_row, matched, num_out)
-    mapped = detection_mapping(det_data, threshold)
     gt_detected = _rows(det_data.pairs.gt_row, mapped, num_gt)
     det_mapped = _rows(det_data.pairs.tracker_row, mapped, num_det)
     gt_det_near = _rows(det_data.pairs.gt_row, det_data.similarity >= near - EPS, num_gt)
