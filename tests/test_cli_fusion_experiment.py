@@ -13,15 +13,16 @@ from pathlib import Path
 import pytest
 
 from jaxtrack.cli import main
-from jaxtrack.experiments.common import SWITCH_KEYS
+from jaxtrack.experiments.common import ERROR_KEYS, SWITCH_KEYS
 from jaxtrack.experiments.fusion import TABLE_COLUMNS, result_name
 from jaxtrack.filters.fusion_tracker import FusionConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _eval(folder: Path, result: Path, frames: str, capsys) -> dict:
-    assert main(["eval", str(folder), str(result), "--frames", frames, "--json"]) == 0
+def _eval(folder: Path, result: Path, frames: str, capsys, det: Path) -> dict:
+    argv = ["eval", str(folder), str(result), "--frames", frames, "--json"]
+    assert main([*argv, "--errors", "--det", str(det)]) == 0
     return json.loads(capsys.readouterr().out)
 
 
@@ -47,7 +48,10 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
         result = out / "sequences" / row["sequence"] / row["detections"]
         result = result / f"{result_name(row['tracker'])}.txt"
         frames = "1:24" if row["scored"] == "whole" else "13:24"
-        scores = _eval(folders[row["sequence"]], result, frames, capsys)
+        det = folders[row["sequence"]] / "det" / "det.txt"
+        if row["detections"] == "bs":
+            det = out / "sequences" / row["sequence"] / "bs" / "det.txt"
+        scores = _eval(folders[row["sequence"]], result, frames, capsys, det)
         assert row["IDF1"] == pytest.approx(100 * scores["IDF1"], abs=0.006)
         assert row["MOTA"] == pytest.approx(100 * scores["MOTA"], abs=0.006)
         assert (row["MT"], row["PT"], row["ML"]) == (scores["MT"], scores["PT"], scores["ML"])
@@ -58,6 +62,12 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
         )
         assert row["MT %"] == round(100 * scores["MT"] / scores["GT_IDs"], 1)
         assert sum(row[key] for key in SWITCH_KEYS) == row["IDS"]
+        # the error kinds are jaxtrack eval --errors's against the detections the run had
+        kinds = scores["errors"]
+        assert [row[key] for key in ERROR_KEYS] == [*kinds["FN"].values(), *kinds["FP"].values()]
+        assert (
+            sum(kinds["FN"].values()) == scores["FN"] and sum(kinds["FP"].values()) == scores["FP"]
+        )
     # the reference: perfectly associated detections, no switch, no false positive
     oracle = [row for row in rows if row["tracker"] == "True identities"]
     assert len(oracle) == 8 and all(row["IDS"] == 0 and row["MT"] > 0 for row in oracle)
@@ -75,6 +85,7 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
     table = (out / "table.md").read_text()
     assert table.startswith("# Fusion tracker") and "Quick smoke run" in table
     assert "## Identity switches by kind" in table
+    assert "## Misses and false positives by kind" in table
     assert "| Proposed (paper, Table 4) | 94.7 | 5.3 | 0.0 | 18 | 1 | 0 | 19 | 34 | 7 |" in table
     # quick: the scene's goal only (no PETS, no ablation, no pooled MOT15 row)
     assert [g["goal"].split(" (")[0] for g in record["goals"]] == ["video-101", "video-101"]

@@ -68,6 +68,7 @@ from jaxtrack.experiments.common import (
     evaluate_rows,
     markdown_table,
     output_folder,
+    summed_errors,
     switch_counts,
     switch_section,
 )
@@ -395,7 +396,7 @@ def ablation_table(
                         key: sum(crossings[s, name][key] for s in group)
                         for key in CROSSING_KEYS[1:]
                     }
-                kinds = {key: sum(errors[s, name][key] for s in group) for key in ERROR_KEYS}
+                kinds = summed_errors(errors[s, name] for s in group)
                 table.append(score_row(combined, name, synthetic, pooled, summed, kinds))
     return AblationResult(table, results, seconds, zones, notes)
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -207,12 +207,41 @@ def switch_counts(evaluation: Evaluation) -> dict[str, int]:
     return {key: int(evaluation.switches.get(kind, 0)) for kind, key in SCORE_NAMES.items()}
 
 
-def error_counts(sequence: MotSequence, rows: MotTable) -> dict[str, int]:
+def error_counts(
+    sequence: MotSequence,
+    rows: MotTable,
+    detections: MotTable | None = None,
+    frames: tuple[int, int] | None = None,
+) -> dict[str, int]:
     """The :data:`ERROR_KEYS` of a tracker's rows on a sequence span, against the detections
-    it was given (``sequence.det_table``); they add up to its ``FN`` and ``FP``."""
-    span = (sequence.first_frame, sequence.last_frame)
-    counts = classify_errors(sequence.gt_table, rows, sequence.det_table, span).counts()
+    it was given; they add up to its ``FN`` and ``FP`` (as :func:`evaluate_rows` counts them).
+
+    Args:
+        sequence: the span tracked, with its ground truth.
+        rows: the tracker's rows on it.
+        detections: the detections the tracker was given (default: ``sequence.det_table``,
+            the sequence's own).
+        frames: a part ``(first, last)`` of the span scored alone (default: the whole span);
+            the ground truth, rows and detections are cut to it first.
+    """
+    if sequence.gt_table is None:
+        raise InputError(f"{sequence.path}: no ground truth (gt/gt.txt) to score against")
+    if detections is None:
+        detections = sequence.det_table
+    span = (sequence.first_frame, sequence.last_frame) if frames is None else frames
+    counts = classify_errors(
+        sequence.gt_table.frame_span(*span),
+        rows.frame_span(*span),
+        detections.frame_span(*span),
+        span,
+    ).counts()
     return {f"{side}_{kind}": n for side, kinds in counts.items() for kind, n in kinds.items()}
+
+
+def summed_errors(counts: Iterable[dict[str, int]]) -> dict[str, int]:
+    """The :data:`ERROR_KEYS` of a pooled row: the sum of its sequences' counts."""
+    counts = list(counts)
+    return {key: sum(count[key] for count in counts) for key in ERROR_KEYS}
 
 
 def error_section(rows: Sequence[dict], labels: Sequence[str], pooled: Sequence[str]) -> list[str]:

@@ -63,8 +63,11 @@ from jaxtrack.experiments.cmt_ablation import (
 )
 from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
+    error_counts,
+    error_section,
     evaluate_rows,
     markdown_table,
+    summed_errors,
     switch_counts,
     switch_section,
 )
@@ -170,7 +173,9 @@ def held_out_frames(sequence: MotSequence) -> tuple[int, int]:
     return last_trained + 1, sequence.last_frame
 
 
-def score_row(key: RunKey, synthetic: bool, evaluation: Evaluation) -> dict[str, Any]:
+def score_row(
+    key: RunKey, synthetic: bool, evaluation: Evaluation, errors: dict[str, int] | None = None
+) -> dict[str, Any]:
     """One table row (:data:`TABLE_COLUMNS`): MT/PT/ML in % of the ground-truth trajectories
     (0 without any) and as counts, FM, IDS, and :data:`PERCENT_KEYS` in % (0.01)."""
     summary = evaluation.summary()
@@ -188,6 +193,8 @@ def score_row(key: RunKey, synthetic: bool, evaluation: Evaluation) -> dict[str,
     row.update(GT=int(trajectories), FM=int(summary["Frag"]), IDS=int(summary["IDSW"]))
     row.update({name: round(100 * summary[name], 2) for name in PERCENT_KEYS})
     row.update(switch_counts(evaluation))
+    if errors is not None:
+        row.update(errors)
     return row
 
 
@@ -220,6 +227,7 @@ def run_experiment(
     start, out, _, sequences = start_experiment(out_dir, data, seeds, quick, progress)
     trackers = experiment_trackers(quick)
     evaluations: dict[RunKey, Evaluation] = {}
+    errors: dict[RunKey, dict[str, int]] = {}
     spans: dict[str, dict[str, list[int]]] = {}
     training: dict[str, str] = {}
     seconds = dict.fromkeys(trackers, 0.0)
@@ -237,12 +245,12 @@ def run_experiment(
         }
         if "training" in run.used:
             training[f"{name} {run.source}"] = run.used["training"]
-        _score(evaluations, run, run.name, run.rows, held_out)
+        _score(evaluations, errors, run, run.name, run.rows, held_out)
         if run.name == first_tracker:  # once per sequence and source
             reference = _oracle_rows(run)
             write_mot_file(run.folder / f"{result_name(ORACLE)}.txt", reference)
-            _score(evaluations, run, ORACLE, reference, held_out)
-    rows = _table(sequences, [*trackers, ORACLE], evaluations)
+            _score(evaluations, errors, run, ORACLE, reference, held_out)
+    rows = _table(sequences, [*trackers, ORACLE], evaluations, errors)
     record = {
         "quick": quick,
         "seed": seed,
@@ -265,11 +273,20 @@ def run_experiment(
     return record
 
 
-def _score(evaluations: dict[RunKey, Evaluation], run, tracker, rows, held_out) -> None:
-    """Scores ``rows`` of a run's sequence and source under each of :data:`PROTOCOLS`."""
+def _score(
+    evaluations: dict[RunKey, Evaluation],
+    errors: dict[RunKey, dict[str, int]],
+    run,
+    tracker,
+    rows,
+    held_out,
+) -> None:
+    """Scores ``rows`` of a run's sequence and source under each of :data:`PROTOCOLS`, and
+    sorts their misses and false positives by kind against the run's detections."""
     for protocol, scored in zip(PROTOCOLS, (None, held_out), strict=True):
         key = RunKey(run.sequence.name, run.source, protocol, tracker)
         evaluations[key] = evaluate_rows(run.loaded, rows, scored)
+        errors[key] = error_counts(run.loaded, rows, run.detections, scored)
 
 
 def _oracle_rows(run) -> MotTable:
@@ -284,9 +301,9 @@ def result_name(tracker: str) -> str:
     return tracker.lower().replace(" ", "-")
 
 
-def _table(sequences, trackers, evaluations) -> list[dict[str, Any]]:
+def _table(sequences, trackers, evaluations, errors) -> list[dict[str, Any]]:
     """Per sequence, source, protocol and tracker; then the pooled rows of each group of
-    two or more sequences (MOT15, synthetic)."""
+    two or more sequences (MOT15, synthetic; the error kinds summed)."""
     table = []
     for synthetic, combined in ((False, MOT15_COMBINED), (True, SYNTHETIC_COMBINED)):
         group = [s.name for s in sequences if s.synthetic == synthetic]
@@ -296,12 +313,12 @@ def _table(sequences, trackers, evaluations) -> list[dict[str, Any]]:
                     for tracker in trackers:
                         key = RunKey(name, source, protocol, tracker)
                         if name == combined:
-                            evaluation = combine_sequences(
-                                evaluations[key._replace(sequence=member)] for member in group
-                            )
+                            members = [key._replace(sequence=member) for member in group]
+                            evaluation = combine_sequences(evaluations[m] for m in members)
+                            kinds = summed_errors(errors[m] for m in members)
                         else:
-                            evaluation = evaluations[key]
-                        table.append(score_row(key, synthetic, evaluation))
+                            evaluation, kinds = evaluations[key], errors[key]
+                        table.append(score_row(key, synthetic, evaluation, kinds))
     return table
 
 
@@ -524,6 +541,7 @@ def table_markdown(record: dict[str, Any]) -> str:
             POOLED,
             "IDS",
         ),
+        *error_section(record["rows"], ("sequence", "detections", "scored", "tracker"), POOLED),
         "## Goals\n",
         *(
             f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"

@@ -42,8 +42,11 @@ from jaxtrack.experiments.cmt_ablation import (
     start_experiment,
 )
 from jaxtrack.experiments.common import (
+    error_counts,
+    error_section,
     evaluate_rows,
     markdown_table,
+    summed_errors,
     switch_counts,
     switch_section,
 )
@@ -86,8 +89,12 @@ def experiment_configs() -> dict[str, HierarchicalConfig]:
     return {name: HierarchicalConfig(variant=variant) for name, variant in TRACKERS.items()}
 
 
-def score_row(key: RunKey, synthetic: bool, evaluation: Evaluation) -> dict[str, Any]:
-    """One table row: :data:`PERCENT_KEYS` in percent (0.01), :data:`COUNT_KEYS`."""
+def score_row(
+    key: RunKey, synthetic: bool, evaluation: Evaluation, errors: dict[str, int] | None = None
+) -> dict[str, Any]:
+    """One table row: :data:`PERCENT_KEYS` in percent (0.01), :data:`COUNT_KEYS`, the
+    switches by kind; with ``errors`` (:func:`~jaxtrack.experiments.common.error_counts` or
+    their sums), also :data:`~jaxtrack.experiments.common.ERROR_KEYS`."""
     summary = evaluation.summary()
     row: dict[str, Any] = {
         "sequence": key.sequence,
@@ -98,6 +105,8 @@ def score_row(key: RunKey, synthetic: bool, evaluation: Evaluation) -> dict[str,
     row.update({name: round(100 * summary[name], 2) for name in PERCENT_KEYS})
     row.update({name: int(summary[name]) for name in COUNT_KEYS})
     row.update(switch_counts(evaluation))
+    if errors is not None:
+        row.update(errors)
     return row
 
 
@@ -135,6 +144,7 @@ def run_experiment(
         scene = generate_video_scene(scene_seed, scene_config)
         scenes[scene.info.name] = scene
     evaluations: dict[RunKey, Evaluation] = {}
+    errors: dict[RunKey, dict[str, int]] = {}
     events: dict[str, dict] = {}
     kept: dict[str, dict] = {}
     cases: dict[str, list[dict]] = {}
@@ -145,6 +155,7 @@ def run_experiment(
         key = RunKey(run.sequence.name, run.source, run.name)
         write_mot_file(run.folder / f"{config.variant}.txt", run.rows)
         evaluations[key] = evaluate_rows(run.loaded, run.rows)
+        errors[key] = error_counts(run.loaded, run.rows, run.detections)
         if run.events is not None:
             write_events(run.folder / f"{config.variant}.events.csv", run.events)
         if scene is not None and config.variant == "full":
@@ -156,7 +167,7 @@ def run_experiment(
             kept[label] = count_cases(run_cases)
             if config.variant == "full":
                 cases[f"{run.sequence.name} {run.source}"] = run_cases
-    rows_table = _table(sequences, configs, evaluations)
+    rows_table = _table(sequences, configs, evaluations, errors)
     record = {
         "quick": quick,
         "seed": seed,
@@ -178,8 +189,9 @@ def run_experiment(
     return record
 
 
-def _table(sequences, configs, evaluations) -> list[dict[str, Any]]:
-    """Per-sequence rows, then pooled rows of each group of two or more sequences."""
+def _table(sequences, configs, evaluations, errors) -> list[dict[str, Any]]:
+    """Per-sequence rows, then pooled rows of each group of two or more sequences (the
+    error kinds summed)."""
     table = []
     for synthetic, combined in ((False, MOT15_COMBINED), (True, SYNTHETIC_COMBINED)):
         group = [s.name for s in sequences if s.synthetic == synthetic]
@@ -187,13 +199,14 @@ def _table(sequences, configs, evaluations) -> list[dict[str, Any]]:
             for name in group:
                 for tracker in configs:
                     key = RunKey(name, source, tracker)
-                    table.append(score_row(key, synthetic, evaluations[key]))
+                    table.append(score_row(key, synthetic, evaluations[key], errors[key]))
             if len(group) > 1:
                 for tracker in configs:
-                    pooled = combine_sequences(
-                        evaluations[RunKey(name, source, tracker)] for name in group
-                    )
-                    table.append(score_row(RunKey(combined, source, tracker), synthetic, pooled))
+                    members = [RunKey(name, source, tracker) for name in group]
+                    pooled = combine_sequences(evaluations[member] for member in members)
+                    kinds = summed_errors(errors[member] for member in members)
+                    row = score_row(RunKey(combined, source, tracker), synthetic, pooled, kinds)
+                    table.append(row)
     return table
 
 
@@ -347,8 +360,9 @@ def table_markdown(record: dict[str, Any]) -> str:
         ]
     # the pooled rows only (a quick run has none, and no section)
     pooled = [r for r in record["rows"] if r["sequence"] in POOLED]
-    section = switch_section(pooled, ("sequence", "detections", "tracker"), POOLED)
-    lines += [*section, ""] if section else []
+    labels = ("sequence", "detections", "tracker")
+    for section in (switch_section(pooled, labels, POOLED), error_section(pooled, labels, POOLED)):
+        lines += [*section, ""] if section else []
     lines += ["## Goals", ""]
     lines += [
         f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"

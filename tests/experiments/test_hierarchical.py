@@ -3,9 +3,17 @@ themselves are covered by tests/test_cli_hierarchical.py and tests/filters)."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
+import numpy as np
+
 from jaxtrack.experiments.cmt_ablation import MOT15_COMBINED
-from jaxtrack.experiments.hierarchical import goal_checks, table_markdown
+from jaxtrack.experiments.common import ERROR_KEYS
+from jaxtrack.experiments.frame_runs import SOURCES
+from jaxtrack.experiments.hierarchical import RunKey, _table, goal_checks, table_markdown
+from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.metrics.events import KINDS
+from jaxtrack.types import MotTable
 
 
 def row(sequence, source, tracker, idf1, idsw):
@@ -128,3 +136,42 @@ def test_table_markdown_lists_goals():
     text = table_markdown(data)
     assert "## Identity switches by kind" in text
     assert f"| {MOT15_COMBINED} | det | Hierarchical | 5 | 2 | 1 | 0 | 2 | 0 |" in text
+
+
+def test_table_rows_carry_the_error_kinds_and_pooled_rows_sum_them():
+    # one person tracked on 4 of 5 frames (1 FN), plus a false box on frame 1 (1 FP)
+    boxes = lambda n, x: np.tile([x, 10.0, 20.0, 40.0], (n, 1))  # noqa: E731
+    gt = MotTable.from_arrays(np.arange(1.0, 6.0), np.ones(5), boxes(5, 100.0))
+    frames = np.array([1.0, 2.0, 3.0, 4.0, 1.0])
+    result = MotTable.from_arrays(frames, np.array([1.0] * 4 + [2.0]), boxes(5, 100.0))
+    result.boxes[4, 0] = 400.0
+    evaluation = evaluate_sequence(gt, result, (1, 5))
+    sequences = [SimpleNamespace(name=n, synthetic=False) for n in ("A", "B")]
+    configs = {"Hierarchical": None}
+    evaluations, errors = {}, {}
+    for number, sequence in enumerate(sequences):
+        for source in SOURCES:
+            key = RunKey(sequence.name, source, "Hierarchical")
+            evaluations[key] = evaluation
+            errors[key] = {name: number + 2 * i for i, name in enumerate(ERROR_KEYS)}
+    rows = _table(sequences, configs, evaluations, errors)
+    by_key = {(r["sequence"], r["detections"]): r for r in rows}
+    assert [by_key["B", "det"][name] for name in ERROR_KEYS] == [1 + 2 * i for i in range(8)]
+    pooled = by_key[MOT15_COMBINED, "bs"]
+    assert [pooled[name] for name in ERROR_KEYS] == [1 + 4 * i for i in range(8)]
+    assert (pooled["IDSW"], by_key["A", "det"]["MOTA"]) == (0, 60.0)  # (5 - 1 FN - 1 FP) / 5
+    text = table_markdown(
+        {
+            **record(full_idsw=5, full_idf1=60.0, kept=9, matched=8),
+            "rows": rows,
+            "synthetic_seeds_held_out": [101],
+            "seed": 0,
+            "seconds": 1.0,
+            "goals": [],
+        }
+    )
+    assert "## Misses and false positives by kind" in text
+    assert (
+        f"| {MOT15_COMBINED} | bs | Hierarchical | {' | '.join(str(1 + 4 * i) for i in range(8))} |"
+        in text
+    )
