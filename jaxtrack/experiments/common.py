@@ -129,8 +129,7 @@ def split_halves(sequence_dir: str | Path) -> Split:
             f"{folder}: {info.seq_length} frames; a half needs at least {MIN_TRAIN_FRAMES}"
         )
     train = load_sequence(folder, frames=(1, half))
-    if train.gt_table is None:
-        raise InputError(f"{folder}: no ground truth (gt/gt.txt) to score against")
+    _ground_truth(train)
     return Split(train=train, test=load_sequence(folder, frames=(half + 1, info.seq_length)))
 
 
@@ -183,15 +182,21 @@ def evaluate_rows(
     Raises:
         InputError: the sequence has no ground truth.
     """
+    gt = _ground_truth(sequence)
+    if frames is None:
+        return evaluate_sequence(gt, rows, frames=(sequence.first_frame, sequence.last_frame))
+    return evaluate_sequence(gt.frame_span(*frames), rows.frame_span(*frames), frames=frames)
+
+
+def _ground_truth(sequence: MotSequence) -> MotTable:
+    """The sequence span's ground truth.
+
+    Raises:
+        InputError: the sequence has no ground truth.
+    """
     if sequence.gt_table is None:
         raise InputError(f"{sequence.path}: no ground truth (gt/gt.txt) to score against")
-    if frames is None:
-        return evaluate_sequence(
-            sequence.gt_table, rows, frames=(sequence.first_frame, sequence.last_frame)
-        )
-    return evaluate_sequence(
-        sequence.gt_table.frame_span(*frames), rows.frame_span(*frames), frames=frames
-    )
+    return sequence.gt_table
 
 
 def score_summary(evaluation: Evaluation) -> dict[str, float | int]:
@@ -224,13 +229,12 @@ def error_counts(
         frames: a part ``(first, last)`` of the span scored alone (default: the whole span);
             the ground truth, rows and detections are cut to it first.
     """
-    if sequence.gt_table is None:
-        raise InputError(f"{sequence.path}: no ground truth (gt/gt.txt) to score against")
+    gt = _ground_truth(sequence)
     if detections is None:
         detections = sequence.det_table
     span = (sequence.first_frame, sequence.last_frame) if frames is None else frames
     counts = classify_errors(
-        sequence.gt_table.frame_span(*span),
+        gt.frame_span(*span),
         rows.frame_span(*span),
         detections.frame_span(*span),
         span,
