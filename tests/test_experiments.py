@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 import subprocess
@@ -309,14 +310,59 @@ def test_generalisation_summary_and_goals_against_hand_numbers():
     assert statuses == ["PASS", "FAIL", "n/a", "n/a"]
 
 
+def test_generalisation_summary_sums_the_error_kinds_over_seeds():
+    from jaxtrack.experiments.common import ERROR_KEYS
+    from jaxtrack.experiments.context_generalisation import error_lines, summarise
+
+    rows = _generalisation_rows(
+        {
+            ("street", 0): {"UM": 80.0, "GM": 90.0, "A1": 85.0},
+            ("street", 1): {"UM": 60.0, "GM": 63.0, "A1": 61.0},
+        }
+    )
+    for number, row in enumerate(rows):  # FN_<first kind> = number, FP_<first kind> = 1
+        kinds = dict.fromkeys(ERROR_KEYS, 0)
+        kinds[ERROR_KEYS[0]] = number
+        kinds[next(key for key in ERROR_KEYS if key.startswith("FP_"))] = 1
+        row.update(kinds, FN=number, FP=1)
+    summary = summarise(rows)
+    by_variant = {row["variant"]: row for row in summary}
+    # rows 0-2 are seed 0's UM, GM, A1 and rows 3-5 seed 1's: UM sums rows 0 and 3
+    assert (by_variant["UM"]["FN"], by_variant["GM"]["FN"], by_variant["A1"]["FN"]) == (3, 5, 7)
+    assert by_variant["GM"][ERROR_KEYS[0]] == 5 and by_variant["GM"]["FP"] == 2
+    assert sum(by_variant["A1"][key] for key in ERROR_KEYS if key.startswith("FP_")) == 2
+    lines = error_lines(summary)
+    assert lines[0] == "## Misses and false positives by kind\n"
+    table = lines[-1].splitlines()
+    assert table[0] == "| group | variant | seeds | FN | FP | " + " | ".join(ERROR_KEYS) + " |"
+    # UM and GM only (A1 is not shown), in the summary's order
+    assert [line.split(" | ")[1] for line in table[2:]] == ["UM", "GM"]
+    assert table[3].startswith("| street | GM | 2 | 5 | 2 | 5 | ")
+    # rows written before the kinds existed: no kinds summed, no section
+    for row in rows:
+        for key in ERROR_KEYS:
+            del row[key]
+    bare = summarise(rows)
+    assert ERROR_KEYS[0] not in bare[0] and bare[0]["FN"] == 3
+    assert error_lines(bare) == []
+
+
 @pytest.mark.slow
 def test_context_generalisation_quick(tmp_path, capsys):
+    from jaxtrack.experiments.common import (
+        ERROR_KEYS,
+        QUICK_TRACKER_CONFIG,
+        split_halves,
+    )
     from jaxtrack.experiments.context_generalisation import (
         CONTEXT_COLUMNS,
         GAIN_COLUMNS,
         ROW_COLUMNS,
         SUMMARY_COLUMNS,
     )
+    from jaxtrack.filters.phd_tracker import phd_params
+    from jaxtrack.metrics.errors import classify_errors
+    from jaxtrack.pipelines.tracking import track_sequences
 
     out = tmp_path / "cg"
     argv = ("--out", out, "--quick", "--quiet", "--families", "sparse-door", "--seeds", 1)
@@ -367,6 +413,26 @@ def test_context_generalisation_quick(tmp_path, capsys):
     assert "run by run" not in text  # no real sequence
     assert "200 particles, 8 births per detection, confirmation 'score', quick run" in text
     assert contexts[0]["seed"] == contexts[1]["seed"] == "1"
+    # The misses and false positives by kind add up to FN and FP on every row; UM's equal
+    # those of a single UM run on the test half against its detections.
+    for row in rows:
+        for side in ("FN", "FP"):
+            kinds = [key for key in ERROR_KEYS if key.startswith(side + "_")]
+            assert sum(int(row[key]) for key in kinds) == int(row[side]), row["variant"]
+    split = split_halves(out / "scenes" / "sparse-door-1")
+    config = dataclasses.replace(QUICK_TRACKER_CONFIG, num_particles=200)
+    (single,) = track_sequences([split.test], config, 1, [phd_params(config, split.test.info)])
+    span = (split.test.first_frame, split.test.last_frame)
+    counts = classify_errors(
+        split.test.gt_table, single, split.test.det_table.frame_span(*span), span
+    ).counts()
+    um = rows[0]
+    assert um["variant"] == "UM"
+    assert {f"{side}_{kind}": n for side, kinds in counts.items() for kind, n in kinds.items()} == {
+        key: int(um[key]) for key in ERROR_KEYS
+    }
+    assert "## Misses and false positives by kind" in text
+    assert f"| sparse-door | UM | 1 | {um['FN']} | {um['FP']} |" in text
 
 
 def test_generalisation_real_runs_pair_um_and_gm_per_seed():

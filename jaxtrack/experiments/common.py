@@ -248,6 +248,18 @@ def summed_errors(counts: Iterable[dict[str, int]]) -> dict[str, int]:
     return {key: sum(count[key] for count in counts) for key in ERROR_KEYS}
 
 
+#: What the error kinds of :data:`ERROR_KEYS` mean, for the experiments' ``table.md``.
+ERROR_KINDS_TEXT = (
+    "What the detections offered in each error's frame (`jaxtrack eval --errors`, "
+    "`jaxtrack.metrics.errors`; overlap = IoU >= 0.3): misses not detected (no detection "
+    "overlaps the object), detection misplaced (one overlaps, none well), output "
+    "misplaced (well detected, an unmatched output box overlaps it), dropped (well "
+    "detected, no output box there); false positives misplaced (on a missed object), "
+    "duplicate (on a matched one), clutter (on a detection mapped to no object), "
+    "phantom (on nothing)."
+)
+
+
 def error_section(rows: Sequence[dict], labels: Sequence[str], pooled: Sequence[str]) -> list[str]:
     """``table.md`` lines on the misses and false positives by kind, for the rows whose
     ``sequence`` is one of ``pooled`` (every row when none is); no lines when no row has
@@ -255,13 +267,7 @@ def error_section(rows: Sequence[dict], labels: Sequence[str], pooled: Sequence[
     shown = _pooled_rows(rows, pooled, ERROR_KEYS[0])
     return shown and [
         "## Misses and false positives by kind\n",
-        "What the detections offered in each error's frame (`jaxtrack eval --errors`, "
-        "`jaxtrack.metrics.errors`; overlap = IoU >= 0.3): misses not detected (no detection "
-        "overlaps the object), detection misplaced (one overlaps, none well), output "
-        "misplaced (well detected, an unmatched output box overlaps it), dropped (well "
-        "detected, no output box there); false positives misplaced (on a missed object), "
-        "duplicate (on a matched one), clutter (on a detection mapped to no object), "
-        "phantom (on nothing). Each side adds up to the row's FN or FP.\n",
+        f"{ERROR_KINDS_TEXT} Each side adds up to the row's FN or FP.\n",
         markdown_table(shown, (*labels, *ERROR_KEYS)),
     ]
 

@@ -53,9 +53,12 @@ from jaxtrack.errors import InputError
 from jaxtrack.experiments.ablation import ablation_contexts, variant_params
 from jaxtrack.experiments.common import (
     COUNT_KEYS,
+    ERROR_KEYS,
+    ERROR_KINDS_TEXT,
     QUICK_TRACKER_CONFIG,
     SCORE_KEYS,
     Split,
+    error_counts,
     evaluate_rows,
     markdown_table,
     output_folder,
@@ -101,7 +104,16 @@ GOAL_MAX_LOSS = 1.0
 #: Tuning settings of ``quick`` runs (the full run uses tune_sequence's defaults).
 QUICK_TUNING = {"num_steps": 3, "num_keys": 1, "patience": 0, "average_steps": 1}
 #: The columns of the per-scene rows (``context_generalisation.csv``).
-ROW_COLUMNS = ("scene", "family", "seed", "variant", *SCORE_KEYS, *COUNT_KEYS, "MOTA_gain_pct")
+ROW_COLUMNS = (
+    "scene",
+    "family",
+    "seed",
+    "variant",
+    *SCORE_KEYS,
+    *COUNT_KEYS,
+    "MOTA_gain_pct",
+    *ERROR_KEYS,
+)
 #: The columns of :func:`summarise`'s rows (``summary.csv``).
 SUMMARY_COLUMNS = (
     "group",
@@ -115,7 +127,12 @@ SUMMARY_COLUMNS = (
     "gain_pct_min",
     "gain_pct_max",
     "gain_ceiling_pct",
+    "FP",
+    "FN",
+    *ERROR_KEYS,
 )
+#: The variants whose misses and false positives by kind ``summary.md`` shows.
+ERROR_VARIANTS = ("UM", "GM", TUNED)
 #: The columns of the learned contexts' table (``contexts.csv``).
 CONTEXT_COLUMNS = (
     "scene",
@@ -261,7 +278,11 @@ def scene_rows(
         results = track_sequences([split.test] * len(params), config, seed, common_shapes(params))
     with _timed(timings, "scoring"):
         rows = [
-            {"variant": name, **score_summary(evaluate_rows(split.test, result))}
+            {
+                "variant": name,
+                **score_summary(evaluate_rows(split.test, result)),
+                **error_counts(split.test, result),
+            }
             for name, result in zip(names, results, strict=True)
         ]
     reference = rows[0]["MOTA"]
@@ -292,6 +313,8 @@ def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     relative gains ``MOTA_gain_pct``; ``gain_ceiling_pct`` is the gain a perfect tracker (MOTA
     100) would make over UM, ``100 (100 - MOTA_UM) / |MOTA_UM|`` averaged over the scenes (the
     same on every variant's row): a group whose ceiling is below the 9 % goal cannot reach it.
+    ``FP``, ``FN`` and the :data:`~jaxtrack.experiments.common.ERROR_KEYS` (misses and false
+    positives by kind) are summed over the scenes, when every scene's row has them.
     Groups and variants keep their first-seen order.
     """
     groups: dict[str, dict[str, list[dict]]] = {}
@@ -319,9 +342,31 @@ def summarise(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                     "gain_pct_min": float(gain.min()),
                     "gain_pct_max": float(gain.max()),
                     "gain_ceiling_pct": round(ceiling, 2),
+                    **_summed_counts(members),
                 }
             )
     return summary
+
+
+def _summed_counts(members: Sequence[dict[str, Any]]) -> dict[str, int]:
+    """``FP``, ``FN`` and the error kinds summed over a group's rows (those that every row
+    holds: records written before the kinds existed have none)."""
+    keys = [key for key in ("FP", "FN", *ERROR_KEYS) if all(key in row for row in members)]
+    return {key: sum(int(row[key]) for row in members) for key in keys}
+
+
+def error_lines(summary: Sequence[dict[str, Any]]) -> list[str]:
+    """``summary.md``'s section on the misses and false positives by kind of
+    :data:`ERROR_VARIANTS`, summed over each group's seeds; no lines when the rows have no
+    kinds."""
+    shown = [row for row in summary if row["variant"] in ERROR_VARIANTS and ERROR_KEYS[0] in row]
+    return shown and [
+        "## Misses and false positives by kind\n",
+        f"Summed over each group's seeds. {ERROR_KINDS_TEXT} Learned births act on the "
+        "misses (a target born late is `dropped`), learned clutter on the clutter false "
+        "positives.\n",
+        markdown_table(shown, ("group", "variant", "seeds", "FN", "FP", *ERROR_KEYS)),
+    ]
 
 
 def goal_checks(summary: Sequence[dict[str, Any]], variant: str = "GM") -> list[Goal]:
@@ -678,6 +723,7 @@ def summary_markdown(
         "(`tracks`: births from a UM run, GM and A1-A5; `gt`: births from the ground truth, "
         "A6).\n",
         markdown_table([_context_cells(row) for row in context_rows], CONTEXT_COLUMNS),
+        *error_lines(summary),
     ]
     if runs:
         text += [
