@@ -429,12 +429,14 @@ moves by points with the particles' seed alone) and its group's mean is what the
 read.
 
 Writes into --out: context_generalisation.csv (scores of every scene and variant, with
-MOTA_gain_pct = 100 (MOTA - MOTA_UM) / |MOTA_UM|), summary.csv (per family or real
-sequence and variant: mean/min/max MOTA and gain over the seeds, mean minus UM's in
-points), contexts.csv (the learned densities), gain.png (relative MOTA gain of GM and
-GM+tuned per group: bars = mean over seeds, marks = min..max, lines at 0 and +9%) and
-summary.md (the tables, issue 15's goals as PASS/FAIL with their numbers, run time per
-stage). Prints the gain table and the goals. Logic:
+MOTA_gain_pct = 100 (MOTA - MOTA_UM) / |MOTA_UM| and the misses and false positives by
+kind, FN_*/FP_*, as jaxtrack eval --errors counts them against the scene's detections),
+summary.csv (per family or real sequence and variant: mean/min/max MOTA and gain over the
+seeds, mean minus UM's in points, FP, FN and the kinds summed over the seeds),
+contexts.csv (the learned densities), gain.png (relative MOTA gain of GM and GM+tuned per
+group: bars = mean over seeds, marks = min..max, lines at 0 and +9%) and
+summary.md (the tables, issue 15's goals as PASS/FAIL with their numbers, UM's, GM's and
+GM+tuned's errors by kind, run time per stage). Prints the gain table and the goals. Logic:
 jaxtrack.experiments.context_generalisation.
 
 examples:

@@ -24,10 +24,13 @@ shapes (one compile per scene), with the scene's seed.
 
 **Scores.** MOTA etc. per scene and variant (:func:`~jaxtrack.experiments.common.score_summary`)
 and the relative MOTA gain over UM of the same scene, ``100 (MOTA - MOTA_UM) / |MOTA_UM|``
-(:func:`~jaxtrack.experiments.common.percent_difference`). :func:`summarise` groups the
+(:func:`~jaxtrack.experiments.common.percent_difference`), and its misses and false
+positives by kind against the scene's detections
+(:func:`~jaxtrack.experiments.common.error_counts`). :func:`summarise` groups the
 scenes by family (a real sequence is the group of its runs with the tracker seeds
 :data:`REAL_SEEDS`): mean, min and max over seeds of MOTA
-and of the relative gain, and the mean's difference to UM's in points. :func:`goal_checks`
+and of the relative gain, the mean's difference to UM's in points, and the error counts summed
+over the seeds (``summary.md`` shows UM's, GM's and GM+tuned's by kind). :func:`goal_checks`
 tests issue 15's goals on GM.
 """
 
