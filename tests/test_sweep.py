@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.association.retrodiction import detection_rows, retrodict
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import phd_filter
@@ -110,6 +111,34 @@ def test_sweep_online_output_and_per_configuration_keys(campus, small_filter, si
         np.testing.assert_allclose(result.rows[b].boxes, expected.boxes, rtol=1e-5, atol=1e-3)
     # Different keys, same parameters: different runs.
     assert not np.isclose(result.log_likelihood[0], result.log_likelihood[1])
+
+
+def test_sweep_retrodiction_equals_the_single_runs_retrodicted(campus, small_filter, single_run):
+    params = phd_params(PHDConfig(), campus.info)
+    key = jax.random.PRNGKey(3)
+    updates = {BIRTH_RATE: np.array([0.05, 0.8], np.float32)}
+    result = sweep(
+        small_filter,
+        params,
+        key,
+        campus.detections,
+        updates,
+        first_frame=campus.first_frame,
+        retrodiction=10,
+        chunk_size=4,
+    )
+    detections = detection_rows(campus.detections, campus.first_frame)
+    batched = batch_params(params, updates)
+    added = 0
+    for b in range(2):
+        info = single_run(key, jax.tree.map(lambda x, b=b: x[b], batched))
+        plain = finalise_tracks(info.tracks, info.candidates, 8, campus.first_frame)
+        expected = retrodict(plain, detections, campus.first_frame, 10)
+        np.testing.assert_array_equal(result.rows[b].frames, expected.frames)
+        np.testing.assert_array_equal(result.rows[b].ids, expected.ids)
+        np.testing.assert_allclose(result.rows[b].boxes, expected.boxes, rtol=1e-5, atol=1e-3)
+        added += len(expected) - len(plain)
+    assert added > 0
 
 
 def test_typed_keys_are_passed_as_key_data():

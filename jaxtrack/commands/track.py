@@ -23,7 +23,9 @@ detections fit in half the run's detection slots runs on that half; faster on lo
 sweeps, twice the compile, results equal up to float32 rounding) and ``confirmation``
 ("score", default: a track is output once one of its detections scores 0.97 or more;
 "evidence": once the score log-odds of its detections add up to logit(0.97), so that a
-target detected at lower scores is tracked too)). Unknown keys, wrong
+target detected at lower scores is tracked too) and ``retrodiction`` (0, default; N: the
+offline output extends each confirmed track back by up to N frames onto the detections
+before its first box, IoU >= 0.5 with its constant-velocity box)). Unknown keys, wrong
 types and out-of-range values are errors naming the key.
 
 ``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``

@@ -168,6 +168,7 @@ def magnitude_sweep(
         first_frame=split.test.first_frame,
         output=config.output,
         max_gap=config.max_gap,
+        retrodiction=config.retrodiction,
         chunk_size=chunk_size,
         progress=progress,
     )

@@ -157,6 +157,7 @@ def run_tuning_experiment(
         first_frame=train.first_frame,
         output=config.output,
         max_gap=config.max_gap,
+        retrodiction=config.retrodiction,
         progress=progress,
     )
     grid_seconds = time.perf_counter() - began

@@ -142,6 +142,18 @@ class PHDConfig(TrackerConfig):
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
+    retrodiction: int = setting(
+        0,
+        Rule(
+            "offline output: the most frames each confirmed track is extended backwards onto "
+            "the detections before its first box (each taken detection overlaps the track's "
+            "constant-velocity box by IoU >= 0.5 and no output box; the walk stops at the "
+            "first frame without one); 0: off",
+            int,
+            0,
+            1000,
+        ),
+    )
     frame_capacity: str = setting(
         "full",
         Rule(
@@ -153,6 +165,14 @@ class PHDConfig(TrackerConfig):
             choices=FRAME_CAPACITIES,
         ),
     )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.retrodiction and self.output != "offline":
+            raise InputError(
+                f"retrodiction {self.retrodiction} extends the offline output; with output "
+                f"{self.output!r} it would be ignored (set it to 0 or use the offline output)"
+            )
 
 
 class Variant(NamedTuple):

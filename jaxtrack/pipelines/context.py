@@ -64,7 +64,9 @@ def uniform_tracker_rows(
     gap filling, run as ``jaxtrack track`` runs it (sharing its compile). Each confirmed
     track is kept from its first estimate on
     (:func:`~jaxtrack.association.offline.finalise_tracks`), so that its first state is
-    where the target was first picked up, not where a high-scoring detection confirmed it.
+    where the target was first picked up, not where a high-scoring detection confirmed it;
+    with the configuration's ``retrodiction``, from the first detection of the chain that
+    led to it (:func:`~jaxtrack.association.retrodiction.retrodict`).
 
     Args:
         sequence: the loaded training span.

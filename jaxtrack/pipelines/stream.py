@@ -143,7 +143,7 @@ def streamed_rows(
     """
     if writes_events(config):
         outputs = merge_identities(jax.device_get(outputs))
-    rows = output_rows(outputs, config, seq.first_frame)
+    rows = output_rows(outputs, config, seq.first_frame, seq.detections)
     if warn:
         warn_if_no_tracks(seq, rows, config)
     if not (events and writes_events(config)):

@@ -43,6 +43,7 @@ from jaxtyping import Array, ArrayLike
 from tqdm import tqdm
 
 from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.association.retrodiction import detection_rows, retrodict
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
@@ -254,6 +255,7 @@ def sweep(
     first_frame: int = 1,
     output: str = "offline",
     max_gap: int = 8,
+    retrodiction: int = 0,
     chunk_size: int = 16,
     devices: Sequence[jax.Device] | None = None,
     eval_config: EvalConfig | None = None,
@@ -284,6 +286,9 @@ def sweep(
         first_frame: 1-based frame number of time index 0.
         output: ``"offline"`` (default, as ``jaxtrack track``) or ``"online"``.
         max_gap: longest gap filled by the offline output.
+        retrodiction: the most frames the offline output extends each track backwards onto
+            ``detections`` (:func:`~jaxtrack.association.retrodiction.retrodict`; 0: off), as
+            ``PHDConfig.retrodiction``.
         chunk_size: the most configurations one device runs per compiled call: the batch
             is shared evenly among the fewest groups of at most this size (162
             configurations at 28: six groups of 27), each call runs one group per device
@@ -345,6 +350,7 @@ def sweep(
         return compiled(*(first_arguments if c == 0 else arguments(c)))
 
     span = (first_frame, first_frame + num_frames - 1)
+    detection_table = detection_rows(detections, first_frame) if retrodiction else None
     gt = None if ground_truth is None else ground_truth.frame_span(*span)
     chunks = range(num_chunks)
     if progress:
@@ -365,6 +371,8 @@ def sweep(
                 config_rows = finalise_tracks(
                     config_tracks, config_candidates, max_gap, first_frame
                 )
+                if retrodiction:
+                    config_rows = retrodict(config_rows, detection_table, first_frame, retrodiction)
             else:
                 config_rows = track_rows(config_tracks, first_frame)
             rows.append(config_rows)

@@ -27,6 +27,7 @@ from tqdm import tqdm
 
 from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.association.retrodiction import detection_rows, retrodict
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
 from jaxtrack.errors import InputError, InputWarning
@@ -106,7 +107,7 @@ def track_sequences(
             fit_capacity=True,
             frame_output=track_outputs,
         )
-        rows = output_rows(info, config, seq.first_frame)
+        rows = output_rows(info, config, seq.first_frame, seq.detections)
         warn_if_no_tracks(seq, rows, config)
         results.append(rows)
     return results
@@ -224,13 +225,25 @@ def load_tracker_context(path: str | None) -> Context | None:
     return None if path is None else Context(*load_context(path))
 
 
-def output_rows(info: Any, config: TrackerConfig, first_frame: int) -> MotTable:
-    """The result rows of a run's per-frame infos, as the configuration's ``output`` says."""
+def output_rows(
+    info: Any, config: TrackerConfig, first_frame: int, detections: Detections | None = None
+) -> MotTable:
+    """The result rows of a run's per-frame infos, as the configuration's ``output`` says.
+
+    A configuration with a ``retrodiction`` (:class:`~jaxtrack.filters.phd_tracker.PHDConfig`)
+    extends the offline output backwards onto ``detections``, the padded detections the
+    tracker was given (:func:`~jaxtrack.association.retrodiction.retrodict`; None: not
+    extended).
+    """
     if config.output == "online":
         return track_rows(info.tracks, first_frame)
-    return finalise_tracks(
+    rows = finalise_tracks(
         info.tracks, info.candidates, config.max_gap, first_frame, trim=config.trims_tails
     )
+    frames = getattr(config, "retrodiction", 0)
+    if frames and detections is not None:
+        rows = retrodict(rows, detection_rows(detections, first_frame), first_frame, frames)
+    return rows
 
 
 def tracker_description(config: TrackerConfig) -> dict[str, Any]:
