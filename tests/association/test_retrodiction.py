@@ -127,3 +127,17 @@ def test_tracker_with_retrodiction_adds_rows_on_detections_and_fewer_misses(mot1
     assert set(np.unique(extended.ids)) == set(np.unique(plain.ids))
     before, after = evaluate_rows(seq, plain), evaluate_rows(seq, extended)
     assert after.summary()["FN"] < before.summary()["FN"]
+
+
+def test_birth_run_of_learn_context_ignores_retrodiction(mot15_root):
+    from jaxtrack.io import load_sequence
+    from jaxtrack.pipelines.context import uniform_tracker_rows
+
+    seq = load_sequence(mot15_root / "TUD-Campus", frames=(1, 40))
+    config = PHDConfig(num_particles=512)
+    plain = uniform_tracker_rows(seq, 0, config)
+    retro = uniform_tracker_rows(seq, 0, config.replace(retrodiction=25))
+    assert _rows_set(plain) == _rows_set(retro)
+    # ... although retrodiction would add rows to that run's tracks.
+    detections = detection_rows(seq.detections, seq.first_frame)
+    assert len(retrodict(plain, detections, seq.first_frame, 25)) > len(plain)
