@@ -117,16 +117,8 @@ def test_sweep_retrodiction_equals_the_single_runs_retrodicted(campus, small_fil
     params = phd_params(PHDConfig(), campus.info)
     key = jax.random.PRNGKey(3)
     updates = {BIRTH_RATE: np.array([0.05, 0.8], np.float32)}
-    result = sweep(
-        small_filter,
-        params,
-        key,
-        campus.detections,
-        updates,
-        first_frame=campus.first_frame,
-        retrodiction=10,
-        chunk_size=4,
-    )
+    options = {"first_frame": campus.first_frame, "retrodiction": 10, "chunk_size": 4}
+    result = sweep(small_filter, params, key, campus.detections, updates, **options)
     detections = detection_rows(campus.detections, campus.first_frame)
     batched = batch_params(params, updates)
     added = 0
