@@ -112,8 +112,9 @@ def retrodict(
             best = int(np.argmax(overlap))
             if overlap[best] < min_iou:
                 break
-            taken[best] = True
             box = detections.boxes[own_dets[best]].copy()
+            # The new row covers every detection it overlaps by min_iou, itself included.
+            taken |= iou_matrix(box[None], detections.boxes[own_dets], xp=np)[0] >= min_iou
             score = float(detections.confs[own_dets[best]])
             added.append((frame, int(identity), box.copy(), score))
     if not added:

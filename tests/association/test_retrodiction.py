@@ -83,6 +83,12 @@ def test_limits_max_frames_first_frame_and_one_detection_per_frame():
     extended = retrodict(two, detections, 1, 3)
     assert not np.any((extended.ids == 2) & (extended.frames < 11))
     assert np.sum(extended.frames == 9) == 1
+    # A second detection that the taken one overlaps (IoU 0.82) is covered too: track 2,
+    # on it, finds no free detection at frame 9.
+    crowded = _table([(9, -1, 100.0, 50.0), (9, -1, 102.0, 50.0)])
+    two = _table([(f, 1, 100.0, 50.0) for f in range(10, 14)] + [(10, 2, 102.0, 50.0)])
+    extended = retrodict(two, crowded, 1, 3)
+    assert sorted(extended.ids[extended.frames == 9].tolist()) == [1]
 
 
 def test_detection_rows_lists_the_masked_slots():
