@@ -481,6 +481,32 @@ def test_generalisation_confirmation_reaches_the_experiment(tmp_path, monkeypatc
     assert seen["confirmation"] == "score"
     assert _experiment("context-generalisation", *argv, "--confirmation", "votes") == 2
     assert "invalid choice: 'votes'" in capsys.readouterr().err
+    assert seen["retrodiction"] == 0
+    with pytest.raises(SystemExit):
+        _experiment("context-generalisation", *argv, "--retrodiction", "50")
+    assert seen["retrodiction"] == 50
+    assert _experiment("context-generalisation", *argv, "--retrodiction", "-1") == 2
+    assert "argument --retrodiction" in capsys.readouterr().err
+
+
+def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
+    """The experiment's tracker configuration carries ``retrodiction`` (the scene's runs are
+    stubbed after the first scene is written)."""
+    from jaxtrack.experiments import context_generalisation as experiment
+
+    seen = []
+
+    def stub(split, config, *args, **kwargs):
+        seen.append(config)
+        raise SystemExit(0)
+
+    monkeypatch.setattr(experiment, "scene_rows", stub)
+    with pytest.raises(SystemExit):
+        experiment.run_context_generalisation(
+            tmp_path, ["uniform"], [0], quick=True, tuned=False, retrodiction=50
+        )
+    assert seen[0].retrodiction == 50
+    assert seen[0].output == "offline"
 
 
 @pytest.mark.parametrize(

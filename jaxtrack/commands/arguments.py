@@ -19,7 +19,12 @@ from jaxtrack.configs import TrackerConfig, load_config_file
 from jaxtrack.errors import InputError
 from jaxtrack.filters.fusion import FUSIONS, MEMBERS
 from jaxtrack.filters.fusion_tracker import FusionConfig
-from jaxtrack.filters.phd_tracker import MAX_BIRTHS_PER_DETECTION, MAX_PARTICLES, VARIANTS
+from jaxtrack.filters.phd_tracker import (
+    MAX_BIRTHS_PER_DETECTION,
+    MAX_PARTICLES,
+    MAX_RETRODICTION,
+    VARIANTS,
+)
 from jaxtrack.filters.registry import TRACKERS, tracker_entry
 from jaxtrack.io import parse_frame_span
 from jaxtrack.limits import MAX_COORDINATE, MAX_FRAMES, MAX_SEED, SEED, Rule
@@ -45,6 +50,8 @@ KEYS = Rule("keys", int, 1, 1024)
 LEARNING_RATE = Rule("learning rate", float, 0.0, 100.0, lower_open=True)
 #: Particles (``--particles``) and birth particles per detection, as the tracker config's.
 PARTICLES = Rule("particles", int, 1, MAX_PARTICLES)
+#: ``PHDConfig.retrodiction``.
+RETRODICTION = Rule("frames", int, 0, MAX_RETRODICTION)
 BIRTHS_PER_DETECTION = Rule("birth particles per detection", int, 1, MAX_BIRTHS_PER_DETECTION)
 
 

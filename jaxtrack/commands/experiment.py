@@ -18,6 +18,7 @@ from typing import NamedTuple
 from jaxtrack.commands import cmt_ablation, fusion_experiment, hierarchical_experiment
 from jaxtrack.commands.arguments import (
     PARTICLES,
+    RETRODICTION,
     SEED_COUNT_TYPE,
     SEED_TYPE,
     add_out,
@@ -224,6 +225,15 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
         "default score): 'evidence' adds up the log-odds of a track's detections, read through "
         "the detector's calibration learned with each context (UM included)",
     )
+    parser.add_argument(
+        "--retrodiction",
+        type=ranged(RETRODICTION),
+        metavar="N",
+        default=0,
+        help="extend every run's confirmed tracks back by up to N frames onto the detections "
+        "before their first box (PHDConfig.retrodiction; default 0, off): raises UM's and "
+        "GM's MOTA, UM's more",
+    )
 
 
 def _context_generalisation(args: argparse.Namespace) -> int:
@@ -262,6 +272,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
         real_seeds=real_seeds,
         particles=args.particles,
         confirmation=args.confirmation,
+        retrodiction=args.retrodiction,
         progress=not args.quiet,
     )
     print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))

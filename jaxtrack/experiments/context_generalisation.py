@@ -554,6 +554,7 @@ def run_context_generalisation(
     real_seeds: Sequence[int] = REAL_SEEDS,
     particles: int | None = None,
     confirmation: str = "score",
+    retrodiction: int = 0,
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -582,6 +583,7 @@ def run_context_generalisation(
         confirmation: the tracker's track confirmation (``PHDConfig.confirmation``:
             ``"score"`` or ``"evidence"``, the latter reading the scores through each
             context's calibration, UM included).
+        retrodiction: ``PHDConfig.retrodiction`` of every run (0: off).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -596,7 +598,7 @@ def run_context_generalisation(
     config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
     if particles is not None:
         config = dataclasses.replace(config, num_particles=particles)
-    config = dataclasses.replace(config, confirmation=confirmation)
+    config = dataclasses.replace(config, confirmation=confirmation, retrodiction=retrodiction)
     notes = []
     if tuned and not tuning_takes_context():
         tuned = False

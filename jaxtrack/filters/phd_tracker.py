@@ -56,6 +56,8 @@ from jaxtrack.types import SequenceInfo
 MAX_PARTICLES = 1 << 20
 #: Largest ``births_per_detection``.
 MAX_BIRTHS_PER_DETECTION = 1024
+#: Largest ``retrodiction`` (frames).
+MAX_RETRODICTION = 1000
 #: Largest birth, initial or clutter rate (per frame).
 MAX_RATE = 1e4
 #: Estimate slots of the ``"gmm"`` extraction (mixture components) and track-table slots.
@@ -151,7 +153,7 @@ class PHDConfig(TrackerConfig):
             "first frame without one); 0: off",
             int,
             0,
-            1000,
+            MAX_RETRODICTION,
         ),
     )
     frame_capacity: str = setting(
