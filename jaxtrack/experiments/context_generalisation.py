@@ -710,7 +710,9 @@ def summary_markdown(
         "A6; clutter from the ground truth; GM+tuned: the GM context tuned on the training "
         f"half by the likelihood). {config.num_particles} particles, "
         f"{config.births_per_detection} births per detection, confirmation "
-        f"'{config.confirmation}'{', quick run' if quick else ''}. "
+        f"'{config.confirmation}'"
+        f"{f', retrodiction {config.retrodiction} frames' if config.retrodiction else ''}"
+        f"{', quick run' if quick else ''}. "
         "MOTA in %; per group (bank family over its scenes' seeds, or a real sequence over "
         "its tracker seeds) the mean over seeds; `gain %` = 100 (MOTA - MOTA_UM) / |MOTA_UM| "
         "per scene, averaged over the seeds; `GM-UM` in points between the means.\n",
