@@ -23,8 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from jaxtrack.association.offline import track_rows
 from jaxtrack.boxes import iou_matrix
-from jaxtrack.types import Detections, MotTable
+from jaxtrack.types import Detections, MotTable, Tracks
 
 #: Overlap of the constant-velocity box with the detection it takes: the CLEAR MOT match
 #: threshold, so that a taken detection is one that would match the same object.
@@ -34,15 +35,11 @@ VELOCITY_ROWS = 5
 
 
 def detection_rows(detections: Detections, first_frame: int = 1) -> MotTable:
-    """The real (masked) slots of padded detections as rows (ids -1, confs the scores)."""
-    mask = np.asarray(detections.mask)
-    frame_index, slot = np.nonzero(mask)
-    return MotTable.from_arrays(
-        frame_index + first_frame,
-        np.full(frame_index.shape, -1),
-        np.asarray(detections.boxes, np.float64)[frame_index, slot],
-        np.asarray(detections.scores, np.float64)[frame_index, slot],
-    )
+    """The real (masked) slots of padded detections as rows (ids -1, confs the scores),
+    read as :func:`~jaxtrack.association.offline.track_rows` reads tracks."""
+    ids = np.full(np.shape(detections.mask), -1)
+    tracks = Tracks(detections.boxes, ids, detections.scores, detections.mask)
+    return track_rows(tracks, first_frame)
 
 
 def retrodict(
