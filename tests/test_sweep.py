@@ -187,6 +187,11 @@ def test_sweep_input_errors(campus, small_filter):
         sweep(small_filter, params, key, detections, magnitude_grid([1.0], [0.1]), output="x")
     with pytest.raises(InputError, match="chunk_size"):
         sweep(small_filter, params, key, detections, magnitude_grid([1.0], [0.1]), chunk_size=0)
+    grid = magnitude_grid([1.0], [0.1])
+    with pytest.raises(InputError, match="online output would ignore it"):
+        sweep(small_filter, params, key, detections, grid, output="online", retrodiction=5)
+    with pytest.raises(InputError, match="retrodiction must be >= 0"):
+        sweep(small_filter, params, key, detections, grid, retrodiction=-1)
 
 
 def test_sweep_refuses_calls_that_need_more_memory_than_the_machine_has(

@@ -306,7 +306,8 @@ def sweep(
         The :class:`SweepResult`.
 
     Raises:
-        InputError: bad updates or batch, keys of the wrong shape, a bad chunk size or output.
+        InputError: bad updates or batch, keys of the wrong shape, a bad chunk size or output,
+            a negative ``retrodiction`` or one with the online output.
     """
     if output not in ("offline", "online"):
         raise InputError(f"output must be 'offline' or 'online', got {output!r}")
@@ -314,6 +315,13 @@ def sweep(
         raise InputError(f"chunk_size must be positive, got {chunk_size}")
     if max_gap < 0:
         raise InputError(f"max_gap must be >= 0, got {max_gap}")
+    if retrodiction < 0:
+        raise InputError(f"retrodiction must be >= 0, got {retrodiction}")
+    if retrodiction and output == "online":
+        raise InputError(
+            "retrodiction extends the offline output; the online output would ignore it "
+            f"(retrodiction={retrodiction}, output='online')"
+        )
     if updates is None:
         batched = jax.tree.map(np.asarray, params)
         swept = {}
