@@ -487,11 +487,17 @@ def test_generalisation_confirmation_reaches_the_experiment(tmp_path, monkeypatc
     assert seen["retrodiction"] == 50
     assert _experiment("context-generalisation", *argv, "--retrodiction", "-1") == 2
     assert "argument --retrodiction" in capsys.readouterr().err
+    assert seen["smoothing"] == "none"
+    with pytest.raises(SystemExit):
+        _experiment("context-generalisation", *argv, "--smoothing", "rts")
+    assert seen["smoothing"] == "rts"
+    assert _experiment("context-generalisation", *argv, "--smoothing", "kalman") == 2
+    assert "invalid choice: 'kalman'" in capsys.readouterr().err
 
 
 def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
-    """The experiment's tracker configuration carries ``retrodiction`` (the scene's runs are
-    stubbed after the first scene is written)."""
+    """The experiment's tracker configuration carries ``retrodiction`` and ``smoothing`` (the
+    scene's runs are stubbed after the first scene is written)."""
     from jaxtrack.experiments import context_generalisation as experiment
 
     seen = []
@@ -503,9 +509,16 @@ def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
     monkeypatch.setattr(experiment, "scene_rows", stub)
     with pytest.raises(SystemExit):
         experiment.run_context_generalisation(
-            tmp_path, ["uniform"], [0], quick=True, tuned=False, retrodiction=50
+            tmp_path,
+            ["uniform"],
+            [0],
+            quick=True,
+            tuned=False,
+            retrodiction=50,
+            smoothing="rts",
         )
     assert seen[0].retrodiction == 50
+    assert seen[0].smoothing == "rts"
     assert seen[0].output == "offline"
 
 

@@ -14,6 +14,7 @@ import pytest
 
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.association.retrodiction import detection_rows, retrodict
+from jaxtrack.association.smoothing import smooth_tracks
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import run
 from jaxtrack.filters.phd import phd_filter
@@ -131,6 +132,30 @@ def test_sweep_retrodiction_equals_the_single_runs_retrodicted(campus, small_fil
         np.testing.assert_allclose(result.rows[b].boxes, expected.boxes, rtol=1e-5, atol=1e-3)
         added += len(expected) - len(plain)
     assert added > 0
+
+
+def test_sweep_smoothing_uses_each_configurations_noise(campus, small_filter, single_run):
+    params = phd_params(PHDConfig(), campus.info)
+    key = jax.random.PRNGKey(3)
+    noise = np.array([[0.05, 0.02, 0.05, 0.05], [0.1, 0.05, 0.02, 0.02]], np.float32)
+    updates = {"motion_noise_std": noise}
+    options = {"first_frame": campus.first_frame, "smoothing": "rts", "chunk_size": 4}
+    result = sweep(small_filter, params, key, campus.detections, updates, **options)
+    batched = batch_params(params, updates)
+    for b in range(2):
+        info = single_run(key, jax.tree.map(lambda x, b=b: x[b], batched))
+        plain = finalise_tracks(info.tracks, info.candidates, 8, campus.first_frame)
+        expected = smooth_tracks(plain, noise[b], params.measurement_noise_std)
+        np.testing.assert_array_equal(result.rows[b].frames, expected.frames)
+        np.testing.assert_array_equal(result.rows[b].ids, expected.ids)
+        np.testing.assert_allclose(result.rows[b].boxes, expected.boxes, rtol=1e-5, atol=1e-3)
+        assert not np.allclose(result.rows[b].boxes, plain.boxes, atol=1e-2)
+    with pytest.raises(InputError, match="online output would ignore it"):
+        sweep(
+            small_filter, params, key, campus.detections, updates, output="online", smoothing="rts"
+        )
+    with pytest.raises(InputError, match="smoothing must be one of"):
+        sweep(small_filter, params, key, campus.detections, updates, smoothing="kalman")
 
 
 def test_typed_keys_are_passed_as_key_data():

@@ -57,6 +57,7 @@ from jaxtrack.experiments.context_generalisation import (
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
 from jaxtrack.filters.phd import CONFIRMATIONS
+from jaxtrack.filters.phd_tracker import SMOOTHINGS
 
 #: The data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -234,6 +235,13 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
         "before their first box (PHDConfig.retrodiction; default 0, off): raises UM's and "
         "GM's MOTA, UM's more",
     )
+    parser.add_argument(
+        "--smoothing",
+        choices=SMOOTHINGS,
+        default="none",
+        help="every run's offline output re-estimated by the Rauch-Tung-Striebel smoother "
+        "under the tracker's own dynamics (PHDConfig.smoothing; default none)",
+    )
 
 
 def _context_generalisation(args: argparse.Namespace) -> int:
@@ -273,6 +281,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
         particles=args.particles,
         confirmation=args.confirmation,
         retrodiction=args.retrodiction,
+        smoothing=args.smoothing,
         progress=not args.quiet,
     )
     print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))

@@ -25,7 +25,9 @@ sweeps, twice the compile, results equal up to float32 rounding) and ``confirmat
 "evidence": once the score log-odds of its detections add up to logit(0.97), so that a
 target detected at lower scores is tracked too) and ``retrodiction`` (0, default; N: the
 offline output extends each confirmed track back by up to N frames onto the detections
-before its first box, IoU >= 0.5 with its constant-velocity box)). Unknown keys, wrong
+before its first box, IoU >= 0.5 with its constant-velocity box) and ``smoothing``
+("none", default, or "rts": the offline output's boxes re-estimated by the
+Rauch-Tung-Striebel smoother under the tracker's own dynamics and noise)). Unknown keys, wrong
 types and out-of-range values are errors naming the key.
 
 ``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``

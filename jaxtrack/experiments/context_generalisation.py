@@ -555,6 +555,7 @@ def run_context_generalisation(
     particles: int | None = None,
     confirmation: str = "score",
     retrodiction: int = 0,
+    smoothing: str = "none",
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -584,6 +585,7 @@ def run_context_generalisation(
             ``"score"`` or ``"evidence"``, the latter reading the scores through each
             context's calibration, UM included).
         retrodiction: ``PHDConfig.retrodiction`` of every run (0: off).
+        smoothing: ``PHDConfig.smoothing`` of every run (``"none"`` or ``"rts"``).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -598,7 +600,9 @@ def run_context_generalisation(
     config = QUICK_TRACKER_CONFIG if quick else PHDConfig()
     if particles is not None:
         config = dataclasses.replace(config, num_particles=particles)
-    config = dataclasses.replace(config, confirmation=confirmation, retrodiction=retrodiction)
+    config = dataclasses.replace(
+        config, confirmation=confirmation, retrodiction=retrodiction, smoothing=smoothing
+    )
     notes = []
     if tuned and not tuning_takes_context():
         tuned = False
@@ -712,6 +716,7 @@ def summary_markdown(
         f"{config.births_per_detection} births per detection, confirmation "
         f"'{config.confirmation}'"
         f"{f', retrodiction {config.retrodiction} frames' if config.retrodiction else ''}"
+        f"{f', smoothing {config.smoothing!r}' if config.smoothing != 'none' else ''}"
         f"{', quick run' if quick else ''}. "
         "MOTA in %; per group (bank family over its scenes' seeds, or a real sequence over "
         "its tracker seeds) the mean over seeds; `gain %` = 100 (MOTA - MOTA_UM) / |MOTA_UM| "

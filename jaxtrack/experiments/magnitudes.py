@@ -169,6 +169,7 @@ def magnitude_sweep(
         output=config.output,
         max_gap=config.max_gap,
         retrodiction=config.retrodiction,
+        smoothing=config.smoothing,
         chunk_size=chunk_size,
         progress=progress,
     )

@@ -158,6 +158,7 @@ def run_tuning_experiment(
         output=config.output,
         max_gap=config.max_gap,
         retrodiction=config.retrodiction,
+        smoothing=config.smoothing,
         progress=progress,
     )
     grid_seconds = time.perf_counter() - began

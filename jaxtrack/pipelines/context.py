@@ -65,22 +65,22 @@ def uniform_tracker_rows(
     track is kept from its first estimate on
     (:func:`~jaxtrack.association.offline.finalise_tracks`), so that its first state is
     where the target was first picked up, not where a high-scoring detection confirmed it.
-    The configuration's ``retrodiction`` is not applied (an output rule; the context learned
-    does not depend on it): on the development bank scenes, births from retrodicted tracks
-    scored no better (README, "Retrodiction").
+    The configuration's ``retrodiction`` and ``smoothing`` are not applied (output rules; the
+    context learned does not depend on them): on the development bank scenes, births from
+    retrodicted tracks scored no better (README, "Retrodiction").
 
     Args:
         sequence: the loaded training span.
         seed: PRNG seed of the run.
-        config: the tracker's configuration (its ``max_gap`` and ``retrodiction`` are
-            ignored: gaps stay open, tracks start at their first estimate).
+        config: the tracker's configuration (its ``max_gap``, ``retrodiction`` and
+            ``smoothing`` are ignored: gaps stay open, tracks start at their first estimate).
         calibration: the detector's score calibration (read by the ``"evidence"``
             confirmation; None: scores read as probabilities).
 
     Returns:
         The rows (:class:`~jaxtrack.types.MotTable`).
     """
-    config = (config or PHDConfig()).replace(max_gap=0, retrodiction=0)
+    config = (config or PHDConfig()).replace(max_gap=0, retrodiction=0, smoothing="none")
     params = with_score_calibration(phd_params(config, sequence.info), calibration)
     (rows,) = track_sequences([sequence], config, seed, [params])
     return rows

@@ -28,6 +28,7 @@ from tqdm import tqdm
 from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.association.retrodiction import detection_rows, retrodict
+from jaxtrack.association.smoothing import smooth_tracks
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context
 from jaxtrack.errors import InputError, InputWarning
@@ -233,7 +234,8 @@ def output_rows(
     A configuration with a ``retrodiction`` (:class:`~jaxtrack.filters.phd_tracker.PHDConfig`)
     extends the offline output backwards onto ``detections``, the padded detections the
     tracker was given (:func:`~jaxtrack.association.retrodiction.retrodict`; None: not
-    extended).
+    extended). One with ``smoothing="rts"`` then smooths every track's boxes under the
+    configuration's noise (:func:`~jaxtrack.association.smoothing.smooth_tracks`).
     """
     if config.output == "online":
         return track_rows(info.tracks, first_frame)
@@ -243,6 +245,8 @@ def output_rows(
     frames = getattr(config, "retrodiction", 0)
     if frames and detections is not None:
         rows = retrodict(rows, detection_rows(detections, first_frame), first_frame, frames)
+    if getattr(config, "smoothing", "none") == "rts":
+        rows = smooth_tracks(rows, config.motion_noise_std, config.measurement_noise_std)
     return rows
 
 
