@@ -32,6 +32,19 @@ OUTPUT = Rule(
 )
 #: The gap-filling rule every tracker configuration shares (``max_gap``).
 MAX_GAP = Rule("longest gap (frames) filled by the offline output", int, 0, 1000)
+#: The offline output's smoothings (``smoothing``): none, or the Rauch-Tung-Striebel smoother
+#: of :mod:`jaxtrack.association.smoothing`.
+SMOOTHINGS = ("none", "rts")
+#: The smoothing rule every tracker configuration shares (``smoothing``).
+SMOOTHING = Rule(
+    "offline output: 'rts' re-estimates every track's boxes by the Rauch-Tung-Striebel "
+    "smoother under the PHD tracker's model (constant-velocity centre, random-walk size, "
+    "noise relative to the box size: motion_noise_std and measurement_noise_std, the "
+    "configuration's for the PHD tracker, their defaults for the others); 'none': the "
+    "tracker's own estimates",
+    str,
+    choices=SMOOTHINGS,
+)
 
 
 def setting(default: Any, rule: Rule) -> Any:
@@ -56,6 +69,13 @@ class TrackerConfig:
         for field in dataclasses.fields(self):
             value = field.metadata["rule"].check(field.name, getattr(self, field.name))
             object.__setattr__(self, field.name, value)
+        smoothing = getattr(self, "smoothing", "none")
+        if smoothing != "none" and getattr(self, "output", "offline") != "offline":
+            raise InputError(
+                f"smoothing {smoothing!r} re-estimates the offline output; with output "
+                f"{self.output!r} it would be ignored (set it to 'none' or use the offline "
+                "output)"
+            )
 
     @classmethod
     def rules(cls) -> dict[str, Rule]:

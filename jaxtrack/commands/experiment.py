@@ -36,6 +36,7 @@ from jaxtrack.commands.paths import (
     sequence_inputs,
     video_input,
 )
+from jaxtrack.configs import SMOOTHINGS
 from jaxtrack.datasets.scene_bank import FAMILIES
 from jaxtrack.errors import InputError
 from jaxtrack.experiments.ablation import ABLATION_COLUMNS, run_ablation
@@ -57,7 +58,6 @@ from jaxtrack.experiments.context_generalisation import (
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
 from jaxtrack.filters.phd import CONFIRMATIONS
-from jaxtrack.filters.phd_tracker import SMOOTHINGS
 
 #: The data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"

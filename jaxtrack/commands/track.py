@@ -27,7 +27,8 @@ target detected at lower scores is tracked too) and ``retrodiction`` (0, default
 offline output extends each confirmed track back by up to N frames onto the detections
 before its first box, IoU >= 0.5 with its constant-velocity box) and ``smoothing``
 ("none", default, or "rts": the offline output's boxes re-estimated by the
-Rauch-Tung-Striebel smoother under the tracker's own dynamics and noise)). Unknown keys, wrong
+Rauch-Tung-Striebel smoother under the tracker's own dynamics and noise; every tracker has
+the key, the others smooth under the PHD tracker's default noise)). Unknown keys, wrong
 types and out-of-range values are errors naming the key.
 
 ``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``

@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
@@ -105,6 +105,7 @@ class CMTConfig(TrackerConfig):
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
+    smoothing: str = setting("none", SMOOTHING)
 
 
 def zone_arrays(zones: SceneZones | None) -> tuple[jnp.ndarray, jnp.ndarray]:

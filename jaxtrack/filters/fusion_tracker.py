@@ -24,7 +24,7 @@ from typing import Any, ClassVar, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
 from jaxtrack.context.activity import ACTIVITY_CELL, grid_shape
 from jaxtrack.context.motion_models import MotionModels, Tracklets, fit_motion_models
 from jaxtrack.context.zones import SceneZones
@@ -112,6 +112,7 @@ class FusionConfig(TrackerConfig):
     max_targets: int = setting(32, Rule("slots for targets and hypotheses", int, 1, 1024))
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(25, MAX_GAP)
+    smoothing: str = setting("none", SMOOTHING)
 
 
 class FusionContext(NamedTuple):

@@ -27,7 +27,7 @@ from typing import Any, ClassVar, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.hier_appearance import PATCH_SHAPE
@@ -124,6 +124,7 @@ class HierarchicalConfig(TrackerConfig):
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(25, MAX_GAP)
+    smoothing: str = setting("none", SMOOTHING)
 
 
 class HierarchicalContext(NamedTuple):

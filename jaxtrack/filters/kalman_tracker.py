@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.kalman import KALMAN_PRESETS, KalmanParams, kalman_filter
@@ -39,6 +39,7 @@ class KalmanConfig(TrackerConfig):
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
+    smoothing: str = setting("none", SMOOTHING)
 
 
 def build_kalman(

@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.configs import MAX_GAP, OUTPUT, Rule, TrackerConfig, setting
+from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
 from jaxtrack.context.intensity import Intensity, birth_speed_limit, uniform_birth_intensity
 from jaxtrack.context.learn import volume_mass
 from jaxtrack.context.scores import ScoreCalibration, calibration_from_metadata
@@ -58,9 +58,6 @@ MAX_PARTICLES = 1 << 20
 MAX_BIRTHS_PER_DETECTION = 1024
 #: Largest ``retrodiction`` (frames).
 MAX_RETRODICTION = 1000
-#: The offline output's smoothings (``smoothing``): none, or the Rauch-Tung-Striebel smoother
-#: of :mod:`jaxtrack.association.smoothing`.
-SMOOTHINGS = ("none", "rts")
 #: Largest birth, initial or clutter rate (per frame).
 MAX_RATE = 1e4
 #: Estimate slots of the ``"gmm"`` extraction (mixture components) and track-table slots.
@@ -159,17 +156,7 @@ class PHDConfig(TrackerConfig):
             MAX_RETRODICTION,
         ),
     )
-    smoothing: str = setting(
-        "none",
-        Rule(
-            "offline output: 'rts' re-estimates every track's boxes by the Rauch-Tung-Striebel "
-            "smoother under the tracker's own dynamics and noise (constant-velocity centre, "
-            "random-walk size, SDV noise at the track's median size); 'none': the filter's "
-            "estimates",
-            str,
-            choices=SMOOTHINGS,
-        ),
-    )
+    smoothing: str = setting("none", SMOOTHING)
     frame_capacity: str = setting(
         "full",
         Rule(
@@ -188,12 +175,6 @@ class PHDConfig(TrackerConfig):
             raise InputError(
                 f"retrodiction {self.retrodiction} extends the offline output; with output "
                 f"{self.output!r} it would be ignored (set it to 0 or use the offline output)"
-            )
-        if self.smoothing != "none" and self.output != "offline":
-            raise InputError(
-                f"smoothing {self.smoothing!r} re-estimates the offline output; with output "
-                f"{self.output!r} it would be ignored (set it to 'none' or use the offline "
-                "output)"
             )
 
 

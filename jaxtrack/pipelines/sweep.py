@@ -45,11 +45,10 @@ from tqdm import tqdm
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.association.retrodiction import detection_rows, retrodict
 from jaxtrack.association.smoothing import smooth_tracks
-from jaxtrack.configs import TrackerConfig
+from jaxtrack.configs import SMOOTHINGS, TrackerConfig
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, fit_detections, run, run_batch
-from jaxtrack.filters.phd_tracker import SMOOTHINGS
 from jaxtrack.filters.registry import build_tracker, properties_of, writes_events
 from jaxtrack.io import MotSequence, MotTable
 from jaxtrack.io.frame_stream import FrameStream
@@ -64,7 +63,7 @@ from jaxtrack.pipelines.stream import (
     rows_output,
     streamed_rows,
 )
-from jaxtrack.pipelines.tracking import check_tracking_memory
+from jaxtrack.pipelines.tracking import check_tracking_memory, smoothing_noise
 from jaxtrack.resources import check_memory
 from jaxtrack.types import Detections
 
@@ -292,10 +291,11 @@ def sweep(
         retrodiction: the most frames the offline output extends each track backwards onto
             ``detections`` (:func:`~jaxtrack.association.retrodiction.retrodict`; 0: off), as
             ``PHDConfig.retrodiction``.
-        smoothing: ``"rts"`` smooths every configuration's offline output under its own
-            ``motion_noise_std`` and ``measurement_noise_std``
-            (:func:`~jaxtrack.association.smoothing.smooth_tracks`, after the retrodiction),
-            as ``PHDConfig.smoothing``; ``"none"`` (default): off.
+        smoothing: ``"rts"`` smooths every configuration's offline output
+            (:func:`~jaxtrack.association.smoothing.smooth_tracks`, after the retrodiction)
+            under its own ``motion_noise_std`` and ``measurement_noise_std`` (the PHD
+            tracker's defaults for parameters without them), as the configurations'
+            ``smoothing``; ``"none"`` (default): off.
         chunk_size: the most configurations one device runs per compiled call: the batch
             is shared evenly among the fewest groups of at most this size (162
             configurations at 28: six groups of 27), each call runs one group per device
@@ -315,7 +315,7 @@ def sweep(
     Raises:
         InputError: bad updates or batch, keys of the wrong shape, a bad chunk size or output,
             a negative ``retrodiction`` or one with the online output, a ``smoothing`` that
-            is unknown, used with the online output or given parameters without the noise.
+            is unknown or used with the online output.
     """
     if output not in ("offline", "online"):
         raise InputError(f"output must be 'offline' or 'online', got {output!r}")
@@ -336,13 +336,6 @@ def sweep(
         raise InputError(
             f"smoothing re-estimates the offline output; the online output would ignore it "
             f"(smoothing={smoothing!r}, output='online')"
-        )
-    if smoothing != "none" and not all(
-        hasattr(params, name) for name in ("motion_noise_std", "measurement_noise_std")
-    ):
-        raise InputError(
-            "smoothing needs the filter's motion_noise_std and measurement_noise_std; these "
-            f"parameters ({type(params).__name__}) have none"
         )
     if updates is None:
         batched = jax.tree.map(np.asarray, params)
@@ -405,9 +398,7 @@ def sweep(
                     config_rows = retrodict(config_rows, detection_table, first_frame, retrodiction)
                 if smoothing == "rts":
                     config_rows = smooth_tracks(
-                        config_rows,
-                        np.asarray(batched.motion_noise_std)[c * chunk + b],
-                        np.asarray(batched.measurement_noise_std)[c * chunk + b],
+                        config_rows, *smoothing_noise(batched, c * chunk + b)
                     )
             else:
                 config_rows = track_rows(config_tracks, first_frame)

@@ -34,6 +34,7 @@ from jaxtrack.context.io import load_context
 from jaxtrack.errors import InputError, InputWarning
 from jaxtrack.filters.base import Filter, fit_detections, plan_chunks, run
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
+from jaxtrack.filters.phd_defaults import DEFAULT_MEASUREMENT_NOISE_STD, DEFAULT_MOTION_NOISE_STD
 from jaxtrack.filters.phd_tracker import Context
 from jaxtrack.filters.registry import build_tracker, tracker_entry
 from jaxtrack.io import MotSequence
@@ -234,8 +235,8 @@ def output_rows(
     A configuration with a ``retrodiction`` (:class:`~jaxtrack.filters.phd_tracker.PHDConfig`)
     extends the offline output backwards onto ``detections``, the padded detections the
     tracker was given (:func:`~jaxtrack.association.retrodiction.retrodict`; None: not
-    extended). One with ``smoothing="rts"`` then smooths every track's boxes under the
-    configuration's noise (:func:`~jaxtrack.association.smoothing.smooth_tracks`).
+    extended). One with ``smoothing="rts"`` then smooths every track's boxes
+    (:func:`~jaxtrack.association.smoothing.smooth_tracks`) under :func:`smoothing_noise`.
     """
     if config.output == "online":
         return track_rows(info.tracks, first_frame)
@@ -246,8 +247,24 @@ def output_rows(
     if frames and detections is not None:
         rows = retrodict(rows, detection_rows(detections, first_frame), first_frame, frames)
     if getattr(config, "smoothing", "none") == "rts":
-        rows = smooth_tracks(rows, config.motion_noise_std, config.measurement_noise_std)
+        rows = smooth_tracks(rows, *smoothing_noise(config))
     return rows
+
+
+def smoothing_noise(source: Any, index: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The ``(motion_noise_std, measurement_noise_std)`` the offline output's smoothing
+    (:func:`~jaxtrack.association.smoothing.smooth_tracks`) runs under: the configuration's
+    or parameters' own (configuration ``index`` of batched parameters), or the PHD tracker's
+    defaults for a tracker without them (Kalman, CMT, hierarchical, fusion)."""
+    if not hasattr(source, "motion_noise_std"):
+        return np.asarray(DEFAULT_MOTION_NOISE_STD), np.asarray(DEFAULT_MEASUREMENT_NOISE_STD)
+    motion, measurement = (
+        np.asarray(source.motion_noise_std),
+        np.asarray(source.measurement_noise_std),
+    )
+    if index is not None:
+        motion, measurement = motion[index], measurement[index]
+    return motion, measurement
 
 
 def tracker_description(config: TrackerConfig) -> dict[str, Any]:

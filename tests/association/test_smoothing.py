@@ -156,16 +156,35 @@ def test_empty_rows_are_returned_as_they_are():
     assert len(smooth_tracks(empty, Q, R)) == 0
 
 
-def test_online_output_with_smoothing_is_refused_and_the_setting_round_trips():
+@pytest.mark.parametrize("tracker", ["phd", "kalman", "cmt", "hierarchical", "fusion"])
+def test_online_output_with_smoothing_is_refused_and_the_setting_round_trips(tracker):
     from jaxtrack.errors import InputError
-    from jaxtrack.filters.phd_tracker import PHDConfig
+    from jaxtrack.filters.registry import tracker_entry
 
+    config_type = tracker_entry(tracker).config_type
     with pytest.raises(InputError, match="offline"):
-        PHDConfig(output="online", smoothing="rts")
+        config_type(output="online", smoothing="rts")
     with pytest.raises(InputError, match="smoothing"):
-        PHDConfig(smoothing="kalman")
-    config = PHDConfig(smoothing="rts")
-    assert PHDConfig.from_dict(config.to_dict()) == config
+        config_type(smoothing="kalman")
+    config = config_type(smoothing="rts")
+    assert config_type.from_dict(config.to_dict()) == config
+    assert config_type().smoothing == "none"
+
+
+def test_kalman_tracker_smooths_under_the_phd_trackers_default_noise(mot15_root):
+    """A tracker without SDV noise of its own (the Kalman baseline) is smoothed under the PHD
+    tracker's default noise."""
+    from jaxtrack.filters.kalman_tracker import KalmanConfig
+    from jaxtrack.io import load_sequence
+    from jaxtrack.pipelines.tracking import track_sequences
+
+    seq = load_sequence(mot15_root / "TUD-Campus", frames=(1, 40))
+    (plain,) = track_sequences([seq], KalmanConfig(), 0)
+    (smoothed,) = track_sequences([seq], KalmanConfig(smoothing="rts"), 0)
+    expected = smooth_tracks(plain, Q, R)
+    np.testing.assert_array_equal(smoothed.ids, plain.ids)
+    np.testing.assert_allclose(smoothed.boxes, expected.boxes, rtol=1e-12)
+    assert not np.allclose(smoothed.boxes, plain.boxes)
 
 
 def test_tracker_with_smoothing_smooths_the_plain_output_under_its_noise(mot15_root):
