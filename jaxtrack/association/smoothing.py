@@ -38,6 +38,8 @@ import numpy as np
 
 from jaxtrack.types import MotTable
 
+#: Most identity x frame cells smoothed at once (about 40 MB of float64 work arrays).
+GROUP_CELLS = 1 << 17
 #: Standard deviation of a track's first velocity, in box sizes (w or h) per frame: loose,
 #: so that the data decide it.
 INITIAL_SPEED_STD = 1.0
@@ -69,27 +71,52 @@ def smooth_tracks(
     np.minimum.at(first, index, rows.frames)
     last = np.zeros(identities.size, np.int64)
     np.maximum.at(last, index, rows.frames)
-    length = int((last - first).max()) + 1
+    lifetime = last - first + 1
     step = rows.frames - first[index]
     boxes = np.asarray(rows.boxes, np.float64)
-    observed = np.zeros((identities.size, length), bool)
-    observed[index, step] = True
-    # (c_x, c_y, w, h) per identity and frame of its life
-    z = np.zeros((identities.size, length, 4))
-    z[index, step] = np.c_[boxes[:, :2] + boxes[:, 2:] / 2, boxes[:, 2:]]
+    # (c_x, c_y, w, h) per row
+    measured = np.c_[boxes[:, :2] + boxes[:, 2:] / 2, boxes[:, 2:]]
+    by_identity = np.argsort(index, kind="stable")
+    starts = np.searchsorted(index[by_identity], np.arange(identities.size))
     size = np.stack(
-        [np.median(boxes[index == i, 2:], axis=0) for i in range(identities.size)]
+        [np.median(boxes[part, 2:], axis=0) for part in np.split(by_identity, starts[1:])]
     )  # [identities, 2]: (w, h)
-    scale = np.concatenate([size, size], axis=1)  # (w, h, w, h)
-    q, r = motion * scale, measurement * scale
-    alive = np.arange(length)[None, :] <= (last - first)[:, None]
-    centre = _smooth_constant_velocity(
-        z[..., :2], observed, alive, q[:, :2], r[:, :2], INITIAL_SPEED_STD * size
-    )
-    extent = _smooth_random_walk(z[..., 2:], observed, alive, q[:, 2:], r[:, 2:])
-    smoothed = np.concatenate([centre, extent], axis=-1)[index, step]
+    smoothed = np.zeros_like(measured)
+    for group in _groups(lifetime):
+        member = np.full(identities.size, -1)
+        member[group] = np.arange(group.size)
+        mine = np.flatnonzero(member[index] >= 0)
+        slot, at = member[index[mine]], step[mine]
+        length = int(lifetime[group].max())
+        observed = np.zeros((group.size, length), bool)
+        observed[slot, at] = True
+        z = np.zeros((group.size, length, 4))
+        z[slot, at] = measured[mine]
+        scale = np.concatenate([size[group], size[group]], axis=1)  # (w, h, w, h)
+        q, r = motion * scale, measurement * scale
+        alive = np.arange(length)[None, :] < lifetime[group][:, None]
+        centre = _smooth_constant_velocity(
+            z[..., :2], observed, alive, q[:, :2], r[:, :2], INITIAL_SPEED_STD * size[group]
+        )
+        extent = _smooth_random_walk(z[..., 2:], observed, alive, q[:, 2:], r[:, 2:])
+        smoothed[mine] = np.concatenate([centre, extent], axis=-1)[slot, at]
     out = np.c_[smoothed[:, :2] - smoothed[:, 2:] / 2, smoothed[:, 2:]]
     return MotTable.from_arrays(rows.frames, rows.ids, out, rows.confs, rows.extra)
+
+
+def _groups(lifetime: np.ndarray) -> list[np.ndarray]:
+    """Identities in groups smoothed together: sorted by lifetime, each group's identities x
+    its longest lifetime at most :data:`GROUP_CELLS` (or one identity), so that memory stays
+    bounded on long runs with many identities."""
+    order = np.argsort(lifetime, kind="stable")
+    groups, current = [], []
+    for identity in order:
+        if current and (len(current) + 1) * lifetime[identity] > GROUP_CELLS:
+            groups.append(np.asarray(current))
+            current = []
+        current.append(identity)
+    groups.append(np.asarray(current))
+    return groups
 
 
 def _smooth_constant_velocity(z, observed, alive, q, r, speed_std):

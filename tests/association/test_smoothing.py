@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from jaxtrack.association import smoothing
 from jaxtrack.association.smoothing import INITIAL_SPEED_STD, smooth_tracks
 from jaxtrack.filters.phd_defaults import (
     DEFAULT_MEASUREMENT_NOISE_STD,
@@ -113,7 +114,10 @@ def _random_rows(seed: int) -> MotTable:
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_smoothing_equals_a_matrix_form_rts_smoother(seed):
+@pytest.mark.parametrize("group_cells", [1 << 17, 40])
+def test_smoothing_equals_a_matrix_form_rts_smoother(seed, group_cells, monkeypatch):
+    # group_cells 40: the identities smoothed in several groups (bounded memory on long runs)
+    monkeypatch.setattr(smoothing, "GROUP_CELLS", group_cells)
     rows = _random_rows(seed)
     smoothed = smooth_tracks(rows, Q, R)
     np.testing.assert_allclose(smoothed.boxes, _oracle(rows), rtol=1e-9, atol=1e-7)
