@@ -2,8 +2,8 @@
 
 A filter's estimate on frame ``k`` uses the detections up to ``k``; with the whole run in hand,
 each box can use the detections after it too. The PHD tracker's estimates follow its
-detections' jitter (the measurement noise is a sixth of the box width, the motion noise a
-twentieth), so a box may miss its object by more than the CLEAR threshold on one frame and
+detections' jitter (measurement noise 0.15 of the box width, motion noise 0.05 of it per
+frame), so a box may miss its object by more than the CLEAR threshold on one frame and
 match it on the next: a false positive and a miss for one jittered box. The
 Rauch-Tung-Striebel smoother under the tracker's own dynamics removes that jitter.
 
@@ -27,9 +27,12 @@ are predicted (no measurement). Only the boxes change: every row stays, with its
 identity and score.
 
 Host-side post-processing of the offline output (NumPy, float64, vectorised over identities
-and dimensions, one pass per frame), like the gap interpolation and retrodiction:
-``PHDConfig.smoothing`` turns it on (:func:`jaxtrack.pipelines.tracking.output_rows`,
-:func:`jaxtrack.pipelines.sweep.sweep`).
+and dimensions, one pass per frame; identities in groups of bounded size), like the gap
+interpolation and retrodiction. The ``smoothing`` setting of every tracker's configuration
+turns it on (:func:`jaxtrack.pipelines.tracking.output_rows`,
+:func:`jaxtrack.pipelines.sweep.sweep`); trackers without SDV noise of their own (Kalman,
+CMT, hierarchical, fusion) are smoothed under the PHD tracker's default noise
+(:func:`jaxtrack.pipelines.tracking.smoothing_noise`).
 """
 
 from __future__ import annotations
