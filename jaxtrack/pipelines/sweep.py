@@ -45,7 +45,7 @@ from tqdm import tqdm
 from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.association.retrodiction import detection_rows, retrodict
 from jaxtrack.association.smoothing import smooth_tracks
-from jaxtrack.configs import SMOOTHINGS, TrackerConfig
+from jaxtrack.configs import SMOOTHING, TrackerConfig
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, fit_detections, run, run_batch
@@ -330,8 +330,7 @@ def sweep(
             "retrodiction extends the offline output; the online output would ignore it "
             f"(retrodiction={retrodiction}, output='online')"
         )
-    if smoothing not in SMOOTHINGS:
-        raise InputError(f"smoothing must be one of {SMOOTHINGS}, got {smoothing!r}")
+    SMOOTHING.check("smoothing", smoothing)
     if smoothing != "none" and output == "online":
         raise InputError(
             f"smoothing re-estimates the offline output; the online output would ignore it "
