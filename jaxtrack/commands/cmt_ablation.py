@@ -8,6 +8,7 @@ from pathlib import Path
 
 from jaxtrack.commands.arguments import SEED_COUNT_TYPE, SEED_TYPE, consecutive_seeds
 from jaxtrack.commands.paths import check_outputs, output_folder, sequence_inputs, video_input
+from jaxtrack.configs import SMOOTHINGS
 from jaxtrack.datasets.video_files import TRUTH_FILE
 from jaxtrack.experiments.cmt_ablation import (
     ABLATION_FILES,
@@ -61,8 +62,9 @@ examples:
   jaxtrack experiment cmt-ablation --out /tmp/cmt-q --quick --seeds 101"""
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--seeds``, ``--tracker-seeds`` and ``--data``."""
+def add_video_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--seeds``, ``--data`` and ``--smoothing``: the arguments of every experiment on the
+    MOT15 videos and the scripted video scenes (cmt-ablation, hierarchical, fusion)."""
     parser.add_argument(
         "--seeds",
         nargs="+",
@@ -72,17 +74,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "the first only)",
     )
     parser.add_argument(
+        "--data",
+        metavar="DIR",
+        help=f"the shared data folder with mot15/ and video/ (default: {SHARED_DATA})",
+    )
+    parser.add_argument(
+        "--smoothing",
+        choices=SMOOTHINGS,
+        default="none",
+        help="every tracker's offline output re-estimated by the Rauch-Tung-Striebel smoother "
+        "(the configurations' smoothing setting, under the PHD tracker's dynamics; default "
+        "none: the trackers' own estimates, as the papers output them); the references "
+        "(True identities) are not trackers and stay as they are",
+    )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """:func:`add_video_arguments` and ``--tracker-seeds``."""
+    add_video_arguments(parser)
+    parser.add_argument(
         "--tracker-seeds",
         type=SEED_COUNT_TYPE,
         metavar="K",
         help=f"runs of every tracker on every sequence, seeds --seed .. --seed + K - 1 (default "
         f"{TRACKER_SEEDS}; with --quick 1); the table and the goals read the means: one run's "
         "IDF1 moves by points with the seed",
-    )
-    parser.add_argument(
-        "--data",
-        metavar="DIR",
-        help=f"the shared data folder with mot15/ and video/ (default: {SHARED_DATA})",
     )
 
 
@@ -110,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
         quick=args.quick,
         progress=not args.quiet,
         tracker_seeds=len(tracker_seeds),
+        smoothing=args.smoothing,
     )
     print(markdown_table(result.rows, TABLE_COLUMNS))
     for line in goal_lines(result.goals):

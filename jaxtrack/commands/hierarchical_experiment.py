@@ -60,8 +60,8 @@ def run_video_experiment(
     args: argparse.Namespace, experiment: Callable[..., dict], columns: Sequence[str]
 ) -> int:
     """Runs an experiment on the MOT15 videos and scenes (``--data``, ``--seeds``) with the
-    parsed arguments: ``experiment(out, data, seeds, seed=, quick=, progress=)`` returns its
-    record (``rows``, ``goals``); prints the table (``columns``) and the goals."""
+    parsed arguments: ``experiment(out, data, seeds, seed=, quick=, progress=, smoothing=)``
+    returns its record (``rows``, ``goals``); prints the table (``columns``) and the goals."""
     data = Path(args.data or SHARED_DATA)
     seeds = list(dict.fromkeys(args.seeds or HELD_OUT_SEEDS))
     inputs = video_input(data / PETS_VIDEO, f"the video {data / PETS_VIDEO}")
@@ -69,7 +69,13 @@ def run_video_experiment(
         inputs += sequence_inputs(data / "mot15" / name)
     check_outputs(output_folder("--out", args.out, FILES), inputs)
     record = experiment(
-        args.out, data, seeds, seed=args.seed, quick=args.quick, progress=not args.quiet
+        args.out,
+        data,
+        seeds,
+        seed=args.seed,
+        quick=args.quick,
+        progress=not args.quiet,
+        smoothing=args.smoothing,
     )
     print(markdown_table(record["rows"], columns))
     for goal in record["goals"]:

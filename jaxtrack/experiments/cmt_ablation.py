@@ -68,6 +68,8 @@ from jaxtrack.experiments.common import (
     evaluate_rows,
     markdown_table,
     output_folder,
+    smoothed_trackers,
+    smoothing_sentence,
     summed_errors,
     switch_counts,
     switch_section,
@@ -594,6 +596,7 @@ def run_cmt_ablation(
     quick: bool = False,
     progress: bool = True,
     tracker_seeds: int = 1,
+    smoothing: str = "none",
 ) -> CMTAblation:
     """The whole experiment (module docstring): the table, the goals and both figures.
 
@@ -606,17 +609,20 @@ def run_cmt_ablation(
             seed + tracker_seeds - 1`` (>= 1); the table and the goals read their means.
         quick: a smoke run (:func:`experiment_sequences`, :func:`experiment_trackers`).
         progress: print each step and show a progress bar over the runs.
+        smoothing: every tracker's ``smoothing`` setting (``"none"``: the trackers' own
+            estimates; ``"rts"``: :mod:`jaxtrack.association.smoothing`); the scores read
+            the smoothed rows, Fig. 8 and 9 (inside the trackers) do not change.
 
     Returns:
         The :class:`CMTAblation`.
 
     Raises:
-        InputError: no seeds, or data missing from ``data``.
+        InputError: no seeds, data missing from ``data``, or an unknown smoothing.
     """
     if tracker_seeds < 1:
         raise InputError(f"tracker_seeds must be at least 1, got {tracker_seeds}")
+    trackers = smoothed_trackers(experiment_trackers(quick), smoothing)
     start, out, steps, sequences = start_experiment(out_dir, data, seeds, quick, progress)
-    trackers = experiment_trackers(quick)
     run_seeds = list(range(seed, seed + tracker_seeds))
     by_seed = []
     for run_seed in run_seeds:
@@ -662,6 +668,7 @@ def run_cmt_ablation(
     record = {
         "quick": quick,
         "seed": seed,
+        "smoothing": smoothing,
         "tracker_seeds": run_seeds,
         "synthetic_seeds_held_out": list(seeds[:1] if quick else seeds),
         "sequences": [
@@ -701,6 +708,7 @@ def table_markdown(record: dict[str, Any]) -> str:
     lines = [
         "# CMT ablation (Cui et al., Sec. VII)\n",
         f"{'Quick smoke run (numbers mean nothing). ' if record['quick'] else ''}"
+        f"{smoothing_sentence(record)}"
         f"{_seeds_sentence(record['tracker_seeds'])}; synthetic video scenes of seeds {seeds} "
         "(held out: never used to tune any default). Scores in %, IoU 0.5, MOT15 rules; "
         "OE/DE/SE as `jaxtrack.metrics.cmt` defines them; pooled rows combine the sequences "

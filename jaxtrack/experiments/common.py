@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
+from jaxtrack.configs import SMOOTHING, TrackerConfig
 from jaxtrack.context.samples import WARMUP_FRAMES
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.datasets.synthetic import generate_scene, write_scene
@@ -164,6 +165,34 @@ def learn_split(
         seed=seed,
         tracker_config=config,
         progress=progress,
+    )
+
+
+def smoothed_trackers(
+    trackers: dict[str, TrackerConfig], smoothing: str
+) -> dict[str, TrackerConfig]:
+    """Every configuration of ``trackers`` with its ``smoothing`` setting set to
+    ``smoothing`` (``"none"``: returned unchanged), in the same order.
+
+    Raises:
+        InputError: an unknown smoothing.
+    """
+    SMOOTHING.check("smoothing", smoothing)
+    if smoothing == "none":
+        return dict(trackers)
+    return {name: config.replace(smoothing=smoothing) for name, config in trackers.items()}
+
+
+def smoothing_sentence(record: dict) -> str:
+    """The sentence a ``table.md`` states its trackers' smoothing with (empty for a record
+    without smoothing: the trackers' own estimates)."""
+    smoothing = record.get("smoothing", "none")
+    if smoothing == "none":
+        return ""
+    return (
+        f"Every tracker's output smoothed (`smoothing: {smoothing}`, "
+        "`jaxtrack.association.smoothing`): not the papers' protocol, which scores the "
+        "filters' own estimates. "
     )
 
 

@@ -46,6 +46,8 @@ from jaxtrack.experiments.common import (
     error_section,
     evaluate_rows,
     markdown_table,
+    smoothed_trackers,
+    smoothing_sentence,
     summed_errors,
     switch_counts,
     switch_section,
@@ -117,6 +119,7 @@ def run_experiment(
     seed: int = 0,
     quick: bool = False,
     progress: bool = True,
+    smoothing: str = "none",
 ) -> dict[str, Any]:
     """The whole experiment (module docstring); writes ``table.md``, ``results.json`` and
     every result (``sequences/SEQ/SOURCE/TRACKER.txt``, with ``.events.csv`` for the full
@@ -129,15 +132,17 @@ def run_experiment(
         seed: the trackers' seed.
         quick: a smoke run on TUD-Campus's and one short scene's first frames.
         progress: print each step and show a progress bar over the runs.
+        smoothing: every variant's ``smoothing`` setting (``"none"``: the trackers' own
+            estimates; ``"rts"``: :mod:`jaxtrack.association.smoothing`).
 
     Returns:
         The record written to ``results.json``.
 
     Raises:
-        InputError: no seeds, or data missing from ``data``.
+        InputError: no seeds, data missing from ``data``, or an unknown smoothing.
     """
+    configs = smoothed_trackers(experiment_configs(), smoothing)
     start, out, _, sequences = start_experiment(out_dir, data, seeds, quick, progress)
-    configs = experiment_configs()
     scene_config = QUICK_SCENE if quick else None
     scenes = {}
     for scene_seed in seeds[:1] if quick else seeds:
@@ -171,6 +176,7 @@ def run_experiment(
     record = {
         "quick": quick,
         "seed": seed,
+        "smoothing": smoothing,
         "synthetic_seeds_held_out": list(seeds[:1] if quick else seeds),
         "sequences": [s.name for s in sequences],
         "trackers": {name: tracker_description(c) for name, c in configs.items()},
@@ -303,6 +309,7 @@ def table_markdown(record: dict[str, Any]) -> str:
     lines = [
         "# Hierarchical tracker: Kalman bank vs managed low level vs both levels",
         "",
+        f"{smoothing_sentence(record)}"
         f"Synthetic scenes (held out): seeds {record['synthetic_seeds_held_out']}; tracker "
         f"seed {record['seed']}; {record['seconds']} s in all.",
         "",

@@ -1,0 +1,121 @@
+"""``--smoothing`` of the experiments on the MOT15 videos and the scripted scenes
+(cmt-ablation, hierarchical, fusion): it reaches every compared tracker's configuration (and
+only the trackers), the record and ``table.md`` say so; ``--tracker-seeds``, which only the
+CMT ablation reads, is refused by the other two instead of being ignored."""
+
+from __future__ import annotations
+
+import pytest
+
+from jaxtrack.cli import main
+from jaxtrack.commands import cmt_ablation as cmt_command
+from jaxtrack.commands import fusion_experiment, hierarchical_experiment
+from jaxtrack.errors import InputError
+from jaxtrack.experiments import cmt_ablation, fusion, hierarchical
+from jaxtrack.experiments.common import smoothed_trackers, smoothing_sentence
+
+
+class Captured(Exception):
+    """Raised by the stand-in run loop once it has seen the trackers."""
+
+
+def test_smoothed_trackers_sets_every_configuration_and_keeps_the_order():
+    trackers = fusion.experiment_trackers()
+    smoothed = smoothed_trackers(trackers, "rts")
+    assert list(smoothed) == list(trackers)
+    for name, config in smoothed.items():
+        assert config.smoothing == "rts"
+        assert config.replace(smoothing="none") == trackers[name]
+    assert smoothed_trackers(trackers, "none") == trackers
+    with pytest.raises(InputError, match="smoothing"):
+        smoothed_trackers(trackers, "kalman")
+
+
+@pytest.mark.parametrize("module", [hierarchical, fusion], ids=["hierarchical", "fusion"])
+def test_the_experiment_runs_its_trackers_smoothed(module, monkeypatch, tmp_path):
+    seen = {}
+
+    def stand_in(sequences, trackers, out, seed=0, progress=False):
+        seen.update(trackers)
+        raise Captured
+        yield  # pragma: no cover
+
+    monkeypatch.setattr(module, "start_experiment", lambda *args: (0.0, tmp_path, None, []))
+    monkeypatch.setattr(module, "frame_tracker_runs", stand_in)
+    with pytest.raises(Captured):
+        module.run_experiment(tmp_path, tmp_path, [101], smoothing="rts", progress=False)
+    assert seen and all(config.smoothing == "rts" for config in seen.values())
+    seen.clear()
+    with pytest.raises(Captured):
+        module.run_experiment(tmp_path, tmp_path, [101], progress=False)
+    assert seen and all(config.smoothing == "none" for config in seen.values())
+
+
+def test_the_cmt_ablation_tables_its_trackers_smoothed(monkeypatch, tmp_path):
+    seen = {}
+
+    def stand_in(sequences, trackers, seed, progress):
+        seen.update(trackers)
+        raise Captured
+
+    monkeypatch.setattr(cmt_ablation, "start_experiment", lambda *args: (0.0, tmp_path, None, []))
+    monkeypatch.setattr(cmt_ablation, "ablation_table", stand_in)
+    with pytest.raises(Captured):
+        cmt_ablation.run_cmt_ablation(tmp_path, tmp_path, [101], smoothing="rts", progress=False)
+    assert list(seen) == list(cmt_ablation.experiment_trackers())
+    assert all(config.smoothing == "rts" for config in seen.values())
+
+
+def test_an_unknown_smoothing_is_refused_before_any_run(tmp_path):
+    for run in (hierarchical.run_experiment, fusion.run_experiment):
+        with pytest.raises(InputError, match="smoothing"):
+            run(tmp_path / "out", tmp_path, [101], smoothing="spline", progress=False)
+        assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "module", "function"),
+    [
+        ("hierarchical", hierarchical_experiment, "run_experiment"),
+        ("fusion", fusion_experiment, "run_experiment"),
+        ("cmt-ablation", cmt_command, "run_cmt_ablation"),
+    ],
+)
+def test_the_option_reaches_the_experiment(
+    name, module, function, monkeypatch, tmp_path, mot15_root
+):
+    seen = {}
+
+    def stand_in(*args, **kwargs):
+        seen.update(kwargs)
+        raise Captured
+
+    monkeypatch.setattr(module, function, stand_in)
+    argv = ["experiment", name, "--out", str(tmp_path / "out"), "--quiet"]
+    with pytest.raises(Captured):
+        main([*argv, "--smoothing", "rts"])
+    assert seen["smoothing"] == "rts"
+    with pytest.raises(Captured):
+        main(argv)
+    assert seen["smoothing"] == "none"
+
+
+@pytest.mark.parametrize("name", ["hierarchical", "fusion"])
+def test_tracker_seeds_is_refused_where_it_would_be_ignored(name, tmp_path, capsys):
+    argv = ["experiment", name, "--out", str(tmp_path / "out"), "--tracker-seeds", "3"]
+    assert main(argv) == 2
+    assert "unrecognized arguments: --tracker-seeds" in capsys.readouterr().err
+
+
+def test_help_states_the_smoothing(capsys):
+    for name in ("hierarchical", "fusion", "cmt-ablation"):
+        with pytest.raises(SystemExit):
+            main(["experiment", name, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert "--smoothing {none,rts}" in text and "Rauch-Tung-Striebel" in text
+
+
+def test_the_table_states_the_smoothing():
+    assert smoothing_sentence({"smoothing": "none"}) == ""
+    assert smoothing_sentence({}) == ""
+    assert "`smoothing: rts`" in smoothing_sentence({"smoothing": "rts"})
