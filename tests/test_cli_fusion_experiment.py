@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from jaxtrack.cli import main
-from jaxtrack.experiments.common import ERROR_KEYS, SWITCH_KEYS
+from jaxtrack.experiments.common import ERROR_KEYS, SWITCH_KEYS, environment, environment_line
 from jaxtrack.experiments.fusion import TABLE_COLUMNS, result_name
 from jaxtrack.filters.fusion_tracker import FusionConfig
 
@@ -84,6 +84,10 @@ def test_quick_run_scores_are_those_of_its_files(tmp_path, capsys, mot15_root):
     assert tracked.read_text() == written.read_text()
     table = (out / "table.md").read_text()
     assert table.startswith("# Fusion tracker") and "Quick smoke run" in table
+    # what produced the numbers: this checkout's commit and the packages' versions
+    assert record["environment"] == environment()
+    assert environment_line(record["environment"]) in table
+    assert "smoothed" not in table and record["smoothing"] == "none"
     assert "## Identity switches by kind" in table
     assert "## Misses and false positives by kind" in table
     assert "| Proposed (paper, Table 4) | 94.7 | 5.3 | 0.0 | 18 | 1 | 0 | 19 | 34 | 7 |" in table

@@ -63,6 +63,8 @@ from jaxtrack.experiments.common import (
     ERROR_KEYS,
     QUICK_TRACKER_CONFIG,
     SWITCH_KEYS,
+    environment,
+    environment_lines,
     error_counts,
     error_section,
     evaluate_rows,
@@ -693,6 +695,7 @@ def run_cmt_ablation(
         "fig8": fig8,
         "fig9": fig9,
         "seconds": seconds,
+        "environment": environment(),
     }
     json_path = out / "results.json"
     json_path.write_text(json.dumps(record, indent=1) + "\n")
@@ -746,6 +749,7 @@ def table_markdown(record: dict[str, Any]) -> str:
         "Tracking time (s, compiles included): "
         + ", ".join(f"{k} {v}" for k, v in record["tracking_seconds"].items())
         + f"; whole run {record['seconds']} s.\n",
+        *environment_lines(record),
     ]
     return "\n".join(lines)
 

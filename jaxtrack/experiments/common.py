@@ -22,9 +22,14 @@ from __future__ import annotations
 
 import csv
 import math
+import platform
+import subprocess
 from collections.abc import Callable, Iterable, Sequence
+from importlib import metadata
 from pathlib import Path
 from typing import NamedTuple
+
+import cv2
 
 from jaxtrack.configs import SMOOTHING, TrackerConfig
 from jaxtrack.context.samples import WARMUP_FRAMES
@@ -166,6 +171,68 @@ def learn_split(
         tracker_config=config,
         progress=progress,
     )
+
+
+#: The repository this package runs from when it is a git checkout (an editable install).
+REPOSITORY = Path(__file__).resolve().parents[2]
+#: The distributions whose versions :func:`environment` records: the particle runs depend on
+#: their float32 rounding, so a table is reproducible only with the same versions.
+ENVIRONMENT_PACKAGES = ("jax", "jaxlib", "numpy", "scipy", "optax")
+
+
+def environment() -> dict[str, str | None]:
+    """What produced an experiment's numbers: the jaxtrack commit (``git describe``-like
+    short hash, with ``+changes`` when the checkout differs from it; None outside a git
+    checkout), Python, OpenCV and :data:`ENVIRONMENT_PACKAGES` (None where not installed).
+    Written into the experiments' records so that a table that does not reproduce can be
+    traced to a code or an environment change."""
+    found: dict[str, str | None] = {"jaxtrack_commit": checkout_commit(REPOSITORY)}
+    found["python"] = platform.python_version()
+    for name in ENVIRONMENT_PACKAGES:
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            found[name] = None
+    found["opencv"] = cv2.__version__
+    return found
+
+
+def environment_line(found: dict[str, str | None]) -> str:
+    """:func:`environment` as one sentence for a ``table.md`` / ``summary.md``."""
+    versions = ", ".join(f"{k} {v}" for k, v in found.items() if k != "jaxtrack_commit")
+    return f"Environment: jaxtrack commit {found.get('jaxtrack_commit') or 'unknown'}; {versions}."
+
+
+def environment_lines(record: dict) -> list[str]:
+    """The ``table.md`` lines stating ``record["environment"]`` (none for a record
+    without one)."""
+    found = record.get("environment")
+    return [environment_line(found)] if found else []
+
+
+def checkout_commit(root: Path) -> str | None:
+    """The short hash of the git checkout at ``root`` (``+changes`` when a tracked file
+    differs from it); None when ``root`` is not a git checkout or git cannot tell."""
+    if not (root / ".git").exists():
+        return None
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "--short=12", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        changes = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return f"{head}+changes" if changes else head
 
 
 def smoothed_trackers(

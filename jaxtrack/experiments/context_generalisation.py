@@ -61,6 +61,8 @@ from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
     SCORE_KEYS,
     Split,
+    environment,
+    environment_line,
     error_counts,
     evaluate_rows,
     markdown_table,
@@ -654,6 +656,7 @@ def run_context_generalisation(
     )
     stages = ", ".join(f"{key} {value:.0f} s" for key, value in timings.items())
     markdown += f"\nRun time {seconds:.0f} s ({stages}; compiles included).\n"
+    markdown += f"\n{environment_line(environment())}\n"
     md_path = out / "summary.md"
     md_path.write_text(markdown)
     files.append(md_path)

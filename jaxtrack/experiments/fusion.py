@@ -63,6 +63,8 @@ from jaxtrack.experiments.cmt_ablation import (
 )
 from jaxtrack.experiments.common import (
     QUICK_TRACKER_CONFIG,
+    environment,
+    environment_lines,
     error_counts,
     error_section,
     evaluate_rows,
@@ -275,6 +277,7 @@ def run_experiment(
     }
     record["goals"] = goal_checks(rows)
     record["seconds"] = round(time.perf_counter() - start, 1)
+    record["environment"] = environment()
     (out / "results.json").write_text(json.dumps(record, indent=1) + "\n")
     (out / "table.md").write_text(table_markdown(record))
     return record
@@ -566,5 +569,6 @@ def table_markdown(record: dict[str, Any]) -> str:
         )
         + f"; whole run {record['seconds']} s. The speed goal is measured by "
         "`benchmarks/fusion_speed.py`.\n",
+        *environment_lines(record),
     ]
     return "\n".join(lines)

@@ -42,6 +42,8 @@ from jaxtrack.experiments.cmt_ablation import (
     start_experiment,
 )
 from jaxtrack.experiments.common import (
+    environment,
+    environment_lines,
     error_counts,
     error_section,
     evaluate_rows,
@@ -188,6 +190,7 @@ def run_experiment(
         "identity_cases": cases,
         "tracking_seconds": {k: round(v, 1) for k, v in seconds.items()},
         "seconds": round(time.perf_counter() - start, 1),
+        "environment": environment(),
     }
     record["goals"] = goal_checks(record, [s.name for s in sequences if not s.synthetic])
     (out / "results.json").write_text(json.dumps(record, indent=1) + "\n")
@@ -375,4 +378,5 @@ def table_markdown(record: dict[str, Any]) -> str:
         f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"
         for g in record["goals"]
     ]
+    lines += ["", *environment_lines(record)] if "environment" in record else []
     return "\n".join(lines) + "\n"

@@ -30,7 +30,13 @@ from tqdm import tqdm
 
 from jaxtrack.errors import InputError
 from jaxtrack.experiments.cmt_ablation import VIDEO_SEQUENCES
-from jaxtrack.experiments.common import evaluate_rows, markdown_table, score_summary
+from jaxtrack.experiments.common import (
+    environment,
+    environment_lines,
+    evaluate_rows,
+    markdown_table,
+    score_summary,
+)
 from jaxtrack.filters.base import run
 from jaxtrack.filters.hierarchical_tracker import (
     HierarchicalConfig,
@@ -134,6 +140,7 @@ def run_experiment(
         "rows": rows,
         "estimated_noise": noise,
         "seconds": round(time.perf_counter() - start, 1),
+        "environment": environment(),
     }
     (out / "results.json").write_text(json.dumps(record, indent=1) + "\n")
     (out / "table.md").write_text(table_markdown(record))
@@ -154,4 +161,5 @@ def table_markdown(record: dict[str, Any]) -> str:
         "",
     ]
     lines += [f"- {name}: {line}" for name, line in record["estimated_noise"].items()]
+    lines += ["", *environment_lines(record)] if "environment" in record else []
     return "\n".join(lines) + "\n"

@@ -15,6 +15,7 @@ from jaxtrack.cli import main
 from jaxtrack.errors import InputError
 from jaxtrack.experiments import hierarchical_noise
 from jaxtrack.experiments.cmt_ablation import VIDEO_SEQUENCES
+from jaxtrack.experiments.common import environment, environment_line
 from jaxtrack.experiments.hierarchical_noise import (
     SETTINGS,
     detection_rows,
@@ -78,5 +79,7 @@ def test_quick_run_through_the_cli(mot15_root, tmp_path, monkeypatch, capsys):
     assert record["sequences"] == ["KITTI-17"]
     assert [r["setting"] for r in record["rows"]] == [*SETTINGS, "Kalman bank"]
     assert "KITTI-17" in record["estimated_noise"]
+    assert record["environment"] == environment()
+    assert environment_line(record["environment"]) in (out / "table.md").read_text()
     printed = capsys.readouterr().out
     assert "| estimated |" in printed and (out / "table.md").is_file()

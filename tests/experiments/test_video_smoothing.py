@@ -5,6 +5,8 @@ CMT ablation reads, is refused by the other two instead of being ignored."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from jaxtrack.cli import main
@@ -12,7 +14,12 @@ from jaxtrack.commands import cmt_ablation as cmt_command
 from jaxtrack.commands import fusion_experiment, hierarchical_experiment
 from jaxtrack.errors import InputError
 from jaxtrack.experiments import cmt_ablation, fusion, hierarchical
-from jaxtrack.experiments.common import smoothed_trackers, smoothing_sentence
+from jaxtrack.experiments.common import (
+    environment,
+    environment_line,
+    smoothed_trackers,
+    smoothing_sentence,
+)
 
 
 class Captured(Exception):
@@ -119,3 +126,44 @@ def test_the_table_states_the_smoothing():
     assert smoothing_sentence({"smoothing": "none"}) == ""
     assert smoothing_sentence({}) == ""
     assert "`smoothing: rts`" in smoothing_sentence({"smoothing": "rts"})
+
+
+def test_quick_hierarchical_run_smoothed_is_jaxtrack_track_smoothed(tmp_path, capsys, mot15_root):
+    """The whole experiment end to end (its quick form), with ``--smoothing rts``: each
+    result file is what ``jaxtrack track`` writes with the configuration's ``smoothing``,
+    and each row's scores are ``jaxtrack eval``'s of that file."""
+    out = tmp_path / "hier"
+    argv = ["experiment", "hierarchical", "--out", str(out), "--quick", "--quiet"]
+    assert main([*argv, "--smoothing", "rts"]) == 0
+    capsys.readouterr()
+    record = json.loads((out / "results.json").read_text())
+    assert record["smoothing"] == "rts" and record["environment"] == environment()
+    table = (out / "table.md").read_text()
+    assert "`smoothing: rts`" in table and environment_line(record["environment"]) in table
+    names = list(hierarchical.TRACKERS)
+    assert [(r["sequence"], r["detections"], r["tracker"]) for r in record["rows"]] == [
+        (sequence, source, name)
+        for sequence in ("TUD-Campus", "video-101")
+        for source in ("det", "bs")
+        for name in names
+    ]
+    config = tmp_path / "full.json"
+    config.write_text(json.dumps({"variant": "full", "smoothing": "rts"}))
+    tracked = tmp_path / "tud.txt"
+    folder = mot15_root / "TUD-Campus"
+    argv = ["track", str(folder), "--tracker", "hierarchical", "--frames", "1:24"]
+    assert main([*argv, "--config", str(config), "--out", str(tracked), "--quiet"]) == 0
+    written = out / "sequences" / "TUD-Campus" / "det" / "full.txt"
+    assert tracked.read_text() == written.read_text()
+    capsys.readouterr()
+    plain = tmp_path / "plain.txt"
+    config.write_text(json.dumps({"variant": "full"}))
+    assert main([*argv, "--config", str(config), "--out", str(plain), "--quiet"]) == 0
+    assert plain.read_text() != written.read_text()  # the smoother moved the boxes
+    capsys.readouterr()
+    key = ("TUD-Campus", "det", "Hierarchical")
+    row = next(r for r in record["rows"] if (r["sequence"], r["detections"], r["tracker"]) == key)
+    assert main(["eval", str(folder), str(written), "--frames", "1:24", "--json"]) == 0
+    scores = json.loads(capsys.readouterr().out)
+    assert row["IDF1"] == pytest.approx(100 * scores["IDF1"], abs=0.006)
+    assert row["MOTA"] == pytest.approx(100 * scores["MOTA"], abs=0.006)
