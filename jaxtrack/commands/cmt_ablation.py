@@ -102,6 +102,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def video_experiment_inputs(data: Path) -> list:
+    """The inputs an experiment on the MOT15 videos reads from ``data`` (PETS09-S2L1's
+    video, the three sequences' files), for :func:`~jaxtrack.commands.paths.check_outputs`."""
+    inputs = video_input(data / PETS_VIDEO, f"the video {data / PETS_VIDEO}")
+    for name in VIDEO_SEQUENCES:
+        inputs += sequence_inputs(data / "mot15" / name)
+    return inputs
+
+
+def video_experiment_options(args: argparse.Namespace) -> dict:
+    """The keyword arguments every experiment on the MOT15 videos takes from the parsed
+    arguments: ``seed``, ``quick``, ``progress`` and ``smoothing``."""
+    return {
+        "seed": args.seed,
+        "quick": args.quick,
+        "progress": not args.quiet,
+        "smoothing": args.smoothing,
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     """Runs the experiment on the parsed arguments; prints the table and the goals."""
     data = Path(args.data or SHARED_DATA)
@@ -114,19 +134,9 @@ def run(args: argparse.Namespace) -> int:
         for seed in seeds
         for name in ("seqinfo.ini", "det/det.txt", "gt/gt.txt", TRUTH_FILE, f"video-{seed}.mp4")
     ]
-    inputs = video_input(data / PETS_VIDEO, f"the video {data / PETS_VIDEO}")
-    for name in VIDEO_SEQUENCES:
-        inputs += sequence_inputs(data / "mot15" / name)
-    check_outputs(output_folder("--out", args.out, files), inputs)
+    check_outputs(output_folder("--out", args.out, files), video_experiment_inputs(data))
     result = run_cmt_ablation(
-        args.out,
-        data,
-        seeds,
-        seed=args.seed,
-        quick=args.quick,
-        progress=not args.quiet,
-        tracker_seeds=len(tracker_seeds),
-        smoothing=args.smoothing,
+        args.out, data, seeds, tracker_seeds=len(tracker_seeds), **video_experiment_options(args)
     )
     print(markdown_table(result.rows, TABLE_COLUMNS))
     for line in goal_lines(result.goals):

@@ -9,9 +9,13 @@ import argparse
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from jaxtrack.commands.cmt_ablation import SHARED_DATA
-from jaxtrack.commands.paths import check_outputs, output_folder, sequence_inputs, video_input
-from jaxtrack.experiments.cmt_ablation import HELD_OUT_SEEDS, PETS_VIDEO, VIDEO_SEQUENCES
+from jaxtrack.commands.cmt_ablation import (
+    SHARED_DATA,
+    video_experiment_inputs,
+    video_experiment_options,
+)
+from jaxtrack.commands.paths import check_outputs, output_folder, sequence_inputs
+from jaxtrack.experiments.cmt_ablation import HELD_OUT_SEEDS, PETS_VIDEO
 from jaxtrack.experiments.common import markdown_table
 from jaxtrack.experiments.hierarchical import TABLE_COLUMNS, run_experiment
 from jaxtrack.experiments.hierarchical_noise import COLUMNS as NOISE_COLUMNS
@@ -64,19 +68,8 @@ def run_video_experiment(
     returns its record (``rows``, ``goals``); prints the table (``columns``) and the goals."""
     data = Path(args.data or SHARED_DATA)
     seeds = list(dict.fromkeys(args.seeds or HELD_OUT_SEEDS))
-    inputs = video_input(data / PETS_VIDEO, f"the video {data / PETS_VIDEO}")
-    for name in VIDEO_SEQUENCES:
-        inputs += sequence_inputs(data / "mot15" / name)
-    check_outputs(output_folder("--out", args.out, FILES), inputs)
-    record = experiment(
-        args.out,
-        data,
-        seeds,
-        seed=args.seed,
-        quick=args.quick,
-        progress=not args.quiet,
-        smoothing=args.smoothing,
-    )
+    check_outputs(output_folder("--out", args.out, FILES), video_experiment_inputs(data))
+    record = experiment(args.out, data, seeds, **video_experiment_options(args))
     print(markdown_table(record["rows"], columns))
     for goal in record["goals"]:
         print(f"{'PASS' if goal['pass'] else 'FAIL'}: {goal['goal']}: {goal['measured']}")
