@@ -378,5 +378,5 @@ def table_markdown(record: dict[str, Any]) -> str:
         f"- {'PASS' if g['pass'] else 'FAIL'}: {g['goal']}: {g['measured']}"
         for g in record["goals"]
     ]
-    lines += ["", *environment_lines(record)] if "environment" in record else []
+    lines += [f"\n{line}" for line in environment_lines(record)]  # after a blank line
     return "\n".join(lines) + "\n"

@@ -161,5 +161,5 @@ def table_markdown(record: dict[str, Any]) -> str:
         "",
     ]
     lines += [f"- {name}: {line}" for name, line in record["estimated_noise"].items()]
-    lines += ["", *environment_lines(record)] if "environment" in record else []
+    lines += [f"\n{line}" for line in environment_lines(record)]  # after a blank line
     return "\n".join(lines) + "\n"
