@@ -96,8 +96,10 @@ training span is scored with the rest: hold it out when evaluating (``jaxtrack e
 --frames``). With ``--benchmark`` each sequence trains on the first ``train_fraction`` of its
 own frames (``--train-frames`` is refused). ``.config.json`` records the pool, the fusion
 and how the context was learned (``training``). Its configuration (``FusionConfig``) takes
-``pool``, ``fusion``, ``train_fraction``, ``share``, ``learning_rate``, ``max_targets``,
-``output``, ``max_gap``; ``--pool`` and ``--fusion`` override the file's.
+``pool``, ``fusion``, ``train_fraction``, ``share``, ``init_rule`` (``"share"``, the paper's
+99 % rule, or ``"cost"``: th_init with the fewest false-target and late-start frames on the
+training span), ``learning_rate``, ``max_targets``, ``output``, ``max_gap``, ``smoothing``;
+``--pool`` and ``--fusion`` override the file's.
 
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance
 trackers) gets each frame beside its detections, streamed from the sequence's frames:

@@ -43,6 +43,10 @@ POOLS = tuple(
     for size in range(1, len(MEMBERS) + 1)
     for subset in itertools.combinations(MEMBERS, size)
 )
+#: The rules calibrating th_init (``FusionConfig.init_rule``): the paper's share of the
+#: false-positive runs, or the fewest errors on the training span
+#: (:func:`~jaxtrack.filters.fusion_voting.calibrate_init_cost`).
+INIT_RULES = ("share", "cost")
 #: The paper's thresholds for PETS 2009 (its Table 2), used without a calibration.
 PAPER_TH_INIT, PAPER_TH_TERM = 3, 8
 #: Smallest IoU of a detection with a slot's predicted box (the link IoU of the
@@ -104,6 +108,16 @@ class FusionConfig(TrackerConfig):
             0.0,
             1.0,
             lower_open=True,
+        ),
+    )
+    init_rule: str = setting(
+        "share",
+        Rule(
+            "how th_init is calibrated: 'share' (the paper: the smallest rejecting `share` of "
+            "the false-positive runs) or 'cost' (the fewest false-target and late-start frames "
+            "on the training span)",
+            str,
+            choices=INIT_RULES,
         ),
     )
     learning_rate: float = setting(

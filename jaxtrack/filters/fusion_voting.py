@@ -19,6 +19,15 @@ Calibration (host-side NumPy), the choices the paper leaves open:
   ``L >= th_init``; ``th_init`` is the smallest integer with
   ``#{runs: L < th_init} >= reject * #runs`` (``reject = 0.99``: "at least 99% of the FPs
   eliminated").
+* **Initiation by cost** (a departure, opt-in: ``FusionConfig.init_rule = "cost"``;
+  :func:`initiation_runs`, :func:`calibrate_init_cost`). The 99 % rule looks at the false
+  positives alone, so a few long false-positive runs (a blob on half a person, a shadow)
+  set a long vote that every true target then waits through. The cost rule also counts
+  what a long vote costs: each true target's first detected run of ``S`` frames (matched
+  at the tracker's support gate) is missed on its first ``min(S, th_init - 1)`` frames,
+  and each false-positive run of ``L`` frames is a false target on ``max(0, L - th_init +
+  1)``; ``th_init`` minimises the sum on the training span (per region, with the same
+  clamping). Without targets it rejects every run, as the share rule at 100 %.
 * **Termination** (:func:`detection_gaps`, :func:`calibrate_term`). The analogue on the true
   targets: a *gap* is a maximal stretch of consecutive gt rows of one trajectory
   (``conf != 0``) that no detection matches (the same one-to-one assignment, at IoU
@@ -210,6 +219,71 @@ def detection_gaps(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) ->
     return Runs(lengths=lengths.astype(np.int64), points=foot_points(gt.boxes[targets[starts]]))
 
 
+def initiation_runs(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) -> Runs:
+    """Each true target's first run of detected frames: what a vote must accept.
+
+    Per trajectory of the gt targets (``conf != 0``), matched to the detections as in
+    :func:`detection_gaps`: the consecutive matched rows from its first matched one. A
+    trajectory no detection matches has no run.
+
+    Args:
+        det: the detections of the training span.
+        gt: its ground truth.
+        match_iou: smallest IoU of a detection matching a gt box.
+
+    Returns:
+        The runs (lengths in rows) and the foot points of their first matched gt boxes.
+
+    Raises:
+        InputError: an IoU threshold outside ``(0, 1]``.
+    """
+    targets = np.flatnonzero(gt.confs != 0)
+    targets = targets[np.lexsort((gt.frames[targets], gt.ids[targets]))]
+    _, matched = _matched_rows(det, gt, targets, match_iou)
+    ids = gt.ids[targets]
+    lengths, firsts = [], []
+    for identity in np.unique(ids):
+        rows = np.flatnonzero(ids == identity)
+        hit = matched[rows]
+        if not hit.any():
+            continue
+        first = int(np.argmax(hit))
+        after = hit[first:]
+        lengths.append(after.size if after.all() else int(np.argmin(after)))
+        firsts.append(targets[rows[first]])
+    boxes = gt.boxes[np.asarray(firsts, np.int64)].reshape(-1, 4)
+    return Runs(lengths=np.asarray(lengths, np.int64), points=foot_points(boxes))
+
+
+def calibrate_init_cost(run_lengths: np.ndarray, start_lengths: np.ndarray) -> int:
+    """``th_init`` that makes the fewest errors on the training span (a departure).
+
+    A false-positive run of ``L`` frames is a false target on its ``max(0, L - th + 1)``
+    frames from the ``th``-th on; a true target whose first detected run lasts ``S`` frames
+    is missed on its first ``min(S, th - 1)``. ``th_init`` minimises the sum of both counts
+    (the smallest such ``th >= 1``): the false-positive rule of :func:`calibrate_init` with
+    the price of a late start set against it.
+
+    Args:
+        run_lengths: ``[num_runs]`` false-positive run lengths (:func:`false_positive_runs`).
+        start_lengths: ``[num_targets]`` first-run lengths (:func:`initiation_runs`).
+
+    Returns:
+        ``th_init >= 1``.
+
+    Raises:
+        InputError: no false-positive runs and no targets.
+    """
+    runs = np.asarray(run_lengths, np.int64).reshape(-1)
+    starts = np.asarray(start_lengths, np.int64).reshape(-1)
+    if runs.size + starts.size == 0:
+        raise InputError("no false-positive runs and no targets to calibrate on")
+    candidates = np.arange(1, max(runs.max(initial=0), starts.max(initial=0)) + 2)
+    false = np.maximum(runs[None, :] - candidates[:, None] + 1, 0).sum(axis=1)
+    late = np.minimum(starts[None, :], candidates[:, None] - 1).sum(axis=1)
+    return int(candidates[np.argmin(false + late)])
+
+
 def _shorter_share_threshold(lengths: np.ndarray, share: float, what: str) -> int:
     """Smallest integer ``th`` with ``#{l < th} >= share * #lengths``."""
     if not 0.0 < share <= 1.0:
@@ -285,14 +359,19 @@ def point_regions(
     return jnp.where(in_zone, ZONE, jnp.where(active, ACTIVE, INACTIVE))
 
 
+def _regions(scene: SceneZones, found: Runs) -> np.ndarray:
+    """The region of each run's place."""
+    return np.asarray(
+        point_regions(scene.boxes, scene.activity, scene.cell_size, found.points)
+    ).reshape(-1)
+
+
 def _per_region(
     found: Runs, scene: SceneZones, calibrate: Callable[[np.ndarray, float], int], share: float
 ) -> tuple[np.ndarray, int]:
     """``([3] own threshold of each region, global threshold)``; a region without runs: global."""
     whole = calibrate(found.lengths, share)
-    regions = np.asarray(
-        point_regions(scene.boxes, scene.activity, scene.cell_size, found.points)
-    ).reshape(-1)
+    regions = _regions(scene, found)
     own = [
         calibrate(found.lengths[regions == region], share) if np.any(regions == region) else whole
         for region in (ACTIVE, INACTIVE, ZONE)
@@ -300,8 +379,24 @@ def _per_region(
     return np.asarray(own, np.int64), whole
 
 
+def _per_region_cost(runs: Runs, starts: Runs, scene: SceneZones) -> tuple[np.ndarray, int]:
+    """:func:`calibrate_init_cost` per region (both kinds of runs placed in it), and over
+    the whole span; a region without either kind: the whole span's."""
+    whole = calibrate_init_cost(runs.lengths, starts.lengths)
+    run_regions, start_regions = _regions(scene, runs), _regions(scene, starts)
+    own = [
+        calibrate_init_cost(
+            runs.lengths[run_regions == region], starts.lengths[start_regions == region]
+        )
+        if np.any(run_regions == region) or np.any(start_regions == region)
+        else whole
+        for region in (ACTIVE, INACTIVE, ZONE)
+    ]
+    return np.asarray(own, np.int64), whole
+
+
 def region_thresholds(
-    runs: Runs, gaps: Runs, scene: SceneZones, share: float = SHARE
+    runs: Runs, gaps: Runs, scene: SceneZones, share: float = SHARE, starts: Runs | None = None
 ) -> Thresholds:
     """``th_init`` and ``th_term`` per region (module doc: own statistic, then clamped).
 
@@ -310,6 +405,8 @@ def region_thresholds(
         gaps: detection gaps (:func:`detection_gaps`).
         scene: zones and activity mask (:func:`~jaxtrack.context.zones.learn_zones`).
         share: the ``reject`` / ``keep`` share of both statistics.
+        starts: the true targets' first detected runs (:func:`initiation_runs`): when
+            given, ``th_init`` is :func:`calibrate_init_cost`'s instead of the share rule's.
 
     Returns:
         The thresholds, indexed by ``ACTIVE``, ``INACTIVE``, ``ZONE``.
@@ -320,7 +417,10 @@ def region_thresholds(
     if scene.activity is None:
         raise InputError("per-region thresholds need the scene's activity mask")
 
-    init, init_whole = _per_region(runs, scene, calibrate_init, share)
+    if starts is None:
+        init, init_whole = _per_region(runs, scene, calibrate_init, share)
+    else:
+        init, init_whole = _per_region_cost(runs, starts, scene)
     term, term_whole = _per_region(gaps, scene, calibrate_term, share)
     init[INACTIVE] = max(init[INACTIVE], init_whole)
     init[ZONE] = min(init[ZONE], init_whole)

@@ -45,6 +45,7 @@ from jaxtrack.filters.fusion_voting import (
     Thresholds,
     detection_gaps,
     false_positive_runs,
+    initiation_runs,
     region_thresholds,
 )
 from jaxtrack.io import MotSequence, parse_frame_span, read_mot_file
@@ -112,7 +113,7 @@ def learn_fusion_context(
         notes.append("PHD tracks as trajectories (no ground truth)")
     scene = _scene(trajectories, span, info.im_width, info.im_height, notes)
     motion = fit_motion_models(cut_tracklets(trajectories), info.im_width, info.im_height)
-    thresholds = _thresholds(detections, gt, scene, config.share, notes)
+    thresholds = _thresholds(detections, gt, scene, config, notes)
     return FusionContext(scene, motion, thresholds, "; ".join(notes))
 
 
@@ -132,7 +133,7 @@ def _scene(trajectories: MotTable, span, width, height, notes: list[str]) -> Sce
     return SceneZones(np.zeros((0, 4), np.float32), mask, ACTIVITY_CELL)
 
 
-def _thresholds(detections, gt, scene, share, notes: list[str]) -> Thresholds:
+def _thresholds(detections, gt, scene, config: FusionConfig, notes: list[str]) -> Thresholds:
     """Calibrated thresholds per region, or the paper's."""
     paper = Thresholds(np.full(3, PAPER_TH_INIT, np.int64), np.full(3, PAPER_TH_TERM, np.int64))
     if gt is None:
@@ -141,12 +142,15 @@ def _thresholds(detections, gt, scene, share, notes: list[str]) -> Thresholds:
     try:
         runs = false_positive_runs(detections, gt)
         gaps = detection_gaps(detections, gt, match_iou=GATE)
-        found = region_thresholds(runs, gaps, scene, share)
+        starts = initiation_runs(detections, gt, GATE) if config.init_rule == "cost" else None
+        found = region_thresholds(runs, gaps, scene, config.share, starts)
     except InputError as err:
         notes.append(f"the paper's thresholds ({err})")
         return paper
+    starting = "" if starts is None else f", {len(starts.lengths)} target starts (cost rule)"
     notes.append(
         f"th_init {found.init.tolist()}, th_term {found.term.tolist()} (active, inactive, zone) "
         f"from {len(runs.lengths)} false-positive runs and {len(gaps.lengths)} detection gaps"
+        f"{starting}"
     )
     return found

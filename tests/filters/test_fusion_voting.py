@@ -19,9 +19,11 @@ from jaxtrack.filters.fusion_voting import (
     ZONE,
     Runs,
     calibrate_init,
+    calibrate_init_cost,
     calibrate_term,
     detection_gaps,
     false_positive_runs,
+    initiation_runs,
     point_regions,
     region_thresholds,
     voting_init,
@@ -114,6 +116,7 @@ def test_detection_gaps_at_the_support_gate():
 
 
 def test_the_fusion_context_calibrates_gaps_at_the_trackers_gate():
+    from jaxtrack.filters.fusion_tracker import FusionConfig
     from jaxtrack.pipelines.fusion_context import _thresholds
 
     # shifted (IoU 0.43) in frames 4-6, missed in frames 8-9; one lone false positive
@@ -124,7 +127,7 @@ def test_the_fusion_context_calibrates_gaps_at_the_trackers_gate():
     scene = SceneZones(np.zeros((0, 4), np.float32), np.ones((8, 8), bool), 100.0)
     assert calibrate_term(detection_gaps(det, gt).lengths) == 4  # gaps 3 and 2 at IoU 0.5
     notes = []
-    found = _thresholds(det, gt, scene, 0.99, notes)
+    found = _thresholds(det, gt, scene, FusionConfig(), notes)
     assert found.term.tolist() == [3, 3, 3]  # the gap of 2 alone: the shifted boxes support
     assert "1 detection gaps" in notes[0]
 
@@ -157,6 +160,48 @@ def test_calibration_refuses_bad_input():
     det, gt = _scene_pair()
     with pytest.raises(InputError, match="IoU"):
         false_positive_runs(det, gt, link_iou=0.0)
+
+
+def test_initiation_runs_are_the_targets_first_detected_runs():
+    det, gt = _scene_pair()
+    # target 1 is detected in frames 1-3, missed in 4-5: its first run is 3 frames long; the
+    # ignored person (conf 0) is no target
+    starts = initiation_runs(det, gt)
+    assert starts.lengths.tolist() == [3]
+    np.testing.assert_array_equal(starts.points, [[125.0, 200.0]])
+    # a target first detected in frame 3 and then to its end; one never detected
+    gt = _table(
+        [[f, 1, *PERSON, 1] for f in range(1, 8)] + [[f, 2, 400, 300, 40, 80, 1] for f in (1, 2)]
+    )
+    det = _table([[f, -1, *PERSON, 1] for f in range(3, 8)])
+    assert initiation_runs(det, gt).lengths.tolist() == [5]
+    assert initiation_runs(_table(np.zeros((0, 7))), gt).lengths.tolist() == []
+
+
+def test_calibrate_init_cost_by_hand():
+    runs, starts = [1, 1, 2, 3, 3, 7], [5, 10]
+    # false-target frames sum(max(0, L - th + 1)) + late frames sum(min(S, th - 1)):
+    # th 1: 17 + 0, 2: 11 + 2, 3: 7 + 4, 4: 4 + 6, 5: 3 + 8
+    assert calibrate_init_cost(runs, starts) == 4
+    # without targets every run is rejected (the share rule at 100 %), without runs th 1
+    assert calibrate_init_cost(runs, []) == 8 == calibrate_init(runs, 1.0)
+    assert calibrate_init_cost([], starts) == 1
+    with pytest.raises(InputError, match="no false-positive runs and no targets"):
+        calibrate_init_cost([], [])
+
+
+def test_calibrate_init_cost_matches_brute_force():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        runs = rng.geometric(0.3, size=rng.integers(0, 200))
+        starts = rng.geometric(0.05, size=rng.integers(1, 30))
+        costs = {}
+        for th in range(1, 200):
+            false = sum(max(0, int(length) - th + 1) for length in runs)
+            late = sum(min(int(length), th - 1) for length in starts)
+            costs[th] = false + late
+        best = min(costs.values())
+        assert calibrate_init_cost(runs, starts) == min(t for t, c in costs.items() if c == best)
 
 
 def _scene() -> SceneZones:
@@ -205,6 +250,52 @@ def test_region_without_runs_takes_the_global_value_and_zones_never_rise():
     assert thresholds.term.tolist() == [3, 3, 3]
     with pytest.raises(InputError, match="activity mask"):
         region_thresholds(runs, gaps, SceneZones(_scene().boxes, None, None))
+
+
+def test_region_thresholds_by_cost_per_region():
+    zone, active, inactive = (10.0, 50.0), (50.0, 50.0), (150.0, 50.0)
+    runs = _runs([(1, zone), (1, active), (1, active), (2, active), (5, inactive), (1, inactive)])
+    gaps = _runs([(2, active)])
+    starts = _runs([(9, zone), (9, zone), (4, active), (6, active), (20, inactive)])
+    thresholds = region_thresholds(runs, gaps, _scene(), starts=starts)
+    # own: active runs 1, 1, 2 vs starts 4, 6: th 2 (3 errors); inactive runs 5, 1 vs a
+    # start of 20: th 2 (5 errors); zone run 1 vs starts 9, 9: th 1 (1 error)
+    own = [
+        calibrate_init_cost([1, 1, 2], [4, 6]),
+        calibrate_init_cost([5, 1], [20]),
+        calibrate_init_cost([1], [9, 9]),
+    ]
+    whole = calibrate_init_cost([1, 1, 1, 2, 5, 1], [9, 9, 4, 6, 20])
+    assert own == [2, 2, 1] and whole == 2
+    # inactive: max(own, whole); zone: min(own, whole)
+    assert thresholds.init.tolist() == [own[0], max(own[1], whole), min(own[2], whole)]
+    assert thresholds.term.tolist() == region_thresholds(runs, gaps, _scene()).term.tolist()
+
+
+def test_the_fusion_context_calibrates_by_the_configured_rule():
+    from jaxtrack.filters.fusion_tracker import FusionConfig
+    from jaxtrack.pipelines.fusion_context import _thresholds
+
+    det, gt = _scene_pair()
+    # a second target, detected on all its 10 frames, away from every other box
+    steady = [[f, 3, 450, 150, 40, 80, 1] for f in range(1, 11)]
+    gt = _table(np.r_[np.c_[gt.frames, gt.ids, gt.boxes, gt.confs], steady])
+    det = _table(np.r_[np.c_[det.frames, det.ids, det.boxes, det.confs], steady])
+    scene = SceneZones(np.zeros((0, 4), np.float32), np.ones((8, 8), bool), 100.0)
+    share_notes, cost_notes = [], []
+    share = _thresholds(det, gt, scene, FusionConfig(init_rule="share"), share_notes)
+    cost = _thresholds(det, gt, scene, FusionConfig(init_rule="cost"), cost_notes)
+    # the run's training note says which rule set th_init
+    assert "cost rule" not in share_notes[0]
+    assert cost_notes[0].endswith("2 target starts (cost rule)")
+    assert share.init.tolist() == [8, 8, 8]  # 99 % of the runs 1, 1, 2, 3, 3, 7
+    # the targets' first runs (3 and 10 frames) against the runs: 10 errors at th 4 to 8
+    assert calibrate_init_cost([1, 1, 2, 3, 3, 7], [3, 10]) == 4
+    assert cost.init.tolist() == [4, 4, 4]
+    assert cost.term.tolist() == share.term.tolist()
+    with pytest.raises(InputError, match="init_rule"):
+        FusionConfig(init_rule="median")
+    assert FusionConfig.from_dict(FusionConfig(init_rule="cost").to_dict()).init_rule == "cost"
 
 
 def _one_slot(supported, th_init, th_term):
