@@ -190,6 +190,15 @@ def false_positive_runs(
     return Runs(lengths=length[first], points=foot_points(boxes[first]))
 
 
+def _target_rows(det: MotTable, gt: MotTable, match_iou: float):
+    """The gt target rows (``conf != 0``) by trajectory then frame, their identities, and
+    whether a detection matches each (:func:`_matched_rows`, the targets alone)."""
+    targets = np.flatnonzero(gt.confs != 0)
+    targets = targets[np.lexsort((gt.frames[targets], gt.ids[targets]))]
+    _, matched = _matched_rows(det, gt, targets, match_iou)
+    return targets, gt.ids[targets], matched
+
+
 def detection_gaps(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) -> Runs:
     """Stretches of consecutive gt rows of one trajectory that no detection matches.
 
@@ -208,10 +217,7 @@ def detection_gaps(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) ->
     Raises:
         InputError: an IoU threshold outside ``(0, 1]``.
     """
-    targets = np.flatnonzero(gt.confs != 0)
-    targets = targets[np.lexsort((gt.frames[targets], gt.ids[targets]))]
-    _, matched = _matched_rows(det, gt, targets, match_iou)
-    ids = gt.ids[targets]
+    targets, ids, matched = _target_rows(det, gt, match_iou)
     missed = ~matched
     starts = missed & np.concatenate([[True], (ids[1:] != ids[:-1]) | matched[:-1]])
     run_index = np.cumsum(starts) - 1
@@ -237,10 +243,7 @@ def initiation_runs(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) -
     Raises:
         InputError: an IoU threshold outside ``(0, 1]``.
     """
-    targets = np.flatnonzero(gt.confs != 0)
-    targets = targets[np.lexsort((gt.frames[targets], gt.ids[targets]))]
-    _, matched = _matched_rows(det, gt, targets, match_iou)
-    ids = gt.ids[targets]
+    targets, ids, matched = _target_rows(det, gt, match_iou)
     lengths, firsts = [], []
     for identity in np.unique(ids):
         rows = np.flatnonzero(ids == identity)
