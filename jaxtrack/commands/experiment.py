@@ -549,7 +549,7 @@ examples:
         description=fusion_experiment.DESCRIPTION,
         quick_help=fusion_experiment.QUICK_HELP,
         sequence=False,
-        add_extras=cmt_ablation.add_video_arguments,
+        add_extras=fusion_experiment.add_arguments,
         run=fusion_experiment.run,
         files=hierarchical_experiment.FILES,
         scene="scenes",

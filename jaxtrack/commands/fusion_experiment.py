@@ -4,10 +4,13 @@ registered in :mod:`jaxtrack.commands.experiment`)."""
 from __future__ import annotations
 
 import argparse
+import functools
 
+from jaxtrack.commands.cmt_ablation import add_video_arguments
 from jaxtrack.commands.hierarchical_experiment import SEEDS, run_video_experiment
 from jaxtrack.experiments.cmt_ablation import BEST_PEER_IDF1, PETS_VIDEO
 from jaxtrack.experiments.fusion import BEST_PEER_MT, TABLE_COLUMNS, run_experiment
+from jaxtrack.filters.fusion_tracker import INIT_RULES
 
 HELP = "Fusion tracker: the paper's Table 1 ablation and Table 4 row, with PHD as baseline"
 QUICK_HELP = (
@@ -46,9 +49,25 @@ bs detections as det.txt). Logic: jaxtrack.experiments.fusion.
 
 examples:
   jaxtrack experiment fusion --out /tmp/fusion
-  jaxtrack experiment fusion --out /tmp/fusion-q --quick --seeds 101"""
+  jaxtrack experiment fusion --out /tmp/fusion-q --quick --seeds 101
+  jaxtrack experiment fusion --out /tmp/fusion-cost --init-rule cost"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The video experiments' arguments (:func:`~jaxtrack.commands.cmt_ablation.
+    add_video_arguments`) and ``--init-rule``."""
+    add_video_arguments(parser)
+    parser.add_argument(
+        "--init-rule",
+        choices=INIT_RULES,
+        default="share",
+        help="how every Fusion tracker calibrates th_init on its training span: 'share' (the "
+        "paper's: the smallest rejecting 99%% of the detector's false-positive runs; default) "
+        "or 'cost' (the fewest false-target and late-start frames; FusionConfig.init_rule)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Runs the experiment on the parsed arguments; prints the table and the goals."""
-    return run_video_experiment(args, run_experiment, TABLE_COLUMNS)
+    experiment = functools.partial(run_experiment, init_rule=args.init_rule)
+    return run_video_experiment(args, experiment, TABLE_COLUMNS)

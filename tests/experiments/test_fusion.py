@@ -22,6 +22,7 @@ from jaxtrack.experiments.fusion import (
     result_name,
     score_row,
     table_markdown,
+    with_init_rule,
 )
 from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.filters.phd_tracker import PHDConfig
@@ -80,6 +81,48 @@ def test_trackers_are_the_paper_s_ablation_and_the_phd_baseline():
     assert trackers["Proposed"] == FusionConfig() and trackers["PHD"] == PHDConfig()
     assert list(experiment_trackers(quick=True)) == ["Proposed", "PHD"]
     assert result_name("Naive fusion") == "naive-fusion"
+
+
+def test_the_init_rule_reaches_every_fusion_configuration_only():
+    trackers = experiment_trackers()
+    costed = with_init_rule(trackers, "cost")
+    assert list(costed) == list(trackers)
+    for name, config in costed.items():
+        if name == "PHD":
+            assert config == trackers[name]
+        else:
+            assert config == trackers[name].replace(init_rule="cost")
+    assert with_init_rule(trackers, "share") == trackers
+    with pytest.raises(InputError, match="init_rule"):
+        with_init_rule(trackers, "median")
+
+
+def test_an_unknown_init_rule_is_refused_before_any_output(tmp_path):
+    from jaxtrack.experiments.fusion import run_experiment
+
+    with pytest.raises(InputError, match="init_rule"):
+        run_experiment(tmp_path / "out", tmp_path, [101], init_rule="median", progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_command_passes_the_init_rule(monkeypatch, tmp_path, capsys):
+    from jaxtrack.cli import main
+    from jaxtrack.commands import fusion_experiment
+
+    seen = {}
+
+    def fake(out, data, seeds, **options):
+        seen.update(options)
+        return {"rows": [], "goals": []}
+
+    monkeypatch.setattr(fusion_experiment, "run_experiment", fake)
+    argv = ["experiment", "fusion", "--out", str(tmp_path / "out"), "--quiet"]
+    assert main([*argv, "--init-rule", "cost"]) == 0
+    assert seen["init_rule"] == "cost"
+    assert main(argv) == 0 and seen["init_rule"] == "share"
+    capsys.readouterr()
+    assert main([*argv, "--init-rule", "median"]) == 2
+    assert "--init-rule: invalid choice: 'median'" in capsys.readouterr().err
 
 
 def row(sequence, source, scored, tracker, synthetic=False, **values):
@@ -215,3 +258,7 @@ def test_table_markdown_puts_table4_beside_ours_and_lists_goals():
     assert "PETS09-S2L1 1:398 (held out 399:795)" in text
     assert "- PASS: PETS09-S2L1 (det, whole" in text and text.count("PASS") == 1
     assert "Proposed 10.0 (79.5 frames/s)" in text
+    assert "cost rule" not in text
+    assert "th_init is calibrated by the cost rule" in table_markdown(
+        {**record, "init_rule": "cost"}
+    )
