@@ -76,7 +76,7 @@ from jaxtrack.experiments.common import (
     switch_section,
 )
 from jaxtrack.experiments.frame_runs import SOURCES, frame_tracker_runs
-from jaxtrack.filters.fusion_tracker import INIT_RULES, FusionConfig
+from jaxtrack.filters.fusion_tracker import INIT_RULE, FusionConfig
 from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import MotSequence, write_mot_file
 from jaxtrack.metrics.detection import true_identity_rows
@@ -166,13 +166,13 @@ def experiment_trackers(quick: bool = False) -> dict[str, TrackerConfig]:
 
 def with_init_rule(trackers: dict[str, TrackerConfig], init_rule: str) -> dict[str, TrackerConfig]:
     """Every Fusion configuration of ``trackers`` with th_init calibrated by ``init_rule``
-    (:data:`~jaxtrack.filters.fusion_tracker.INIT_RULES`); the others unchanged, in order.
+    (:data:`~jaxtrack.filters.fusion_tracker.INIT_RULES`, checked by its ``INIT_RULE``); the
+    others unchanged, in order.
 
     Raises:
         InputError: an unknown rule.
     """
-    if init_rule not in INIT_RULES:
-        raise InputError(f"init_rule must be one of {', '.join(INIT_RULES)}, got {init_rule!r}")
+    INIT_RULE.check("init_rule", init_rule)
     return {
         name: config.replace(init_rule=init_rule) if isinstance(config, FusionConfig) else config
         for name, config in trackers.items()

@@ -47,6 +47,14 @@ POOLS = tuple(
 #: false-positive runs, or the fewest errors on the training span
 #: (:func:`~jaxtrack.filters.fusion_voting.calibrate_init_cost`).
 INIT_RULES = ("share", "cost")
+#: The rule of ``FusionConfig.init_rule`` (also checked by the Fusion experiment's option).
+INIT_RULE = Rule(
+    "how th_init is calibrated: 'share' (the paper: the smallest rejecting `share` of the "
+    "false-positive runs) or 'cost' (the fewest false-target and late-start frames on the "
+    "training span)",
+    str,
+    choices=INIT_RULES,
+)
 #: The paper's thresholds for PETS 2009 (its Table 2), used without a calibration.
 PAPER_TH_INIT, PAPER_TH_TERM = 3, 8
 #: Smallest IoU of a detection with a slot's predicted box (the link IoU of the
@@ -110,16 +118,7 @@ class FusionConfig(TrackerConfig):
             lower_open=True,
         ),
     )
-    init_rule: str = setting(
-        "share",
-        Rule(
-            "how th_init is calibrated: 'share' (the paper: the smallest rejecting `share` of "
-            "the false-positive runs) or 'cost' (the fewest false-target and late-start frames "
-            "on the training span)",
-            str,
-            choices=INIT_RULES,
-        ),
-    )
+    init_rule: str = setting("share", INIT_RULE)
     learning_rate: float = setting(
         0.35, Rule("the classifier's learning rate lambda (paper: 0.35 on PETS)", float, 0, 1)
     )

@@ -218,11 +218,17 @@ def detection_gaps(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) ->
         InputError: an IoU threshold outside ``(0, 1]``.
     """
     targets, ids, matched = _target_rows(det, gt, match_iou)
-    missed = ~matched
-    starts = missed & np.concatenate([[True], (ids[1:] != ids[:-1]) | matched[:-1]])
+    starts, lengths = _flag_runs(~matched, ids)
+    return Runs(lengths=lengths, points=foot_points(gt.boxes[targets[starts]]))
+
+
+def _flag_runs(flags: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Maximal runs of True ``flags`` within each identity of ``ids`` (rows ordered by
+    identity, then frame): a mask of each run's first row and the runs' lengths, in order."""
+    starts = flags & np.concatenate([[True], (ids[1:] != ids[:-1]) | ~flags[:-1]])
     run_index = np.cumsum(starts) - 1
-    lengths = np.bincount(run_index[missed], minlength=int(starts.sum()))
-    return Runs(lengths=lengths.astype(np.int64), points=foot_points(gt.boxes[targets[starts]]))
+    lengths = np.bincount(run_index[flags], minlength=int(starts.sum()))
+    return starts, lengths.astype(np.int64)
 
 
 def initiation_runs(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) -> Runs:
@@ -244,18 +250,12 @@ def initiation_runs(det: MotTable, gt: MotTable, match_iou: float = MATCH_IOU) -
         InputError: an IoU threshold outside ``(0, 1]``.
     """
     targets, ids, matched = _target_rows(det, gt, match_iou)
-    lengths, firsts = [], []
-    for identity in np.unique(ids):
-        rows = np.flatnonzero(ids == identity)
-        hit = matched[rows]
-        if not hit.any():
-            continue
-        first = int(np.argmax(hit))
-        after = hit[first:]
-        lengths.append(after.size if after.all() else int(np.argmin(after)))
-        firsts.append(targets[rows[first]])
-    boxes = gt.boxes[np.asarray(firsts, np.int64)].reshape(-1, 4)
-    return Runs(lengths=np.asarray(lengths, np.int64), points=foot_points(boxes))
+    starts, lengths = _flag_runs(matched, ids)
+    run_ids = ids[starts]
+    first = np.ones(run_ids.size, bool)  # each identity's first run
+    first[1:] = run_ids[1:] != run_ids[:-1]
+    boxes = gt.boxes[targets[starts][first]].reshape(-1, 4)
+    return Runs(lengths=lengths[first], points=foot_points(boxes))
 
 
 def calibrate_init_cost(run_lengths: np.ndarray, start_lengths: np.ndarray) -> int:
