@@ -135,6 +135,7 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
     from jaxtrack.experiments.common import (
         QUICK_TRACKER_CONFIG,
         evaluate_rows,
+        learn_split,
         score_summary,
         split_halves,
     )
@@ -143,7 +144,7 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
         QUICK_CLUTTER_RATES,
         SWEEP_COLUMNS,
     )
-    from jaxtrack.filters.phd_tracker import PHDConfig
+    from jaxtrack.filters.phd_tracker import Context, PHDConfig, phd_params
     from jaxtrack.pipelines.tracking import track_sequences
 
     out = tmp_path / "sweep"
@@ -157,9 +158,13 @@ def test_sweep_magnitudes_quick_equals_single_runs(tmp_path):
             pytest.approx(s)
         )
     # The grid point of the default magnitudes (clutter 1, birth 0.2) is exactly the UM
-    # tracker of `jaxtrack track` (a separate, unbatched, chunked run with the same seed).
+    # tracker of `jaxtrack track --context CTX --variant UM` (a separate, unbatched, chunked
+    # run with the same seed; UM reads the context's score calibration, so the default
+    # confirmation is the evidence rule in both).
     split = split_halves(out / "scene")
-    (single,) = track_sequences([split.test], QUICK_TRACKER_CONFIG, seed=0)
+    context = Context.from_learned(learn_split(split, QUICK_TRACKER_CONFIG, 0))
+    um_params = phd_params(QUICK_TRACKER_CONFIG, split.test.info, context, "UM")
+    (single,) = track_sequences([split.test], QUICK_TRACKER_CONFIG, 0, [um_params])
     expected = score_summary(evaluate_rows(split.test, single))
     assert (PHDConfig().clutter_rate, PHDConfig().birth_rate) == (1.0, 0.2)
     (point,) = [
@@ -241,9 +246,10 @@ def test_context_gap_quick_equals_single_runs(tmp_path, capsys):
     assert (split.test.first_frame, split.test.last_frame) == (301, 600)
     context = Context.from_learned(learn_split(split, QUICK_TRACKER_CONFIG, 0, "tracks"))
     info = split.test.info
+    # UM reads the context's score calibration (as `jaxtrack track --context --variant UM`).
     for row, params in zip(
         rows,
-        (phd_params(QUICK_TRACKER_CONFIG, info), phd_params(QUICK_TRACKER_CONFIG, info, context)),
+        [phd_params(QUICK_TRACKER_CONFIG, info, context, variant) for variant in ("UM", "GM")],
         strict=True,
     ):
         (single,) = track_sequences([split.test], QUICK_TRACKER_CONFIG, 0, [params])
@@ -352,6 +358,7 @@ def test_context_generalisation_quick(tmp_path, capsys):
     from jaxtrack.experiments.common import (
         ERROR_KEYS,
         QUICK_TRACKER_CONFIG,
+        learn_split,
         split_halves,
     )
     from jaxtrack.experiments.context_generalisation import (
@@ -360,7 +367,7 @@ def test_context_generalisation_quick(tmp_path, capsys):
         ROW_COLUMNS,
         SUMMARY_COLUMNS,
     )
-    from jaxtrack.filters.phd_tracker import phd_params
+    from jaxtrack.filters.phd_tracker import Context, phd_params
     from jaxtrack.metrics.errors import classify_errors
     from jaxtrack.pipelines.tracking import track_sequences
 
@@ -411,7 +418,7 @@ def test_context_generalisation_quick(tmp_path, capsys):
     assert "| group | seeds | UM | GM | A1 | A2 | A3 | A4 | A5 | A6 |" in text  # no GM+tuned
     assert "## Goals (issue 15)" in text and "Run time" in text
     assert "run by run" not in text  # no real sequence
-    assert "200 particles, 8 births per detection, confirmation 'score', quick run" in text
+    assert "200 particles, 8 births per detection, confirmation 'auto', quick run" in text
     assert contexts[0]["seed"] == contexts[1]["seed"] == "1"
     # The misses and false positives by kind add up to FN and FP on every row; UM's equal
     # those of a single UM run on the test half against its detections.
@@ -421,7 +428,10 @@ def test_context_generalisation_quick(tmp_path, capsys):
             assert sum(int(row[key]) for key in kinds) == int(row[side]), row["variant"]
     split = split_halves(out / "scenes" / "sparse-door-1")
     config = dataclasses.replace(QUICK_TRACKER_CONFIG, num_particles=200)
-    (single,) = track_sequences([split.test], config, 1, [phd_params(config, split.test.info)])
+    # UM with the context's score calibration (`jaxtrack track --context --variant UM`).
+    context = Context.from_learned(learn_split(split, config, 1, "tracks"))
+    um_params = phd_params(config, split.test.info, context, "UM")
+    (single,) = track_sequences([split.test], config, 1, [um_params])
     span = (split.test.first_frame, split.test.last_frame)
     counts = classify_errors(
         split.test.gt_table, single, split.test.det_table.frame_span(*span), span
@@ -478,7 +488,7 @@ def test_generalisation_confirmation_reaches_the_experiment(tmp_path, monkeypatc
     assert seen["confirmation"] == "evidence"
     with pytest.raises(SystemExit):
         _experiment("context-generalisation", *argv)
-    assert seen["confirmation"] == "score"
+    assert seen["confirmation"] == "auto"
     assert _experiment("context-generalisation", *argv, "--confirmation", "votes") == 2
     assert "invalid choice: 'votes'" in capsys.readouterr().err
     assert seen["retrodiction"] == 0

@@ -221,10 +221,11 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--confirmation",
         choices=tuple(CONFIRMATIONS),
-        default="score",
+        default="auto",
         help="the PHD tracker's track confirmation in every run (PHDConfig.confirmation; "
-        "default score): 'evidence' adds up the log-odds of a track's detections, read through "
-        "the detector's calibration learned with each context (UM included)",
+        "default auto): 'evidence' adds up the log-odds of a track's detections, read through "
+        "the detector's calibration learned with each context (UM included); 'score' needs "
+        "one detection scoring 0.97; 'auto' is 'evidence' where a calibration was learned",
     )
     parser.add_argument(
         "--retrodiction",

@@ -80,10 +80,10 @@ in view, not births.
 
 With a ground-truth source, the detector's score calibration p(target | s) is learned too
 (isotonic fit of "matched to gt at IoU 0.5" on the score) and stored in the context: the
-tracker's "evidence" confirmation (a --config file with {"confirmation": "evidence"}, for
-`jaxtrack track --context`, every --variant, UM included) reads the scores through it, and
-so does the UM run that yields the birth events when this command's --config (the tracker
-configuration of that run) asks for it.
+tracker's default confirmation ("auto", which is then "evidence") reads the scores through
+it in `jaxtrack track --context` (every --variant, UM included), and so does the UM run
+that yields the birth events; a --config file with {"confirmation": "score"} keeps the
+one-detection-at-0.97 rule instead (for `track`, and for this command's birth run).
 
 Writes OUT (.npz, read with jaxtrack.context.load_context) with the sample counts,
 magnitudes and settings in its metadata; with --plot DIR also intensities.png (heat maps;
@@ -294,7 +294,7 @@ def calibration_line(record: dict) -> str:
     return (
         f"score calibration from gt on {record['detections']} detections "
         f"({100 * record['target_share']:.0f} % targets): p(target | s) = {values} "
-        '(read by the "evidence" confirmation)'
+        '(read by the "evidence" confirmation, and so by the default "auto")'
     )
 
 

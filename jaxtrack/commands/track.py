@@ -21,9 +21,11 @@ gaps of up to ``max_gap`` frames interpolated; "online": the filter's frame-by-f
 output), ``max_gap`` and ``frame_capacity`` ("full", default, or "split": a frame whose
 detections fit in half the run's detection slots runs on that half; faster on long runs and
 sweeps, twice the compile, results equal up to float32 rounding) and ``confirmation``
-("score", default: a track is output once one of its detections scores 0.97 or more;
-"evidence": once the score log-odds of its detections add up to logit(0.97), so that a
-target detected at lower scores is tracked too) and ``retrodiction`` (0, default; N: the
+("score": a track is output once one of its detections scores 0.97 or more; "evidence":
+once the score log-odds of its detections, read through the context's detector
+calibration, add up to logit(0.97), so that a target detected at lower scores is tracked
+too; "auto", default: "evidence" with a context that carries a calibration, "score"
+without) and ``retrodiction`` (0, default; N: the
 offline output extends each confirmed track back by up to N frames onto the detections
 before its first box, IoU >= 0.5 with its constant-velocity box) and ``smoothing``
 ("none", default, or "rts": the offline output's boxes re-estimated by the
@@ -37,7 +39,7 @@ picks the parts (PHD-context Sec. V): GM (default) learned birth and clutter; A1
 measured on the training span; A4 = A3 with learned birth; A5 = A3 with learned clutter; A6 =
 GM (learn the context with ``--birth-from gt``); UM uniform intensities at the configuration's
 magnitudes, reading only the context's detector score calibration (which the
-``"evidence"`` confirmation uses; every variant reads it).
+``"evidence"`` and the default ``"auto"`` confirmation use; every variant reads it).
 
 ``--tracker kalman`` runs the baseline data-association tracker instead (a bank of
 constant-velocity Kalman filters, gating, optimal assignment, M-of-N confirmation, no clutter

@@ -555,7 +555,7 @@ def run_context_generalisation(
     quick: bool = False,
     real_seeds: Sequence[int] = REAL_SEEDS,
     particles: int | None = None,
-    confirmation: str = "score",
+    confirmation: str = "auto",
     retrodiction: int = 0,
     smoothing: str = "none",
     progress: bool = False,
@@ -584,8 +584,9 @@ def run_context_generalisation(
         particles: the tracker's particles (``PHDConfig.num_particles``; also those of the UM
             run that yields the births); None: the configuration's (2048, quick 256).
         confirmation: the tracker's track confirmation (``PHDConfig.confirmation``:
-            ``"score"`` or ``"evidence"``, the latter reading the scores through each
-            context's calibration, UM included).
+            ``"auto"``, ``"score"`` or ``"evidence"``; ``"evidence"`` reads the scores through
+            each context's calibration, UM included, and ``"auto"`` is ``"evidence"`` there:
+            every context of the experiment learns a calibration from the ground truth).
         retrodiction: ``PHDConfig.retrodiction`` of every run (0: off).
         smoothing: ``PHDConfig.smoothing`` of every run (``"none"`` or ``"rts"``).
         progress: a progress bar over the scenes.

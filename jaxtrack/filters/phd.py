@@ -38,6 +38,7 @@ from jaxtrack.association.labelling import (
     LabelParams,
     Labels,
     LabelState,
+    confirm_by_calibrated_evidence,
     confirm_by_evidence,
     confirm_by_score,
     init_labels,
@@ -789,7 +790,11 @@ def _frame_step(
 
 
 #: The track confirmation rules of :func:`phd_filter`, by name.
-CONFIRMATIONS = {"score": confirm_by_score, "evidence": confirm_by_evidence}
+CONFIRMATIONS = {
+    "auto": confirm_by_calibrated_evidence,
+    "score": confirm_by_score,
+    "evidence": confirm_by_evidence,
+}
 
 
 def phd_filter(
@@ -807,7 +812,7 @@ def phd_filter(
     measurement_noise_model: NoiseModel = state_dependent_std,
     block_size: int | None = None,
     split_capacity: bool = False,
-    confirmation: Literal["score", "evidence"] = "score",
+    confirmation: Literal["auto", "score", "evidence"] = "auto",
 ) -> Filter:
     """Builds the particle PHD tracker from its stages; all arguments are static.
 
@@ -841,11 +846,14 @@ def phd_filter(
         split_capacity: frames whose detections fit in half the run's slots run on that
             half (:func:`phd_step`): faster runs, twice the compile; results equal up to
             float32 rounding. Default False.
-        confirmation: how a track is confirmed (output from then on): ``"score"`` (default,
-            :func:`~jaxtrack.association.labelling.confirm_by_score`: one estimate whose
-            detection score reaches ``confirm_score``) or ``"evidence"``
+        confirmation: how a track is confirmed (output from then on): ``"score"``
+            (:func:`~jaxtrack.association.labelling.confirm_by_score`: one estimate whose
+            detection score reaches ``confirm_score``), ``"evidence"``
             (:func:`~jaxtrack.association.labelling.confirm_by_evidence`: the score log-odds
-            of the estimates it has held add up to ``logit(confirm_score)``).
+            of the estimates it has held add up to ``logit(confirm_score)``) or ``"auto"``
+            (default, :func:`~jaxtrack.association.labelling.confirm_by_calibrated_evidence`:
+            ``"evidence"`` when the parameters carry a learned score calibration, as a
+            context learned from the ground truth does, ``"score"`` otherwise).
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter`.

@@ -133,11 +133,13 @@ class PHDConfig(TrackerConfig):
         Rule("SDV likelihood noise (s_1, s_2, s_w, s_h), relative to box size", **_NOISE),
     )
     confirmation: str = setting(
-        "score",
+        "auto",
         Rule(
-            "track confirmation: 'score' (one detection scoring at least confirm_score, 0.97) "
-            "or 'evidence' (the score log-odds of the track's detections add up to "
-            "logit(0.97): a target whose detections all score 0.8 is confirmed on its third)",
+            "track confirmation: 'score' (one detection scoring at least confirm_score, 0.97), "
+            "'evidence' (the score log-odds of the track's detections add up to logit(0.97): "
+            "a target whose detections all score 0.8 is confirmed on its third) or 'auto' "
+            "('evidence' with a context that carries the detector's score calibration, "
+            "'score' without)",
             str,
             choices=tuple(CONFIRMATIONS),
         ),
@@ -237,7 +239,8 @@ def phd_params(
         context: a learned context; None gives UM (uniform intensities, the configuration's
             magnitudes). Its detector score calibration, when it records one
             (:mod:`jaxtrack.context.scores`), goes into ``labelling.score_calibration`` for
-            every variant, UM included (read by the ``"evidence"`` confirmation only).
+            every variant, UM included (read by the ``"evidence"`` confirmation, and by ``"auto"``,
+            the default, which then confirms by evidence).
         variant: a key of :data:`VARIANTS` (used only with a context).
 
     Returns:
