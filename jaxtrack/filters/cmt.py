@@ -47,13 +47,14 @@ delete every large target within a few frames.
 from __future__ import annotations
 
 import functools
+import math
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from jaxtrack.appearance import DEFAULT_PATCH_SHAPE
+from jaxtrack.appearance import DEFAULT_PATCH_SHAPE, num_bins
 from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
@@ -103,6 +104,21 @@ from jaxtrack.types import PAD_BOX, Detections, FrameInputs, Tracks
 VARIANTS = ("mtb", "cpd", "cmt")
 #: Zone slots of :class:`CMTParams` (padded).
 MAX_ZONES = 16
+#: Re-identification (``reidentify`` > 0, :func:`reidentified`): a new component takes back
+#: the identity of a confirmed component deleted at most ``reidentify`` frames before when
+#: its box centre lies within ``min(REID_GATE + REID_GATE_RATE * age, REID_MAX_GATE)`` of the
+#: dead component's box heights from where its last velocity would have carried it, its
+#: height within a factor ``REID_SIZE_RATIO`` of the dead one's, and the Bhattacharyya
+#: distance between their colour histograms (:func:`colour_distance`) at most
+#: ``REID_MAX_DISTANCE``, each the other's best such match. On the development scenes
+#: (synthetic video seeds 0-2, ground-truth boxes 30 frames apart, every 10th frame) 56 % of
+#: the same person's pairs and 0.7 % of two people's lie within 0.3 (within 0.4: 79 % and
+#: 3.6 %, and CMT's exchanges there rose with it: 36 -> 44 a run, against 36 at 0.3).
+REID_GATE = 1.0
+REID_GATE_RATE = 0.1
+REID_MAX_GATE = 3.0
+REID_SIZE_RATIO = 1.5
+REID_MAX_DISTANCE = 0.3
 
 
 class CMTParams(NamedTuple):
@@ -141,6 +157,22 @@ class CMTParams(NamedTuple):
     velocity_rate: Float[Array, ""]
 
 
+class Graveyard(NamedTuple):
+    """Per slot, the last confirmed component deleted there (re-identification).
+
+    Attributes:
+        ids: its identity (-1: none, or taken back by a new component).
+        estimates: its local decision on the frame it was deleted.
+        frames: that frame (:attr:`CMTState.frame`).
+        appearance: its appearance model then.
+    """
+
+    ids: Int[Array, " max_components"]
+    estimates: Float[Array, "max_components 6"]
+    frames: Int[Array, " max_components"]
+    appearance: AppearanceState
+
+
 class CMTState(NamedTuple):
     """The scan carry.
 
@@ -155,6 +187,8 @@ class CMTState(NamedTuple):
             (exponential, not yet corrected for its start at zero; :func:`held_velocities`).
         averaged: the frames that average holds.
         merged_frames: consecutive frames each component has shared a blob with another.
+        graveyard: the last confirmed component that died in each slot
+            (:class:`Graveyard`; read only when the step is built with ``reidentify`` > 0).
     """
 
     mixture: MixtureState
@@ -166,6 +200,7 @@ class CMTState(NamedTuple):
     mean_velocity: Float[Array, "max_components 2"]
     averaged: Float[Array, " max_components"]
     merged_frames: Float[Array, " max_components"]
+    graveyard: Graveyard
 
 
 class CMTInfo(NamedTuple):
@@ -227,6 +262,7 @@ def cmt_step(
     max_misses: int,
     group_blobs: bool = True,
     hold_velocity: bool = False,
+    reidentify: int = 0,
     step: float = STEP,
     patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
     num_levels: int = NUM_LEVELS,
@@ -246,6 +282,8 @@ def cmt_step(
             ratio of 0).
         hold_velocity: with the contextual proposal, hold a merged component's long-run
             velocity (static; :func:`held_velocities`).
+        reidentify: frames a deleted confirmed component's identity can be taken back by
+            a new one (static; 0: never, the paper's tracker; :func:`reidentified`).
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
         num_levels: quantisation levels of eq. 17 (static).
@@ -345,6 +383,7 @@ def cmt_step(
     kept_pi = jnp.where(survivors, log_pi, LOG_ZERO)
     log_total = jnp.where(jnp.any(survivors), jax.nn.logsumexp(kept_pi), 0.0)
     log_pi = jnp.where(survivors, kept_pi - log_total, LOG_ZERO)
+    local = estimates
     estimates = jnp.where(survivors[:, None], estimates, 0.0)
 
     confirmed = survivors & (state.confirmed | _confirms(estimates, blobs, params))
@@ -390,16 +429,45 @@ def cmt_step(
         born,
         params.observation,
     )
+    confirmed = confirmed & ~born
+    graveyard = state.graveyard
+    if reidentify > 0:
+        entry = reidentified(
+            graveyard, born, decisions, decision_features, state.frame, reidentify, step
+        )
+        revived = entry >= 0
+        entry = jnp.maximum(entry, 0)
+        new_mixture = new_mixture._replace(
+            ids=jnp.where(revived, graveyard.ids[entry], new_mixture.ids)
+        )
+        confirmed = confirmed | revived
+        appearance = jax.tree.map(
+            lambda new, old: jnp.where(
+                revived.reshape(-1, *([1] * (new.ndim - 1))), old[entry], new
+            ),
+            appearance,
+            graveyard.appearance,
+        )
+        taken = jnp.zeros_like(revived).at[entry].max(revived)
+        graveyard = bury(
+            graveyard._replace(ids=jnp.where(taken, -1, graveyard.ids)),
+            alive & ~survivors & state.confirmed,
+            mixture.ids,
+            local,
+            state.frame,
+            state.appearance,
+        )
     new_state = CMTState(
         mixture=new_mixture,
         appearance=appearance,
         estimates=jnp.where(born[:, None], decisions, estimates),
-        confirmed=confirmed & ~born,
+        confirmed=confirmed,
         misses=jnp.where(new_mixture.alive & ~born, misses, 0),
         frame=state.frame + 1,
         mean_velocity=jnp.where(born[:, None], 0.0, mean_velocity),
         averaged=jnp.where(born, 0.0, averaged),
         merged_frames=jnp.where(born, 0.0, merged_frames),
+        graveyard=graveyard,
     )
     info = CMTInfo(
         tracks=tracks,
@@ -425,9 +493,10 @@ def init_cmt(
 ) -> CMTState:
     """The state before the first frame: every slot dead (sizes static)."""
     mixture = init_mixture(key, params.mixture, max_components, num_particles)
+    appearance = init_appearance(max_components, num_features, num_values)
     return CMTState(
         mixture=mixture,
-        appearance=init_appearance(max_components, num_features, num_values),
+        appearance=appearance,
         estimates=jnp.zeros((max_components, 6), jnp.float32),
         confirmed=jnp.zeros((max_components,), bool),
         misses=jnp.zeros((max_components,), jnp.int32),
@@ -435,7 +504,89 @@ def init_cmt(
         mean_velocity=jnp.zeros((max_components, 2), jnp.float32),
         averaged=jnp.zeros((max_components,), jnp.float32),
         merged_frames=jnp.zeros((max_components,), jnp.float32),
+        graveyard=Graveyard(
+            ids=jnp.full((max_components,), -1, jnp.int32),
+            estimates=jnp.zeros((max_components, 6), jnp.float32),
+            frames=jnp.zeros((max_components,), jnp.int32),
+            appearance=appearance,
+        ),
     )
+
+
+def bury(
+    graveyard: Graveyard,
+    dying: Bool[Array, " max_components"],
+    ids: Int[Array, " max_components"],
+    estimates: Float[Array, "max_components 6"],
+    frame: Int[Array, ""],
+    appearance: AppearanceState,
+) -> Graveyard:
+    """The graveyard with each ``dying`` slot's component written over that slot's entry."""
+
+    def pick(new, old):
+        return jnp.where(dying.reshape(-1, *([1] * (new.ndim - 1))), new, old)
+
+    return Graveyard(
+        ids=pick(ids, graveyard.ids),
+        estimates=pick(estimates, graveyard.estimates),
+        frames=pick(jnp.broadcast_to(frame, dying.shape), graveyard.frames),
+        appearance=jax.tree.map(pick, appearance, graveyard.appearance),
+    )
+
+
+def colour_distance(
+    models: Float[Array, "rows num_features"],
+    features: Float[Array, "cols num_features"],
+    step: float = STEP,
+) -> Float[Array, "rows cols"]:
+    """Bhattacharyya distance ``sqrt(1 - BC)`` between the colour parts of feature vectors
+    (:func:`~jaxtrack.filters.cmt_observation.box_features`: six normalised histograms of
+    ``ceil(256 / lambda)`` buckets, then the shape), ``BC`` averaged over the six."""
+    bins = num_bins(step)
+    roots = [jnp.sqrt(jnp.clip(x[:, : 6 * bins], 0.0, None)) for x in (models, features)]
+    coefficient = roots[0] @ roots[1].T / 6.0
+    return jnp.sqrt(jnp.clip(1.0 - coefficient, 0.0, None))
+
+
+def reidentified(
+    graveyard: Graveyard,
+    born: Bool[Array, " max_components"],
+    decisions: Float[Array, "max_components 6"],
+    features: Float[Array, "max_components num_features"],
+    frame: Int[Array, ""],
+    reidentify: int,
+    step: float = STEP,
+) -> Int[Array, " max_components"]:
+    """For each slot, the graveyard entry whose identity its new component takes back, or -1.
+
+    Entry ``g`` (deleted ``age = frame - frames_g`` frames before, ``1 <= age <=
+    reidentify``) and newborn ``m`` (box ``decisions_m``) may pair when ``m``'s centre is within
+    ``min(REID_GATE + REID_GATE_RATE age, REID_MAX_GATE) h_g`` of ``g``'s centre moved
+    ``age`` frames at ``g``'s velocity, ``|log(h_m / h_g)| <= log REID_SIZE_RATIO`` and
+    :func:`colour_distance` of ``g``'s model and ``m``'s features is at most
+    ``REID_MAX_DISTANCE``; a pair is kept when each is the other's nearest in colour among
+    those allowed (so no identity is given twice).
+    """
+    age = frame - graveyard.frames
+    valid = (graveyard.ids >= 0) & (age >= 1) & (age <= reidentify)
+    valid = valid & graveyard.appearance.initialised
+    ages = jnp.clip(age, 0, reidentify).astype(decisions.dtype)
+    dead = graveyard.estimates
+    centres = dead[:, POSITION] + dead[:, VELOCITY] * ages[:, None]
+    heights = jnp.maximum(dead[:, SIZE[1]], 1e-3)
+    offsets = decisions[None, :, POSITION] - centres[:, None, :]
+    distance = jnp.sqrt(jnp.sum(offsets**2, axis=-1)) / heights[:, None]
+    gate = jnp.minimum(REID_GATE + REID_GATE_RATE * ages, REID_MAX_GATE)
+    sizes = jnp.abs(jnp.log(jnp.maximum(decisions[None, :, SIZE[1]], 1e-3) / heights[:, None]))
+    colour = colour_distance(graveyard.appearance.model, features, step)
+    allowed = valid[:, None] & born[None, :] & (distance <= gate[:, None])
+    allowed = allowed & (sizes <= math.log(REID_SIZE_RATIO)) & (colour <= REID_MAX_DISTANCE)
+    cost = jnp.where(allowed, colour, jnp.inf)
+    best_entry = jnp.argmin(cost, axis=0)
+    best_born = jnp.argmin(cost, axis=1)
+    slots = jnp.arange(born.shape[0])
+    mutual = allowed[best_entry, slots] & (best_born[best_entry] == slots)
+    return jnp.where(mutual, best_entry, -1)
 
 
 def cmt_filter(
@@ -445,6 +596,7 @@ def cmt_filter(
     max_misses: int = 5,
     group_blobs: bool = True,
     hold_velocity: bool = False,
+    reidentify: int = 0,
 ) -> Filter:
     """Builds CMT; all arguments are static.
 
@@ -455,6 +607,9 @@ def cmt_filter(
         max_misses: unsupported frames a component survives.
         group_blobs: compile the group-blob rule in (see :func:`cmt_step`); False when
             ``params.proposal.group_area_ratio`` will be 0, which it then ignores.
+        hold_velocity: compile the merge velocity in (see :func:`cmt_step`).
+        reidentify: frames within which a new component may take back a deleted confirmed
+            component's identity (see :func:`cmt_step`; 0: never).
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter` (steps on
@@ -476,6 +631,7 @@ def cmt_filter(
         max_misses=max_misses,
         group_blobs=group_blobs,
         hold_velocity=hold_velocity,
+        reidentify=reidentify,
     )
     init = functools.partial(
         init_cmt,

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
+from jaxtrack.context.intensity import DEFAULT_FRAME_RATE
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
@@ -103,6 +104,16 @@ class CMTConfig(TrackerConfig):
             1.0,
         ),
     )
+    reidentify_seconds: float = setting(
+        0.0,
+        Rule(
+            "seconds within which a new component takes back the identity of a deleted "
+            "confirmed one nearby and alike in colour (0: off, the paper's tracker)",
+            float,
+            0.0,
+            3600.0,
+        ),
+    )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
     smoothing: str = setting("none", SMOOTHING)
@@ -160,7 +171,6 @@ def build_cmt(
     Raises:
         InputError: a context that is not zones, or a context variant other than GM.
     """
-    del info
     if context is not None and not isinstance(context, SceneZones):
         raise InputError("CMT takes entry/exit zones (--zones), not a learned PHD context")
     if variant != "GM":
@@ -172,18 +182,30 @@ def build_cmt(
         config.max_misses,
         config.group_area_ratio > 0,
         config.velocity_rate > 0,
+        reidentify_frames(config, info),
     )
     return filt, cmt_params(config, context)
 
 
+def reidentify_frames(config: CMTConfig, info: SequenceInfo) -> int:
+    """``reidentify_seconds`` in frames of the sequence (at least 1 when it is on; 25
+    frames/s when ``seqinfo.ini`` gives no rate)."""
+    if config.reidentify_seconds <= 0:
+        return 0
+    rate = DEFAULT_FRAME_RATE if info.frame_rate is None else info.frame_rate
+    return max(1, round(config.reidentify_seconds * rate))
+
+
 @functools.lru_cache(maxsize=8)
 def _cmt_filter(
-    variant, max_components, particles, max_misses, group_blobs, hold_velocity
+    variant, max_components, particles, max_misses, group_blobs, hold_velocity, reidentify
 ) -> Filter:
     # Group blobs off (a ratio of 0): their code is compiled out (the ratio is a frozen
     # parameter, so no sweep or tuning can turn them on behind the configuration's back);
     # likewise the merge velocity at a rate of 0.
-    return cmt_filter(variant, max_components, particles, max_misses, group_blobs, hold_velocity)
+    return cmt_filter(
+        variant, max_components, particles, max_misses, group_blobs, hold_velocity, reidentify
+    )
 
 
 def cmt_memory_estimate(config: CMTConfig, capacity: int, chunk_frames: int) -> MemoryEstimate:
