@@ -139,9 +139,9 @@ def test_another_person_at_the_spot_gets_a_new_identity():
     assert len({int(i) for i in shown[mask]}) == 2
 
 
-def test_off_by_default_and_seconds_become_frames():
-    assert CMTConfig().reidentify_seconds == 0.0
-    assert reidentify_frames(CMTConfig(), INFO) == 0
+def test_seconds_become_frames():
+    assert reidentify_frames(CMTConfig(reidentify_seconds=0.0), INFO) == 0
+    assert reidentify_frames(CMTConfig(), INFO) == 25  # 1 s by default
     assert reidentify_frames(CMTConfig(reidentify_seconds=2.0), INFO) == 50
     seven = SequenceInfo("pets", 30, 768, 576, 7.0)
     assert reidentify_frames(CMTConfig(reidentify_seconds=2.0), seven) == 14
