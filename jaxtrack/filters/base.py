@@ -12,8 +12,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
+from jaxtrack.context.intensity import DEFAULT_FRAME_RATE
 from jaxtrack.errors import InputError
-from jaxtrack.types import PAD_BOX, Detections, FrameInputs
+from jaxtrack.types import PAD_BOX, Detections, FrameInputs, SequenceInfo
 
 
 class Filter(NamedTuple):
@@ -528,3 +529,9 @@ def _chunk_functions(
         init = jax.vmap(init)
     quick = jax.jit(scan, compiler_options={"xla_backend_optimization_level": 0})
     return jax.jit(init), jax.jit(scan), quick
+
+
+def frame_rate(info: SequenceInfo) -> float:
+    """The sequence's frame rate (:data:`~jaxtrack.context.intensity.DEFAULT_FRAME_RATE`, 25,
+    when ``seqinfo.ini`` has none)."""
+    return float(info.frame_rate or DEFAULT_FRAME_RATE)

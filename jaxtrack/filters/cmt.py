@@ -54,7 +54,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from jaxtrack.appearance import DEFAULT_PATCH_SHAPE, num_bins
+from jaxtrack.appearance import DEFAULT_PATCH_SHAPE, bhattacharyya_coefficient, num_bins
 from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
@@ -442,11 +442,7 @@ def cmt_step(
         )
         confirmed = confirmed | revived
         appearance = jax.tree.map(
-            lambda new, old: jnp.where(
-                revived.reshape(-1, *([1] * (new.ndim - 1))), old[entry], new
-            ),
-            appearance,
-            graveyard.appearance,
+            lambda new, old: select_rows(revived, old[entry], new), appearance, graveyard.appearance
         )
         taken = jnp.zeros_like(revived).at[entry].max(revived)
         graveyard = bury(
@@ -522,16 +518,18 @@ def bury(
     appearance: AppearanceState,
 ) -> Graveyard:
     """The graveyard with each ``dying`` slot's component written over that slot's entry."""
-
-    def pick(new, old):
-        return jnp.where(dying.reshape(-1, *([1] * (new.ndim - 1))), new, old)
-
+    pick = functools.partial(select_rows, dying)
     return Graveyard(
         ids=pick(ids, graveyard.ids),
         estimates=pick(estimates, graveyard.estimates),
         frames=pick(jnp.broadcast_to(frame, dying.shape), graveyard.frames),
         appearance=jax.tree.map(pick, appearance, graveyard.appearance),
     )
+
+
+def select_rows(rows: Bool[Array, " n"], new: Array, old: Array) -> Array:
+    """``new`` where ``rows`` (along the leading axis) is True, else ``old``."""
+    return jnp.where(rows.reshape(-1, *([1] * (new.ndim - 1))), new, old)
 
 
 def colour_distance(
@@ -543,9 +541,10 @@ def colour_distance(
     (:func:`~jaxtrack.filters.cmt_observation.box_features`: six normalised histograms of
     ``ceil(256 / lambda)`` buckets, then the shape), ``BC`` averaged over the six."""
     bins = num_bins(step)
-    roots = [jnp.sqrt(jnp.clip(x[:, : 6 * bins], 0.0, None)) for x in (models, features)]
-    coefficient = roots[0] @ roots[1].T / 6.0
-    return jnp.sqrt(jnp.clip(1.0 - coefficient, 0.0, None))
+    model_histograms = models[:, None, : 6 * bins].reshape(models.shape[0], 1, 6, bins)
+    feature_histograms = features[None, :, : 6 * bins].reshape(1, features.shape[0], 6, bins)
+    coefficient = jnp.mean(bhattacharyya_coefficient(model_histograms, feature_histograms), -1)
+    return jnp.sqrt(jnp.maximum(1.0 - coefficient, 0.0))
 
 
 def reidentified(

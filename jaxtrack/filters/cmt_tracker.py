@@ -28,10 +28,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
-from jaxtrack.context.intensity import DEFAULT_FRAME_RATE
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import Filter
+from jaxtrack.filters.base import Filter, frame_rate
 from jaxtrack.filters.cmt import MAX_ZONES, VARIANTS, CMTParams, cmt_filter
 from jaxtrack.filters.cmt_observation import NUM_VALUES, default_com_params, num_features
 from jaxtrack.filters.cmt_proposal import default_cpd_params
@@ -191,12 +190,11 @@ def build_cmt(
 
 
 def reidentify_frames(config: CMTConfig, info: SequenceInfo) -> int:
-    """``reidentify_seconds`` in frames of the sequence (at least 1 when it is on; 25
-    frames/s when ``seqinfo.ini`` gives no rate)."""
+    """``reidentify_seconds`` in frames of the sequence (at least 1 when it is on;
+    :func:`~jaxtrack.filters.base.frame_rate`)."""
     if config.reidentify_seconds <= 0:
         return 0
-    rate = DEFAULT_FRAME_RATE if info.frame_rate is None else info.frame_rate
-    return max(1, round(config.reidentify_seconds * rate))
+    return max(1, round(config.reidentify_seconds * frame_rate(info)))
 
 
 @functools.lru_cache(maxsize=8)

@@ -29,7 +29,7 @@ import numpy as np
 
 from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
 from jaxtrack.errors import InputError
-from jaxtrack.filters.base import Filter
+from jaxtrack.filters.base import Filter, frame_rate
 from jaxtrack.filters.hier_appearance import PATCH_SHAPE
 from jaxtrack.filters.hier_appearance import default_params as default_appearance_params
 from jaxtrack.filters.hier_events import default_event_params
@@ -64,8 +64,6 @@ NEWBORN_SECONDS = 0.0
 RESUME_SECONDS = 0.32
 #: Seconds a new tracker is entering (the event module's default, 25 frames at 25 fps).
 ENTERING_SECONDS = 1.0
-#: Frame rate assumed when ``seqinfo.ini`` gives none.
-DEFAULT_FRAME_RATE = 25.0
 #: Grey level of the background image when no background model is given (direct API use;
 #: every pipeline gives the span's median image).
 FLAT_BACKGROUND = 128
@@ -180,11 +178,6 @@ def low_noise(
 def writes_events(config: HierarchicalConfig) -> bool:
     """Only the full tracker has events (its high-level trackers')."""
     return config.variant == "full"
-
-
-def frame_rate(info: SequenceInfo) -> float:
-    """The sequence's frame rate (:data:`DEFAULT_FRAME_RATE` when ``seqinfo.ini`` has none)."""
-    return float(info.frame_rate or DEFAULT_FRAME_RATE)
 
 
 def hierarchical_params(
