@@ -32,7 +32,11 @@ model look at the scene's context. One :func:`cmt_step` on
    (:func:`~jaxtrack.filters.cmt_conditions.sharing_blob`: one box over two targets) keeps
    its long-run velocity (:func:`held_velocities`); **enter**: a blob that no component
    explains starts one (the dispelling rule: a blob explained by another component's
-   hypothesis starts none; nor does a group blob);
+   hypothesis starts none; nor does a group blob); with ``free_blob_frames`` > 0 (not in
+   the paper), a blob no component has owned (:func:`blob_owners`) for that many frames in
+   a row starts one anyway (:func:`free_runs`: a person walking out of a crossing beside
+   the component that followed the other one), and a component is confirmed only once
+   apart from older ones (:func:`_crowded`);
 6. **update** the appearance models and decayed histograms at the local decisions, except
    for components whose particles mostly drew *merge* (appearance frozen, Sec. IV-B).
 
@@ -173,6 +177,18 @@ class Graveyard(NamedTuple):
     appearance: AppearanceState
 
 
+class FreeBlobs(NamedTuple):
+    """The blobs no component owned on the last frame, and for how long (:func:`free_runs`).
+
+    Attributes:
+        boxes: ``[max_components, 4]`` their boxes ``(x, y, w, h)``.
+        runs: consecutive frames each has been free (0: an empty slot).
+    """
+
+    boxes: Float[Array, "max_components 4"]
+    runs: Int[Array, " max_components"]
+
+
 class CMTState(NamedTuple):
     """The scan carry.
 
@@ -189,6 +205,8 @@ class CMTState(NamedTuple):
         merged_frames: consecutive frames each component has shared a blob with another.
         graveyard: the last confirmed component that died in each slot
             (:class:`Graveyard`; read only when the step is built with ``reidentify`` > 0).
+        free: the last frame's unowned blobs (:class:`FreeBlobs`; read only when the step is
+            built with ``free_blob_frames`` > 0).
     """
 
     mixture: MixtureState
@@ -201,6 +219,7 @@ class CMTState(NamedTuple):
     averaged: Float[Array, " max_components"]
     merged_frames: Float[Array, " max_components"]
     graveyard: Graveyard
+    free: FreeBlobs
 
 
 class CMTInfo(NamedTuple):
@@ -263,6 +282,7 @@ def cmt_step(
     group_blobs: bool = True,
     hold_velocity: bool = False,
     reidentify: int = 0,
+    free_blob_frames: int = 0,
     step: float = STEP,
     patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
     num_levels: int = NUM_LEVELS,
@@ -284,6 +304,10 @@ def cmt_step(
             velocity (static; :func:`held_velocities`).
         reidentify: frames a deleted confirmed component's identity can be taken back by
             a new one (static; 0: never, the paper's tracker; :func:`reidentified`).
+        free_blob_frames: a blob no component has owned for this many frames in a row
+            starts one even where another component's particles explain it, and a component
+            is not confirmed while it overlaps an older one (static; 0: never, the paper's
+            dispelling rule; :func:`free_runs`, :func:`_crowded`).
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
         num_levels: quantisation levels of eq. 17 (static).
@@ -386,7 +410,10 @@ def cmt_step(
     local = estimates
     estimates = jnp.where(survivors[:, None], estimates, 0.0)
 
-    confirmed = survivors & (state.confirmed | _confirms(estimates, blobs, params))
+    confirms = _confirms(estimates, blobs, params)
+    if free_blob_frames > 0:
+        confirms = confirms & ~_crowded(estimates, survivors, mixture.ids)
+    confirmed = survivors & (state.confirmed | confirms)
     shown = survivors & supported
     candidates = _tracks(estimates, mixture.ids, shown, log_pi)
     tracks = _tracks(estimates, mixture.ids, shown & confirmed, log_pi)
@@ -414,7 +441,14 @@ def cmt_step(
         entering = blobs._replace(
             mask=blobs.mask & _may_enter(blobs, state.frame, params) & ~jnp.any(groups, axis=0)
         )
-    new_mixture, overflow = add_unexplained(key_add, resampled, entering, params.mixture)
+    free = state.free
+    forced = None
+    if free_blob_frames > 0:
+        free, runs = free_runs(state.free, blobs, owner)
+        forced = entering.mask & (runs >= free_blob_frames)
+    new_mixture, overflow = add_unexplained(
+        key_add, resampled, entering, params.mixture, forced=forced
+    )
     born = new_mixture.alive & ~survivors
 
     # Appearance: features at the local decisions (a newborn's at its particles' mean).
@@ -464,6 +498,7 @@ def cmt_step(
         averaged=jnp.where(born, 0.0, averaged),
         merged_frames=jnp.where(born, 0.0, merged_frames),
         graveyard=graveyard,
+        free=free,
     )
     info = CMTInfo(
         tracks=tracks,
@@ -506,7 +541,45 @@ def init_cmt(
             frames=jnp.zeros((max_components,), jnp.int32),
             appearance=appearance,
         ),
+        free=FreeBlobs(
+            boxes=jnp.zeros((max_components, 4), jnp.float32),
+            runs=jnp.zeros((max_components,), jnp.int32),
+        ),
     )
+
+
+#: IoU above which a free blob continues a free blob of the previous frame (:func:`free_runs`).
+FREE_BLOB_IOU = 0.5
+
+
+def free_runs(
+    free: FreeBlobs, blobs: Detections, owner: Int[Array, " max_detections"]
+) -> tuple[FreeBlobs, Int[Array, " max_detections"]]:
+    """How long each blob has gone unowned, and the free blobs kept for the next frame.
+
+    A blob no component owns (``owner`` < 0, :func:`blob_owners`) continues the longest run
+    of the previous frame's free blobs it overlaps by IoU above :data:`FREE_BLOB_IOU`; an
+    owned blob's run is 0. The longest runs fill the kept slots.
+
+    Returns:
+        The kept :class:`FreeBlobs` and every blob's run (this frame included).
+    """
+    unowned = blobs.mask & (owner < 0)
+    overlap = iou_matrix(blobs.boxes, free.boxes, jnp)
+    previous = jnp.max(
+        jnp.where((overlap > FREE_BLOB_IOU) & (free.runs > 0)[None, :], free.runs[None, :], 0),
+        axis=1,
+    )
+    runs = jnp.where(unowned, previous + 1, 0)
+    slots = free.runs.shape[0]
+    order = jnp.argsort(-runs)[:slots]
+    kept_runs = jnp.zeros((slots,), jnp.int32).at[: order.shape[0]].set(runs[order])
+    kept_boxes = (
+        jnp.zeros((slots, 4), free.boxes.dtype)
+        .at[: order.shape[0]]
+        .set(blobs.boxes[order].astype(free.boxes.dtype))
+    )
+    return FreeBlobs(kept_boxes, kept_runs), runs
 
 
 def bury(
@@ -596,6 +669,7 @@ def cmt_filter(
     group_blobs: bool = True,
     hold_velocity: bool = False,
     reidentify: int = 0,
+    free_blob_frames: int = 0,
 ) -> Filter:
     """Builds CMT; all arguments are static.
 
@@ -609,6 +683,8 @@ def cmt_filter(
         hold_velocity: compile the merge velocity in (see :func:`cmt_step`).
         reidentify: frames within which a new component may take back a deleted confirmed
             component's identity (see :func:`cmt_step`; 0: never).
+        free_blob_frames: frames a blob stays unowned before it starts a component whatever
+            explains it (see :func:`cmt_step`; 0: never).
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter` (steps on
@@ -631,6 +707,7 @@ def cmt_filter(
         group_blobs=group_blobs,
         hold_velocity=hold_velocity,
         reidentify=reidentify,
+        free_blob_frames=free_blob_frames,
     )
     init = functools.partial(
         init_cmt,
@@ -839,6 +916,25 @@ def _merging(
     near = distance < context_radius(estimates, params)[:, None]
     others = alive[None, :] & ~jnp.eye(alive.shape[0], dtype=bool)
     return alive & jnp.any(near & others, axis=1)
+
+
+#: IoU of a component's local decision with an older component's above which it is not
+#: confirmed (with free-blob births on: :func:`_crowded`).
+SEPARATION_IOU = 0.1
+
+
+def _crowded(
+    estimates: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    ids: Int[Array, " max_components"],
+) -> Bool[Array, " max_components"]:
+    """True for a component whose local decision overlaps an older living component's by IoU
+    above :data:`SEPARATION_IOU`. With free-blob births on, such a component is not confirmed
+    (a blob that goes unowned beside a tracked target is as often the detector's second box
+    of that target as another person: it earns its confirmation once apart)."""
+    overlap = iou_matrix(particle_boxes(estimates), particle_boxes(estimates), jnp)
+    older = ids[None, :] < ids[:, None]
+    return jnp.any(alive[:, None] & alive[None, :] & older & (overlap > SEPARATION_IOU), axis=1)
 
 
 def _duplicates(

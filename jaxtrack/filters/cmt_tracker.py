@@ -116,6 +116,17 @@ class CMTConfig(TrackerConfig):
             3600.0,
         ),
     )
+    free_blob_frames: int = setting(
+        0,
+        Rule(
+            "frames a blob must stay unowned before it starts a component even where "
+            "another component's particles explain it; components are then confirmed only "
+            "once apart from older ones (0: never, the paper's tracker)",
+            int,
+            0,
+            1000,
+        ),
+    )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
     smoothing: str = setting("none", SMOOTHING)
@@ -185,6 +196,7 @@ def build_cmt(
         config.group_area_ratio > 0,
         config.velocity_rate > 0,
         reidentify_frames(config, info),
+        config.free_blob_frames,
     )
     return filt, cmt_params(config, context)
 
@@ -198,15 +210,11 @@ def reidentify_frames(config: CMTConfig, info: SequenceInfo) -> int:
 
 
 @functools.lru_cache(maxsize=8)
-def _cmt_filter(
-    variant, max_components, particles, max_misses, group_blobs, hold_velocity, reidentify
-) -> Filter:
+def _cmt_filter(*settings) -> Filter:
     # Group blobs off (a ratio of 0): their code is compiled out (the ratio is a frozen
     # parameter, so no sweep or tuning can turn them on behind the configuration's back);
     # likewise the merge velocity at a rate of 0.
-    return cmt_filter(
-        variant, max_components, particles, max_misses, group_blobs, hold_velocity, reidentify
-    )
+    return cmt_filter(*settings)
 
 
 def cmt_memory_estimate(config: CMTConfig, capacity: int, chunk_frames: int) -> MemoryEstimate:

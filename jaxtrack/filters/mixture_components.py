@@ -100,6 +100,7 @@ def add_unexplained(
     detections: Detections,
     params: MixtureParams,
     noise_model: NoiseModel = state_dependent_std,
+    forced: Bool[Array, " max_detections"] | None = None,
 ) -> tuple[MixtureState, Bool[Array, ""]]:
     """A new component (:func:`add_component`) for each detection no living component explains.
 
@@ -115,28 +116,32 @@ def add_unexplained(
         detections: the frame's padded detections.
         params: the filter's parameters.
         noise_model: noise model of the likelihood and the new particles' spread.
+        forced: detections that start a component whether or not one explains them
+            (default: none).
 
     Returns:
         The state and True when some unexplained detection found no free slot.
     """
     measurements = xywh_to_cxcywh(detections.boxes, jnp)
     keys = jax.random.split(key, measurements.shape[0])
+    if forced is None:
+        forced = jnp.zeros(detections.mask.shape, bool)
 
     def visit(carry, inputs):
         current, overflow = carry
-        item_key, box, measurement, real = inputs
+        item_key, box, measurement, real, force = inputs
         flat = jax.lax.stop_gradient(current.particles).reshape(-1, STATE_DIM)
         scores = log_likelihood(measurement[None], flat, params.measurement_noise_std, noise_model)
         owners = jnp.repeat(current.alive, current.particles.shape[1])
         explained = jnp.any(owners & (scores[0] > params.birth_log_likelihood))
         added, full = add_component(item_key, current, box, params, noise_model)
-        start = real & ~explained
+        start = real & (~explained | force)
         current = jax.tree.map(lambda old, new: jnp.where(start, new, old), current, added)
         return (current, overflow | (start & full)), None
 
     (state, overflow), _ = jax.lax.scan(
         visit,
         (state, jnp.asarray(False)),
-        (keys, detections.boxes, measurements, detections.mask),
+        (keys, detections.boxes, measurements, detections.mask, forced),
     )
     return state, overflow
