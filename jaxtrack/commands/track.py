@@ -62,7 +62,7 @@ which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
 ``velocity_rate`` (0.1: a component keeps its long-run velocity while one blob covers it
 and another; 0 gives the paper's tracker), ``reidentify_seconds`` (1; 0: off, the paper's
 tracker; a new component takes back the identity of a confirmed one deleted that recently,
-nearby and alike in colour), ``free_blob_frames`` (0: off, the paper's tracker; a blob no
+nearby and alike in colour), ``free_blob_frames`` (2; 0: off, the paper's tracker; a blob no
 component owns that many frames in a row starts one whatever explains it), ``output``,
 ``max_gap``.
 

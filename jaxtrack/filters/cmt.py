@@ -35,8 +35,10 @@ model look at the scene's context. One :func:`cmt_step` on
    hypothesis starts none; nor does a group blob); with ``free_blob_frames`` > 0 (not in
    the paper), a blob no component has owned (:func:`blob_owners`) for that many frames in
    a row starts one anyway (:func:`free_runs`: a person walking out of a crossing beside
-   the component that followed the other one), and a component is confirmed only once
-   apart from older ones (:func:`_crowded`);
+   the component that followed the other one), a component is confirmed only once apart
+   from older ones (:func:`_crowded`), and re-identification also lets an unconfirmed
+   component take over the identity of a confirmed one that died (a *handover*: the new
+   component is often born before the lost one dies);
 6. **update** the appearance models and decayed histograms at the local decisions, except
    for components whose particles mostly drew *merge* (appearance frozen, Sec. IV-B).
 
@@ -305,9 +307,11 @@ def cmt_step(
         reidentify: frames a deleted confirmed component's identity can be taken back by
             a new one (static; 0: never, the paper's tracker; :func:`reidentified`).
         free_blob_frames: a blob no component has owned for this many frames in a row
-            starts one even where another component's particles explain it, and a component
-            is not confirmed while it overlaps an older one (static; 0: never, the paper's
-            dispelling rule; :func:`free_runs`, :func:`_crowded`).
+            starts one even where another component's particles explain it, a component is
+            not confirmed while it overlaps an older one, and with ``reidentify`` > 0 an
+            unconfirmed component, not only a newborn, may take back a dead one's identity
+            (static; 0: never, the paper's dispelling rule; :func:`free_runs`,
+            :func:`_crowded`).
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
         num_levels: quantisation levels of eq. 17 (static).
@@ -466,8 +470,13 @@ def cmt_step(
     confirmed = confirmed & ~born
     graveyard = state.graveyard
     if reidentify > 0:
+        heirs = born
+        if free_blob_frames > 0:
+            # Handover: a free blob's component is often born before the component that
+            # lost its target dies; an unconfirmed one may take that identity back too.
+            heirs = born | (new_mixture.alive & ~confirmed)
         entry = reidentified(
-            graveyard, born, decisions, decision_features, state.frame, reidentify, step
+            graveyard, heirs, decisions, decision_features, state.frame, reidentify, step
         )
         revived = entry >= 0
         entry = jnp.maximum(entry, 0)

@@ -15,6 +15,9 @@ them. ``max_misses`` 3 and ``reidentify_seconds`` 1 (session 40) were the best I
 settings tried on the development scenes (synthetic video seeds 0-2 and 4-6), then checked
 on fresh scenes 141-143 and the MOT15 videos (README, CMT: "Re-identification of deleted
 components"); ``max_misses`` 5 and ``reidentify_seconds`` 0 give the earlier tracker.
+``free_blob_frames`` 2 (session 41) was chosen on the development scenes and the MOT15
+videos among the settings tried, then run on fresh scenes 147-152 (README, CMT: "Free-blob
+births"); 0 gives the session-40 tracker.
 """
 
 from __future__ import annotations
@@ -117,11 +120,12 @@ class CMTConfig(TrackerConfig):
         ),
     )
     free_blob_frames: int = setting(
-        0,
+        2,
         Rule(
             "frames a blob must stay unowned before it starts a component even where "
             "another component's particles explain it; components are then confirmed only "
-            "once apart from older ones (0: never, the paper's tracker)",
+            "once apart from older ones, and an unconfirmed one may take over the identity of "
+            "a confirmed one that died nearby (0: never, the paper's tracker)",
             int,
             0,
             1000,

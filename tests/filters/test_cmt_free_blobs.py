@@ -11,6 +11,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from jaxtrack.boxes import iou_matrix
 from jaxtrack.filters.base import run
@@ -110,8 +111,34 @@ def first_two(config):
 
 
 def test_a_target_stepping_out_beside_a_tracked_one_starts_sooner():
-    paper = first_two(CMTConfig(variant="cmt", **SMALL))
+    paper = first_two(CMTConfig(variant="cmt", free_blob_frames=0, **SMALL))
     free = first_two(CMTConfig(variant="cmt", free_blob_frames=2, **SMALL))
     assert free is not None
     assert paper is None or paper >= free + 2  # measured: 9 against 6
     assert free <= 4 + 2 + 1  # B's blob free on frames 4 and 5, a component from frame 6 on
+
+
+def jumped(num_frames=40, at=10, dy=30.0):
+    """One target walking right whose detection jumps ``dy`` px down at ``at`` (out of its
+    component's reach, within a box height); it scores 0.99 before and 0.9 after."""
+    truth = [
+        [(20.0 + 2 * t, 40.0 + (dy if t >= at else 0.0), 16.0, 36.0)] for t in range(num_frames)
+    ]
+    scores = np.where(np.arange(num_frames)[:, None] < at, 0.99, 0.9) * (np.arange(4) < 1)
+    return scene(truth, COLOURS[:1], scores)
+
+
+@pytest.mark.parametrize("variant", ["mtb", "cmt"])
+def test_an_unconfirmed_component_takes_over_the_identity_of_the_one_it_replaced(variant):
+    # After the jump a new component follows the target while the old one, unsupported, waits
+    # out its misses; the new one's blobs never score 0.97, so only a handover confirms it.
+    shown = {}
+    for frames in (0, 2):
+        config = CMTConfig(variant=variant, free_blob_frames=frames, **SMALL)
+        filt, params = build_cmt(config, INFO)
+        _, info = run(filt, jax.random.PRNGKey(0), params, jumped())
+        mask, ids = np.asarray(info.tracks.mask), np.asarray(info.tracks.ids)
+        shown[frames] = [sorted(ids[t][mask[t]].tolist()) for t in range(mask.shape[0])]
+    assert shown[0][:10] == shown[2][:10] == [[]] + [[0]] * 9
+    assert shown[0][10:] == [[]] * 30  # the paper's tracker: the target is lost for good
+    assert shown[2][25:] == [[0]] * 15  # handed over: the first identity again
