@@ -11,10 +11,11 @@ The defaults are the same for every sequence: sizes are relative to the boxes (t
 of :mod:`~jaxtrack.models.noise`; distances of the contextual proposal in box heights), so
 they carry across image sizes. They were set from the papers' values and the synthetic video
 scenes of seeds 0-2; the sequences of ``experiments/cmt_ablation.py`` were not used to pick
-them, except as said below. ``max_misses`` 3 and ``reidentify_seconds`` 1 (session 40) were the best IDF1 of the
-settings tried on the development scenes (synthetic video seeds 0-2 and 4-6), then checked
-on fresh scenes 141-143 and the MOT15 videos (README, CMT: "Re-identification of deleted
-components"); ``max_misses`` 5 and ``reidentify_seconds`` 0 give the earlier tracker.
+them, except as said below. ``max_misses`` 3 and ``reidentify_seconds`` 1 (session 40)
+were the best IDF1 of the settings tried on the development scenes (synthetic video seeds
+0-2 and 4-6), then checked on fresh scenes 141-143 and the MOT15 videos (README, CMT:
+"Re-identification of deleted components"); ``max_misses`` 5 and ``reidentify_seconds`` 0
+give the earlier tracker.
 ``free_blob_frames`` 2 (session 41) was chosen on the development scenes and the MOT15
 videos among the settings tried, then run on fresh scenes 147-152 (README, CMT: "Free-blob
 births"); 0 gives the session-40 tracker.
