@@ -473,8 +473,9 @@ def cmt_step(
         heirs = born
         if free_blob_frames > 0:
             # Handover: a free blob's component is often born before the component that
-            # lost its target dies; an unconfirmed one may take that identity back too.
-            heirs = born | (new_mixture.alive & ~confirmed)
+            # lost its target dies; an unconfirmed one may take that identity back too
+            # (newborns are unconfirmed: ``confirmed`` excludes them).
+            heirs = new_mixture.alive & ~confirmed
         entry = reidentified(
             graveyard, heirs, decisions, decision_features, state.frame, reidentify, step
         )
@@ -941,9 +942,7 @@ def _crowded(
     above :data:`SEPARATION_IOU`. With free-blob births on, such a component is not confirmed
     (a blob that goes unowned beside a tracked target is as often the detector's second box
     of that target as another person: it earns its confirmation once apart)."""
-    overlap = iou_matrix(particle_boxes(estimates), particle_boxes(estimates), jnp)
-    older = ids[None, :] < ids[:, None]
-    return jnp.any(alive[:, None] & alive[None, :] & older & (overlap > SEPARATION_IOU), axis=1)
+    return _overlaps_older(estimates, alive, ids, SEPARATION_IOU)
 
 
 def _duplicates(
@@ -956,9 +955,20 @@ def _duplicates(
     IoU above ``duplicate_iou`` (Vermaak et al. merge overlapping components; here the
     younger one is not supported on the frame: an unconfirmed one is deleted at once, a
     confirmed one after ``max_misses`` such frames, so two targets crossing both live)."""
+    return _overlaps_older(estimates, alive, ids, params.duplicate_iou)
+
+
+def _overlaps_older(
+    estimates: Float[Array, "max_components 6"],
+    alive: Bool[Array, " max_components"],
+    ids: Int[Array, " max_components"],
+    threshold: float | Float[Array, ""],
+) -> Bool[Array, " max_components"]:
+    """True for a living component whose local decision overlaps an older (smaller id)
+    living component's by IoU above ``threshold``."""
     overlap = iou_matrix(particle_boxes(estimates), particle_boxes(estimates), jnp)
     older = ids[None, :] < ids[:, None]
-    pair = alive[:, None] & alive[None, :] & older & (overlap > params.duplicate_iou)
+    pair = alive[:, None] & alive[None, :] & older & (overlap > threshold)
     return jnp.any(pair, axis=1)
 
 
