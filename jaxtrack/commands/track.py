@@ -82,7 +82,10 @@ Its configuration (``HierarchicalConfig``) takes ``variant``, ``measurement`` ("
 resuming after coasting this long is checked against its tracker's appearance; 0: never),
 ``noise`` ("auto": the low
 level's noise measured on the tracked detections, except on the ``bs`` blobs, which keep the
-a priori noise; "estimated"; "default"), ``min_score``, ``output``, ``max_gap``; the noise used
+a priori noise; "estimated"; "default"), ``min_score``, ``confirm_score`` (0.97: a low-level
+track is confirmed only once it has held a detection scoring this; 0: the paper's rule),
+``score_weight`` (1: the detections' score log-odds lower the association cost; 0: the
+paper's cost), ``output``, ``max_gap``; the noise used
 is printed and recorded in ``RES.config.json`` (``low_noise``).
 
 ``--tracker fusion`` runs the context-aware multi-tracker Fusion tracker (SPEC section 3,

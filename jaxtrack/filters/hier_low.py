@@ -36,6 +36,12 @@ fixed table of ``T`` track slots (``alive`` mask), ``D`` padded measurements (``
    with a measurement; any track is removed on a frame without measurement where
    ``r_k > remove_ratio`` (``|S_k|^1/2`` has grown too large).
 
+Detection scores (optional, beyond the paper): with ``strong`` a track is confirmed only once
+it has held a strong measurement (``LowState.scored``), and with ``log_odds`` the cost of a
+pair falls by twice the measurement's log-odds of being a target, so that the cost is the
+pair's negative log-likelihood ratio against clutter (up to a constant). The Hierarchical
+tracker passes both from the detection scores (``confirm_score``, ``score_weight``).
+
 The measurement model (``"box"`` or ``"ellipse"``), the scale-dependent noise and ``r_k`` are
 in :mod:`~jaxtrack.filters.hier_low_model`; the thresholds derived from the model's steady
 state in :mod:`~jaxtrack.filters.hier_low_defaults`.
@@ -111,6 +117,8 @@ class LowState(NamedTuple):
         msd: mean MSD of those ``hits`` measurements (0 before the first).
         ratio: ``r_k`` of the frame's innovation covariance; for a track born on the frame,
             that of its initial covariance, ``H P0 H^T + R``.
+        scored: the track has held a measurement marked ``strong`` (a detection scoring at
+            least the tracker's ``confirm_score``): a condition of its confirmation.
     """
 
     mean: Float[Array, "T n"]
@@ -124,6 +132,7 @@ class LowState(NamedTuple):
     hits: Int[Array, " T"]
     msd: Float[Array, " T"]
     ratio: Float[Array, " T"]
+    scored: Bool[Array, " T"]
 
 
 class LowInfo(NamedTuple):
@@ -173,6 +182,7 @@ def init_low(capacity: int, measurement: Measurement) -> LowState:
         hits=zeros,
         msd=jnp.zeros(capacity, jnp.float32),
         ratio=jnp.zeros(capacity, jnp.float32),
+        scored=jnp.zeros(capacity, bool),
     )
 
 
@@ -248,6 +258,8 @@ def low_step(
     params: LowParams,
     measurements: Float[Array, "D m"],
     valid: Bool[Array, " D"],
+    strong: Bool[Array, " D"] | None = None,
+    log_odds: Float[Array, " D"] | None = None,
     *,
     measurement: Measurement,
 ) -> tuple[LowState, LowInfo]:
@@ -263,6 +275,12 @@ def low_step(
         params: see :class:`LowParams`.
         measurements: ``[D, m]`` in the model's measurement space.
         valid: ``[D]`` which rows are measurements (the rest is padding).
+        strong: ``[D]`` measurements that may confirm a track (a detection scoring at
+            least the tracker's ``confirm_score``); a track is confirmed only once it has
+            held one (``LowState.scored``). None: every measurement (the paper's rule).
+        log_odds: ``[D]`` the log-odds that each measurement is a target (from its
+            detection score); the association cost falls by twice it. None: 0 (the paper's
+            cost).
         measurement: static, ``"box"`` or ``"ellipse"``
             (``jax.jit(functools.partial(low_step, measurement="box"))``).
 
@@ -270,6 +288,8 @@ def low_step(
         The new table and the frame's :class:`LowInfo`.
     """
     measurements = measurements.astype(state.mean.dtype)
+    if strong is None:
+        strong = jnp.ones_like(valid)
     scale = jax.vmap(track_scale, in_axes=(0, None))(state.mean, measurement)
     means, covs = jax.vmap(low_predict, in_axes=(0, 0, None, 0, None))(
         state.mean, state.cov, params.process_std, scale, measurement
@@ -288,6 +308,8 @@ def low_step(
     # (2 log r_k), so that an uncertain new track does not take a confirmed track's
     # measurement only because its gate is wider (MSD alone favours it).
     cost = distances + 2.0 * jnp.log(jnp.maximum(ratio, 1e-6))[None, :]
+    if log_odds is not None:
+        cost = cost - 2.0 * log_odds.astype(cost.dtype)[:, None]
     track_of, measurement_of = nearest_gated_pairs(cost, gated)
     # Recovery: measurements left over go to confirmed tracks left over, in a wider gate.
     left = (
@@ -312,10 +334,12 @@ def low_step(
     mean_msd = jnp.where(hit, state.msd + (pair_msd - state.msd) / jnp.maximum(hits, 1), state.msd)
 
     removed = state.alive & ~hit & (ratio > params.remove_ratio)
+    scored = state.scored | (hit & strong[pair])
     newly_confirmed = (
         state.alive
         & hit
         & ~state.confirmed
+        & scored
         & (ratio <= params.confirm_ratio)
         & (mean_msd <= params.confirm_msd)
     )
@@ -341,6 +365,7 @@ def low_step(
         hits=jnp.where(alive, hits, 0),
         msd=jnp.where(alive, mean_msd, 0.0),
         ratio=jnp.where(born, birth_ratio, jnp.where(alive, ratio, 0.0)),
+        scored=jnp.where(born, strong[source], alive & scored),
     )
     slots = jnp.arange(born.shape[0], dtype=jnp.int32)
     born_slot = (

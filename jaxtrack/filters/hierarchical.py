@@ -6,7 +6,10 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
 1. **Low level** (Sec. 4, :mod:`~jaxtrack.filters.hier_low`): the frame's blobs (detections)
    are measurements of a constant-velocity Kalman bank; each goes to the nearest track whose
    Mahalanobis gate holds it, orphans start tentative tracks, tracks are confirmed and
-   removed by ``|S_k|^1/2`` (and the MSD of their measurements).
+   removed by ``|S_k|^1/2`` (and the MSD of their measurements). Beyond the paper, whose
+   blobs have no score: a track is confirmed only once it has held a detection scoring at
+   least ``confirm_score`` (the PHD tracker's and CMT's rule), and the association cost
+   falls by ``2 score_weight logit(score)`` (the detection's log-odds of being a target).
 2. **Tracker matching** (Sec. 5.1): a high-level tracker follows one low-level track. When its
    track is removed (a long occlusion, a group), the high-level tracker is *lost*: it keeps
    its appearance model and is propagated by its motion model (constant velocity, the last
@@ -98,6 +101,15 @@ STEPPED_VARIANTS = ("managed", "full")
 #: Features in a tracker's pool: the ``M`` best of the frame and the ``N`` best long-run
 #: ones (the paper's ``M = N = 3``).
 NUM_CURRENT, NUM_LONGRUN = 3, 3
+#: Detection scores are read as probabilities within ``[SCORE_CLIP, 1 - SCORE_CLIP]``.
+SCORE_CLIP = 1e-3
+
+
+def score_log_odds(scores: Float[Array, " D"]) -> Float[Array, " D"]:
+    """``logit(s)`` of detection scores read as probabilities, clipped to
+    ``[SCORE_CLIP, 1 - SCORE_CLIP]`` (a detector's 1.0 is not certainty)."""
+    clipped = jnp.clip(scores, SCORE_CLIP, 1.0 - SCORE_CLIP)
+    return jnp.log(clipped) - jnp.log1p(-clipped)
 
 
 def measurements_of(boxes: Float[Array, "D 4"], measurement: str) -> Float[Array, "D m"]:
@@ -137,6 +149,10 @@ class HierarchicalParams(NamedTuple):
         resume_frames: a followed track that takes a measurement after coasting at least
             this many frames is checked against its tracker's appearance (the module's step
             2b); ``inf``: never.
+        confirm_score: a low-level track is confirmed only once it has held a detection
+            scoring at least this (0: every track, the paper's rule).
+        score_weight: weight of the detections' score log-odds (:func:`score_log_odds`) in
+            the low level's association cost (0: the paper's cost).
     """
 
     low: LowParams
@@ -148,6 +164,8 @@ class HierarchicalParams(NamedTuple):
     background: UInt8[Array, "height width 3"]
     min_score: Float[Array, ""]
     resume_frames: Float[Array, ""]
+    confirm_score: Float[Array, ""]
+    score_weight: Float[Array, ""]
 
 
 class HighState(NamedTuple):
@@ -453,6 +471,8 @@ def hierarchical_step(
         params.low,
         measurements_of(detections.boxes, measurement),
         detections.mask & (detections.scores >= params.min_score),
+        detections.scores >= params.confirm_score,
+        params.score_weight * score_log_odds(detections.scores),
         measurement=measurement,
     )
     boxes = low_boxes(low, measurement)

@@ -43,6 +43,9 @@ from jaxtrack.parameters import ParameterProperties, frozen_properties
 from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
 from jaxtrack.types import Detections, SequenceInfo
 
+#: Score of a detection that may confirm a low-level track (the PHD tracker's and CMT's
+#: ``confirm_score``; not in the paper, whose blobs have no score).
+CONFIRM_SCORE = 0.97
 #: The low level's measurements (:mod:`~jaxtrack.filters.hier_low`).
 MEASUREMENTS = ("box", "ellipse")
 #: Where the low level's noise comes from (``HierarchicalConfig.noise``).
@@ -119,6 +122,26 @@ class HierarchicalConfig(TrackerConfig):
     min_score: float = setting(
         0.0,
         Rule("detections scoring below this are ignored (0: every detection)", float, 0.0, 1e6),
+    )
+    confirm_score: float = setting(
+        CONFIRM_SCORE,
+        Rule(
+            "a low-level track is confirmed only once it has held a detection scoring at "
+            "least this (0: by |S|^1/2 and the MSD alone, the paper's rule)",
+            float,
+            0.0,
+            1e6,
+        ),
+    )
+    score_weight: float = setting(
+        1.0,
+        Rule(
+            "weight of the detections' score log-odds in the low level's association cost: "
+            "the cost MSD + 2 log r_k falls by 2 w logit(score) (0: the paper's cost)",
+            float,
+            0.0,
+            100.0,
+        ),
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(25, MAX_GAP)
@@ -216,6 +239,8 @@ def hierarchical_params(
         search_rate=jnp.float32(SEARCH_HEIGHTS_PER_SECOND / fps),
         background=jnp.asarray(background),
         min_score=jnp.float32(config.min_score),
+        confirm_score=jnp.float32(config.confirm_score),
+        score_weight=jnp.float32(config.score_weight),
         resume_frames=jnp.float32(
             max(round(config.resume_seconds * fps), 1) if config.resume_seconds > 0 else jnp.inf
         ),
@@ -300,7 +325,8 @@ def hierarchical_properties(params: Any) -> Any:
     ``confirm_msd`` and ``remove_ratio``; the high level's ``gate_sigmas`` (appearance gate,
     Sec. 5.4), ``max_lost``, ``search_rate`` and ``resume_frames``; the event machine's
     ``min_overlap``
-    (collision); and ``min_score`` (the configuration key)."""
+    (collision); and ``min_score``, ``confirm_score`` and ``score_weight`` (the
+    configuration keys)."""
     props = frozen_properties(params)
 
     def named(name: str) -> ParameterProperties:
@@ -326,4 +352,6 @@ def hierarchical_properties(params: Any) -> Any:
         search_rate=named("search_rate"),
         resume_frames=named("resume_frames"),
         min_score=named("min_score"),
+        confirm_score=named("confirm_score"),
+        score_weight=named("score_weight"),
     )
