@@ -146,9 +146,9 @@ def confirm_by_score(evidence, scores, continuing, params):
     return scores >= params.confirm_score, evidence
 
 
-def score_log_odds(scores: Array) -> Array:
-    """``logit(s) = log s - log(1 - s)``, scores clipped to ``[1e-6, 1 - 1e-6]``."""
-    clipped = jnp.clip(scores, 1e-6, 1 - 1e-6)
+def score_log_odds(scores: Array, clip: float = 1e-6) -> Array:
+    """``logit(s) = log s - log(1 - s)``, scores clipped to ``[clip, 1 - clip]``."""
+    clipped = jnp.clip(scores, clip, 1 - clip)
     return jnp.log(clipped) - jnp.log1p(-clipped)
 
 

@@ -61,6 +61,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int, UInt8
 
 from jaxtrack.appearance.variance_ratio import variance_ratio
+from jaxtrack.association.labelling import score_log_odds
 from jaxtrack.association.track_table import start_tracks
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.filters.base import Filter
@@ -101,15 +102,9 @@ STEPPED_VARIANTS = ("managed", "full")
 #: Features in a tracker's pool: the ``M`` best of the frame and the ``N`` best long-run
 #: ones (the paper's ``M = N = 3``).
 NUM_CURRENT, NUM_LONGRUN = 3, 3
-#: Detection scores are read as probabilities within ``[SCORE_CLIP, 1 - SCORE_CLIP]``.
+#: Detection scores are read as probabilities within ``[SCORE_CLIP, 1 - SCORE_CLIP]`` in the
+#: low level's association cost (a detector's 1.0 is not certainty).
 SCORE_CLIP = 1e-3
-
-
-def score_log_odds(scores: Float[Array, " D"]) -> Float[Array, " D"]:
-    """``logit(s)`` of detection scores read as probabilities, clipped to
-    ``[SCORE_CLIP, 1 - SCORE_CLIP]`` (a detector's 1.0 is not certainty)."""
-    clipped = jnp.clip(scores, SCORE_CLIP, 1.0 - SCORE_CLIP)
-    return jnp.log(clipped) - jnp.log1p(-clipped)
 
 
 def measurements_of(boxes: Float[Array, "D 4"], measurement: str) -> Float[Array, "D m"]:
@@ -151,8 +146,9 @@ class HierarchicalParams(NamedTuple):
             2b); ``inf``: never.
         confirm_score: a low-level track is confirmed only once it has held a detection
             scoring at least this (0: every track, the paper's rule).
-        score_weight: weight of the detections' score log-odds (:func:`score_log_odds`) in
-            the low level's association cost (0: the paper's cost).
+        score_weight: weight of the detections' score log-odds
+            (:func:`~jaxtrack.association.labelling.score_log_odds`, clipped at
+            :data:`SCORE_CLIP`) in the low level's association cost (0: the paper's cost).
     """
 
     low: LowParams
@@ -472,7 +468,7 @@ def hierarchical_step(
         measurements_of(detections.boxes, measurement),
         detections.mask & (detections.scores >= params.min_score),
         detections.scores >= params.confirm_score,
-        params.score_weight * score_log_odds(detections.scores),
+        params.score_weight * score_log_odds(detections.scores, SCORE_CLIP),
         measurement=measurement,
     )
     boxes = low_boxes(low, measurement)

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxtrack.association.labelling import score_log_odds
 from jaxtrack.filters.base import run
 from jaxtrack.filters.hier_low import init_low, low_step
 from jaxtrack.filters.hier_low_defaults import default_low_params
@@ -17,7 +18,7 @@ from jaxtrack.filters.hier_low_model import (
     mahalanobis_square_distances,
     track_scale,
 )
-from jaxtrack.filters.hierarchical import score_log_odds
+from jaxtrack.filters.hierarchical import SCORE_CLIP
 from jaxtrack.filters.hierarchical_tracker import (
     CONFIRM_SCORE,
     HierarchicalConfig,
@@ -95,7 +96,7 @@ def test_log_odds_decide_between_two_gated_measurements_at_the_likelihood_balanc
 
 
 def test_score_log_odds_clip_and_sign():
-    odds = np.asarray(score_log_odds(jnp.array([0.0, 0.5, 0.8, 1.0])))
+    odds = np.asarray(score_log_odds(jnp.array([0.0, 0.5, 0.8, 1.0]), SCORE_CLIP))
     np.testing.assert_allclose(odds, [-np.log(999), 0.0, np.log(4), np.log(999)], rtol=1e-4)
 
 
