@@ -5,21 +5,25 @@ re-identification.
 One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each empty, a
 *hypothesis* (``TENTATIVE``: a chain of detections not yet voted in) or a *target*:
 
-1. **Prediction.** Each live slot's constant-velocity box: its last evidence box moved by the
-   mean centre velocity of its last :data:`VELOCITY_FRAMES` evidence boxes (a slot's
-   evidence is the detection where one supported it, else its fused box).
+1. **Prediction.** Each live slot's Kalman filter (the detection member's own state: the
+   constant-velocity box model of the Kalman baseline, :mod:`~jaxtrack.filters.kalman`,
+   updated by the slot's detections only) predicts its box.
 2. **Pool** (paper Sec. 3.2), each member giving a response box per target (``[S, M, 4]``) and
    whether it has one this frame:
 
    * ``detection`` (tracking by detection): the frame's detections are assigned one-to-one to
-     the targets' constant-velocity boxes (Hungarian on ``1 - IoU``, gate ``IoU >= gate``),
-     then the detections left to the hypotheses; a target's response is its detection;
+     the targets' predicted boxes (Hungarian on the Gaussian negative log-likelihood
+     ``d^2 + log |S|``; gates ``d^2 <= chi2_gate`` and ``IoU >= gate`` with the predicted
+     box or the last fused box), then the detections left to the hypotheses (the same,
+     IoU with the predicted box); a target's response is its detection, which updates its
+     filter;
    * ``classifier`` (tracking by classification): a MOSSE correlation filter per target
      (:mod:`~jaxtrack.filters.fusion_classifier`) searching around the last fused box; it
      responds when its peak-to-sidelobe ratio reaches ``psr_min``;
    * ``predictor`` (motion prediction): the last fused box moved so that its foot point
-     lands on the local GP models' prediction from the last ``N_tracklet`` foot points
-     (:mod:`~jaxtrack.filters.fusion_motion`); it always responds.
+     lands on the local GP models' prediction from the last ``N_tracklet`` evidence foot
+     points (a slot's evidence is the detection where one supported it, else its fused box;
+     :mod:`~jaxtrack.filters.fusion_motion`); it always responds.
 
    Every member starts from the last *fused* box (late fusion corrects each member's drift).
 3. **Fusion** (Sec. 4, :mod:`~jaxtrack.filters.fusion_combine`): per target, the confidence
@@ -28,8 +32,8 @@ One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each e
    of the response's box to the target's stored signature), the accordance ``A_ij`` of each
    pair (``Sim_dist = exp(-d / h)``, IoU, ``1 - D`` between the two responses' signatures)
    and the fused box ``R = sum_ij (A_ij / A_sum) (S_i R_i + S_j R_j) / (S_i + S_j)``; or, in
-   the ``naive`` fusion, the mean of the responses. A target without any response keeps its
-   constant-velocity box; a hypothesis's box is its detection.
+   the ``naive`` fusion, the mean of the responses. A target without any response takes its
+   filter's predicted box; a hypothesis's box is its detection.
 4. **Voting** (Sec. 3.1, :mod:`~jaxtrack.filters.fusion_voting`): a slot is *supported* when
    a detection is assigned to it. A hypothesis becomes a target after ``th_init`` consecutive
    supported frames; a target ends after ``th_term`` frames without support; both thresholds
@@ -68,7 +72,7 @@ from jaxtyping import Array, Bool, Float, Int
 from jaxtrack.appearance.model import AppearanceModel
 from jaxtrack.association.assignment import gated_assignment
 from jaxtrack.association.track_table import start_tracks
-from jaxtrack.boxes import iou_matrix
+from jaxtrack.boxes import cxcywh_to_xywh, iou_matrix, xywh_to_cxcywh
 from jaxtrack.context.motion_models import TRACKLET_LENGTH, MotionModels
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.fusion_classifier import (
@@ -104,6 +108,13 @@ from jaxtrack.filters.fusion_voting import (
     voting_init,
     voting_step,
 )
+from jaxtrack.filters.kalman import (
+    kalman_birth,
+    kalman_predict,
+    kalman_update,
+    mahalanobis_costs,
+)
+from jaxtrack.models.dynamics import MEASURED
 from jaxtrack.types import PAD_BOX, FrameInputs, Tracks
 
 #: The pool's members, in the order of the response table's member axis.
@@ -116,10 +127,8 @@ SIGNATURE_PATCH, SIGNATURE_STEP, SIGNATURE_MIN_ROWS = (16, 8), 32.0, 3
 #: Evidence boxes whose mean speed ``v_mean`` the confidence compares a response's with (the
 #: paper's ``N``).
 SPEED_FRAMES = 10
-#: Evidence boxes whose mean centre velocity predicts the next box.
-VELOCITY_FRAMES = 5
 #: Boxes of history kept per slot.
-HISTORY = max(SPEED_FRAMES + 1, TRACKLET_LENGTH, VELOCITY_FRAMES + 1)
+HISTORY = max(SPEED_FRAMES + 1, TRACKLET_LENGTH)
 
 
 class FusionParams(NamedTuple):
@@ -134,7 +143,13 @@ class FusionParams(NamedTuple):
         activity_cell: its cell side, pixels.
         th_init: ``[3]`` initiation threshold of the active, inactive and zone regions.
         th_term: ``[3]`` termination threshold of the same regions.
-        gate: smallest IoU of a detection with a slot's predicted box for an assignment.
+        motion_noise_std: the slots' Kalman filters' dynamics noise (``KalmanParams``).
+        measurement_noise_std: their detection noise.
+        initial_velocity_std: their velocity prior on a new slot.
+        chi2_gate: largest squared Mahalanobis distance of a detection from a target's
+            predicted box for an assignment.
+        gate: smallest IoU of a detection with a slot's predicted box (a target's: or its
+            last fused box) for an assignment.
         psr_min: smallest peak-to-sidelobe ratio of a classifier response.
         occlusion_q: ``Q`` above which two targets are occlusion-related (paper: 0.3).
         signature_rate: learning-rate floor of the signature models.
@@ -149,6 +164,10 @@ class FusionParams(NamedTuple):
     activity_cell: Float[Array, ""]
     th_init: Int[Array, " 3"]
     th_term: Int[Array, " 3"]
+    motion_noise_std: Float[Array, " 4"]
+    measurement_noise_std: Float[Array, " 4"]
+    initial_velocity_std: Float[Array, " 2"]
+    chi2_gate: Float[Array, ""]
     gate: Float[Array, ""]
     psr_min: Float[Array, ""]
     occlusion_q: Float[Array, ""]
@@ -169,6 +188,9 @@ class FusionState(NamedTuple):
             supported the slot, else the fused box), oldest first (the first box repeated
             before the slot had ``HISTORY`` of them).
         count: ``[S]`` evidence boxes seen (capped at ``HISTORY``).
+        means: ``[S, 6]`` each slot's Kalman filter's posterior state
+            ``(y1, vy1, y2, vy2, w, h)`` (:mod:`~jaxtrack.filters.kalman`).
+        covs: ``[S, 6, 6]`` its covariance.
         classifier: the correlation filters.
         signature: the signature models (``histogram`` ``[S, 2, bins]``).
         occluded: ``[S]`` occluded on the last frame.
@@ -180,6 +202,8 @@ class FusionState(NamedTuple):
     boxes: Float[Array, "S 4"]
     history: Float[Array, "S H 4"]
     count: Int[Array, " S"]
+    means: Float[Array, "S 6"]
+    covs: Float[Array, "S 6 6"]
     classifier: ClassifierState
     signature: AppearanceModel
     occluded: Bool[Array, " S"]
@@ -223,6 +247,8 @@ def init_fusion(key: Array, params: FusionParams, *, num_slots: int) -> FusionSt
         boxes=pad,
         history=jnp.broadcast_to(pad[:, None], (num_slots, HISTORY, 4)),
         count=jnp.zeros((num_slots,), jnp.int32),
+        means=jnp.tile(jnp.array([0.5, 0.0, 0.5, 0.0, 1.0, 1.0], jnp.float32), (num_slots, 1)),
+        covs=jnp.tile(jnp.eye(6, dtype=jnp.float32), (num_slots, 1, 1)),
         classifier=ClassifierState(
             jnp.zeros((num_slots, rows, cols), jnp.complex64),
             jnp.zeros((num_slots, rows, cols), jnp.float32),
@@ -246,25 +272,10 @@ def feet(boxes: Float[Array, "*shape 4"]) -> Float[Array, "*shape 2"]:
     return jnp.stack([boxes[..., 0] + boxes[..., 2] / 2, boxes[..., 1] + boxes[..., 3]], -1)
 
 
-def constant_velocity(
-    history: Float[Array, "S H 4"], count: Int[Array, " S"]
-) -> Float[Array, "S 4"]:
-    """Each slot's last box moved by the mean centre velocity of its last
-    :data:`VELOCITY_FRAMES` boxes (fewer for a young slot; none for a slot of one box)."""
-    steps = jnp.clip(count - 1, 0, VELOCITY_FRAMES)
-    last = history[:, -1]
-    first = jnp.take_along_axis(history, (HISTORY - 1 - steps)[:, None, None], axis=1)[:, 0]
-    velocity = (centres(last) - centres(first)) / jnp.maximum(steps, 1)[:, None]
-    return last.at[:, :2].add(velocity)
-
-
-def _assign(boxes, detections, slots, taken, gate, others=None):
-    """One-to-one assignment of the free detections to ``slots`` (IoU >= gate)."""
-    iou = iou_matrix(boxes, detections.boxes, xp=jnp)
-    if others is not None:
-        iou = jnp.maximum(iou, iou_matrix(others, detections.boxes, xp=jnp))
-    allowed = slots[:, None] & (detections.mask & ~taken)[None, :] & (iou >= gate)
-    return gated_assignment(1.0 - iou, allowed)
+def _assign(cost, allowed, detections, slots, taken):
+    """One-to-one assignment of the free detections to ``slots`` (``allowed`` pairs)."""
+    allowed = allowed & slots[:, None] & (detections.mask & ~taken)[None, :]
+    return gated_assignment(cost, allowed)
 
 
 def _taken(match: Int[Array, " S"], num_detections: int) -> Bool[Array, " D"]:
@@ -313,17 +324,30 @@ def fusion_step(
     status = state.voting.status
     target = status == TARGET
     tentative = status == TENTATIVE
-    predicted = constant_velocity(state.history, state.count)
-
-    # detection member: targets first, then hypotheses, on the constant-velocity boxes
-    match = _assign(
-        predicted, detections, target, jnp.zeros((num_detections,), bool), params.gate, state.boxes
+    means, covs = jax.vmap(kalman_predict, in_axes=(0, 0, None))(
+        state.means, state.covs, params.motion_noise_std
     )
+    predicted = cxcywh_to_xywh(means[:, jnp.array(MEASURED)], jnp)
+
+    # detection member: targets first, then hypotheses; the likelihood cost within the
+    # Mahalanobis gate and the IoU gate (a target's: with its predicted or last fused box)
+    measurements = xywh_to_cxcywh(detections.boxes, jnp)
+    distances, log_dets = mahalanobis_costs(means, covs, measurements, params.measurement_noise_std)
+    cost = distances + log_dets[:, None]
+    iou = iou_matrix(predicted, detections.boxes, xp=jnp)
+    gated = distances <= params.chi2_gate
+    near = jnp.maximum(iou, iou_matrix(state.boxes, detections.boxes, xp=jnp)) >= params.gate
+    match = _assign(cost, gated & near, detections, target, jnp.zeros((num_detections,), bool))
     taken = _taken(match, num_detections)
-    match_h = _assign(predicted, detections, tentative, taken, params.gate)
+    match_h = _assign(cost, gated & (iou >= params.gate), detections, tentative, taken)
     match = jnp.where(target, match, match_h)
     taken = _taken(match, num_detections)
     supported = match >= 0
+    updated_means, updated_covs = jax.vmap(kalman_update, in_axes=(0, 0, 0, None))(
+        means, covs, measurements[jnp.clip(match, 0)], params.measurement_noise_std
+    )
+    means = jnp.where(supported[:, None], updated_means, means)
+    covs = jnp.where(supported[:, None, None], updated_covs, covs)
     detected = jnp.where(supported[:, None], detections.boxes[jnp.clip(match, 0)], predicted)
 
     # classifier member: searches around the last fused box, learns unless occluded
@@ -384,6 +408,11 @@ def fusion_step(
     )
     boxes = jnp.where(new.born[:, None], new_boxes, boxes)
     ids = jnp.where(new.born, new.ids, ids)
+    born_means, born_covs = jax.vmap(kalman_birth, in_axes=(0, None, None))(
+        measurements[source], params.measurement_noise_std, params.initial_velocity_std
+    )
+    means = jnp.where(new.born[:, None], born_means, means)
+    covs = jnp.where(new.born[:, None, None], born_covs, covs)
 
     # signatures at the fused boxes; re-identification of the targets voted in now
     observed = _signatures(frame, boxes).histograms
@@ -455,6 +484,8 @@ def fusion_step(
         boxes=jnp.where(live[:, None], boxes, jnp.asarray(PAD_BOX)),
         history=history,
         count=count,
+        means=means,
+        covs=covs,
         classifier=classifier,
         signature=signature,
         occluded=occluded,

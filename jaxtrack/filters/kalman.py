@@ -339,8 +339,11 @@ def kalman_filter(
         new = start_tracks(alive, usable & ~paired, table.next_id)
         born = new.born
         source = jnp.minimum(new.source, num_detections - 1)
-        birth_means, birth_covs = jax.vmap(_birth, in_axes=(0, None, None))(
-            measurements[source], params, measurement_noise_model
+        birth_means, birth_covs = jax.vmap(kalman_birth, in_axes=(0, None, None, None))(
+            measurements[source],
+            params.measurement_noise_std,
+            params.initial_velocity_std,
+            measurement_noise_model,
         )
         first_confirmed = params.confirm_hits <= 1
         new_table = commit_tracks(
@@ -365,15 +368,19 @@ def kalman_filter(
     return Filter(init=init, step=step)
 
 
-def _birth(
-    measurement: Float[Array, " 4"], params: KalmanParams, noise_model: NoiseModel
+def kalman_birth(
+    measurement: Float[Array, " 4"],
+    measurement_noise_std: Float[Array, " 4"],
+    initial_velocity_std: Float[Array, " 2"],
+    noise_model: NoiseModel = state_dependent_std,
 ) -> tuple[Float[Array, " 6"], Float[Array, "6 6"]]:
-    """A new track on a detection: zero velocity, covariance ``R`` and the velocity prior."""
+    """A new track on a detection ``z = (y1, y2, w, h)``: zero velocity, covariance ``R``
+    and the velocity prior (:class:`KalmanParams`' ``initial_velocity_std``)."""
     mean = jnp.zeros(STATE_DIM, measurement.dtype).at[jnp.array(MEASURED)].set(measurement)
     mean = mean.at[jnp.array(SIZE)].set(jnp.maximum(mean[jnp.array(SIZE)], MIN_SIZE))
     size = mean[jnp.array(SIZE)]
-    position_std = noise_model(size, params.measurement_noise_std)
-    velocity_std = noise_model(size, jnp.tile(params.initial_velocity_std, 2))[:2]
+    position_std = noise_model(size, measurement_noise_std)
+    velocity_std = noise_model(size, jnp.tile(initial_velocity_std, 2))[:2]
     variances = (
         jnp.zeros(STATE_DIM, mean.dtype)
         .at[jnp.array(MEASURED)]
