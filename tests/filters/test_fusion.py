@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxtrack.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from jaxtrack.context.zones import SceneZones
 from jaxtrack.filters.base import run
 from jaxtrack.filters.fusion import (
@@ -24,6 +25,8 @@ from jaxtrack.filters.fusion_tracker import (
     default_context,
 )
 from jaxtrack.filters.fusion_voting import EMPTY, TARGET, TENTATIVE, Thresholds
+from jaxtrack.filters.kalman import kalman_birth, kalman_predict, mahalanobis_costs
+from jaxtrack.models.dynamics import MEASURED
 from jaxtrack.pipelines.tracking import output_rows
 from jaxtrack.types import Detections, FrameInputs
 from tests.filters.test_cmt import COLOURS, INFO, SIZE, frame_inputs, two_tone
@@ -104,6 +107,39 @@ def test_a_pool_of_the_detection_member_follows_the_detections_and_coasts_at_con
     for t in range(DETECTED, DETECTED + 6):  # no detection: the constant-velocity box
         np.testing.assert_allclose(boxes[t], walker(t), atol=1e-3)
     assert not info.member_valid[:, :, 1:].any()  # classifier and predictor not in the pool
+
+
+def test_the_detection_members_mahalanobis_gate_refuses_a_jump_the_iou_gate_would_take():
+    # the walker's detection drops by half a box height from frame 20 on (a merged box, a
+    # neighbour's): IoU 1/3 with the walker's box, outside its Kalman filter's gate
+    jump = 20
+
+    def detected_box(t):
+        x, y, w, h = walker(t)
+        return (x, y + (0.5 * h if t >= jump else 0.0), w, h)
+
+    inputs = drawn_scene([detected_box], [lambda t: True], num_frames=jump + 1)
+    config = FusionConfig(pool="detection", max_targets=8)
+    filt, params = build_fusion(config, INFO)
+    before = jax.tree.map(lambda x: x[:jump], inputs)
+    state, _ = _runner(filt)(jax.random.PRNGKey(0), params, before)
+    slot = int(np.flatnonzero(np.asarray(state.voting.status) == TARGET)[0])
+    mean, cov = kalman_predict(state.means[slot], state.covs[slot], params.motion_noise_std)
+    measured = xywh_to_cxcywh(jnp.asarray([detected_box(jump)], jnp.float32), jnp)
+    distance, _ = mahalanobis_costs(mean[None], cov[None], measured, params.measurement_noise_std)
+    predicted = np.asarray(cxcywh_to_xywh(mean[jnp.array(MEASURED)], jnp))
+    assert iou(predicted, detected_box(jump)) > 0.32  # the premise: inside the IoU gate (0.3)
+    assert float(distance[0, 0]) > 1.3 * float(params.chi2_gate)  # and outside this one
+
+    info, _ = tracked(config, inputs)
+    identity = int(state.ids[slot])
+    assert info.member_valid[jump - 1, slot, 0] and not info.member_valid[jump, slot, 0]
+    np.testing.assert_allclose(info.tracks.boxes[jump, slot], walker(jump), atol=0.5)  # coasts
+    others = info.candidates.mask[jump] & (info.candidates.ids[jump] != identity)
+    assert others.sum() == 1  # the jumped detection opens a hypothesis of its own
+    np.testing.assert_allclose(
+        info.candidates.boxes[jump][others][0], detected_box(jump), atol=1e-4
+    )
 
 
 @pytest.mark.parametrize("fusion", ["naive", "proposed"])
@@ -187,6 +223,14 @@ def _step():
     return jax.jit(build_fusion(FusionConfig(max_targets=4), INFO)[0].step)
 
 
+def _filters_at(boxes, params):
+    """Kalman filters (``means``, ``covs``) of new slots on ``boxes``."""
+    means, covs = jax.vmap(kalman_birth, in_axes=(0, None, None))(
+        xywh_to_cxcywh(boxes, jnp), params.measurement_noise_std, params.initial_velocity_std
+    )
+    return {"means": means, "covs": covs}
+
+
 def _reidentification_case(new_colours):
     """Slot 0: target 7, occluded, at ``old``; slot 1: hypothesis 9 one detection short of
     th_init (3), detected at ``new`` 12 px to the right, dressed in ``new_colours``."""
@@ -209,6 +253,7 @@ def _reidentification_case(new_colours):
         boxes=boxes,
         history=jnp.broadcast_to(boxes[:, None], state.history.shape),
         count=jnp.asarray([11, 2, 0, 0], jnp.int32),
+        **_filters_at(boxes, params),
         signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2))),
         occluded=jnp.asarray([True, False, False, False]),
     )
