@@ -22,8 +22,8 @@ One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each e
      responds when its peak-to-sidelobe ratio reaches ``psr_min``;
    * ``predictor`` (motion prediction): the last fused box moved so that its foot point
      lands on the local GP models' prediction from the last ``N_tracklet`` evidence foot
-     points (a slot's evidence is the detection where one supported it, else its fused box;
-     :mod:`~jaxtrack.filters.fusion_motion`); it always responds.
+     points (a slot's evidence is the detection where one supported it, else its filter's
+     predicted box; :mod:`~jaxtrack.filters.fusion_motion`); it always responds.
 
    Every member starts from the last *fused* box (late fusion corrects each member's drift).
 3. **Fusion** (Sec. 4, :mod:`~jaxtrack.filters.fusion_combine`): per target, the confidence
@@ -185,8 +185,8 @@ class FusionState(NamedTuple):
         voting: the slots' voting counters and status.
         boxes: ``[S, 4]`` last fused box.
         history: ``[S, HISTORY, 4]`` last evidence boxes (the detection where one
-            supported the slot, else the fused box), oldest first (the first box repeated
-            before the slot had ``HISTORY`` of them).
+            supported the slot, else its Kalman filter's predicted box), oldest first (the
+            first box repeated before the slot had ``HISTORY`` of them).
         count: ``[S]`` evidence boxes seen (capped at ``HISTORY``).
         means: ``[S, 6]`` each slot's Kalman filter's posterior state
             ``(y1, vy1, y2, vy2, w, h)`` (:mod:`~jaxtrack.filters.kalman`).
@@ -468,9 +468,10 @@ def fusion_step(
     classifier = start_targets(classifier, frame, boxes, initiated, params.classifier)
     classifier = classifier._replace(alive=now_target)
 
-    # evidence history: the detection where one supported the slot, else the fused box
+    # evidence history: the detection where one supported the slot, else (a target) its
+    # filter's predicted box
     fresh = new.born
-    evidence = jnp.where((supported & ~new.born)[:, None], detected, boxes)
+    evidence = jnp.where(((supported | now_target) & ~new.born)[:, None], detected, boxes)
     history = jnp.concatenate([state.history[:, 1:], evidence[:, None]], axis=1)
     history = jnp.where(fresh[:, None, None], boxes[:, None], history)
     count = jnp.where(fresh, 1, jnp.minimum(state.count + 1, HISTORY))
