@@ -142,6 +142,22 @@ def test_the_detection_members_mahalanobis_gate_refuses_a_jump_the_iou_gate_woul
     )
 
 
+def test_a_coasting_targets_evidence_is_its_filters_prediction():
+    # after the walker's last detection the evidence history (the predictor's tracklet and
+    # the speed reference) takes the filter's predicted box, not the fused box
+    config = FusionConfig(max_targets=8)
+    filt, params = build_fusion(config, INFO)
+    inputs = jax.tree.map(lambda x: x[: DETECTED + 3], one_walker())
+    state, _ = _runner(filt)(jax.random.PRNGKey(0), params, inputs)
+    slot = int(np.flatnonzero(np.asarray(state.voting.status) == TARGET)[0])
+    assert int(state.voting.missed[slot]) == 3
+    predicted = cxcywh_to_xywh(state.means[slot][jnp.array(MEASURED)], jnp)
+    np.testing.assert_allclose(state.history[slot, -1], predicted, atol=1e-4)
+    np.testing.assert_allclose(state.history[slot, -1], walker(DETECTED + 2), atol=0.5)
+    # while detected, the evidence is the detection itself
+    np.testing.assert_allclose(state.history[slot, -4], walker(DETECTED - 1), atol=1e-4)
+
+
 @pytest.mark.parametrize("fusion", ["naive", "proposed"])
 def test_the_fused_box_is_the_weighted_sum_of_the_valid_responses(fusion):
     info, _ = tracked(FusionConfig(fusion=fusion, max_targets=8), one_walker())
