@@ -109,6 +109,7 @@ from jaxtrack.filters.fusion_voting import (
     voting_step,
 )
 from jaxtrack.filters.kalman import (
+    idle_filters,
     kalman_birth,
     kalman_predict,
     kalman_update,
@@ -240,6 +241,7 @@ def init_fusion(key: Array, params: FusionParams, *, num_slots: int) -> FusionSt
     bins = int(256 // SIGNATURE_STEP) ** 3
     pad = jnp.broadcast_to(jnp.asarray(PAD_BOX, jnp.float32), (num_slots, 4))
     zeros = jnp.zeros((num_slots, 2), jnp.float32)
+    means, covs = idle_filters(num_slots, jnp.float32)
     return FusionState(
         ids=jnp.full((num_slots,), -1, jnp.int32),
         next_id=jnp.int32(1),
@@ -247,8 +249,8 @@ def init_fusion(key: Array, params: FusionParams, *, num_slots: int) -> FusionSt
         boxes=pad,
         history=jnp.broadcast_to(pad[:, None], (num_slots, HISTORY, 4)),
         count=jnp.zeros((num_slots,), jnp.int32),
-        means=jnp.tile(jnp.array([0.5, 0.0, 0.5, 0.0, 1.0, 1.0], jnp.float32), (num_slots, 1)),
-        covs=jnp.tile(jnp.eye(6, dtype=jnp.float32), (num_slots, 1, 1)),
+        means=means,
+        covs=covs,
         classifier=ClassifierState(
             jnp.zeros((num_slots, rows, cols), jnp.complex64),
             jnp.zeros((num_slots, rows, cols), jnp.float32),

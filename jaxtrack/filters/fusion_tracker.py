@@ -260,9 +260,8 @@ def fusion_properties(params: Any) -> Any:
     models); named, for sweeps (:func:`~jaxtrack.pipelines.sweep.sweep_frames`):
     ``chi2_gate`` and ``gate`` (detection assignment), ``psr_min`` (classifier response),
     ``occlusion_q``, ``signature_rate``, ``reid_radius``, ``reid_gate``, ``th_init`` and
-    ``th_term`` (``[3]``:
-    active, inactive and zone regions; a sweep overrides the calibrated values) and the
-    classifier's ``learning_rate`` (the configuration key)."""
+    ``th_term`` (``[3]``: active, inactive and zone regions; a sweep overrides the
+    calibrated values) and the classifier's ``learning_rate`` (the configuration key)."""
     props = frozen_properties(params)
     names = (
         "chi2_gate",

@@ -280,10 +280,11 @@ def kalman_filter(
 
     def init(key: Array, params: KalmanParams) -> KalmanState:
         del key, params
+        means, covs = idle_filters(max_tracks)
         return KalmanState(
             table=init_track_table(max_tracks),
-            means=jnp.tile(jnp.array([0.5, 0.0, 0.5, 0.0, 1.0, 1.0]), (max_tracks, 1)),
-            covs=jnp.tile(jnp.eye(STATE_DIM), (max_tracks, 1, 1)),
+            means=means,
+            covs=covs,
             age=jnp.zeros((max_tracks,), jnp.int32),
             hit_history=jnp.zeros((max_tracks,), jnp.int32),
         )
@@ -366,6 +367,16 @@ def kalman_filter(
         return new_state, info
 
     return Filter(init=init, step=step)
+
+
+def idle_filters(
+    num_slots: int, dtype=None
+) -> tuple[Float[Array, "num_slots 6"], Float[Array, "num_slots 6 6"]]:
+    """``(means, covs)`` of ``num_slots`` free slots: a placeholder unit box at rest with unit
+    covariance (overwritten by :func:`kalman_birth` when a track starts in the slot);
+    ``dtype`` None: JAX's default float."""
+    means = jnp.tile(jnp.array([0.5, 0.0, 0.5, 0.0, 1.0, 1.0], dtype), (num_slots, 1))
+    return means, jnp.tile(jnp.eye(STATE_DIM, dtype=dtype), (num_slots, 1, 1))
 
 
 def kalman_birth(
