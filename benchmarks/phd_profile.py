@@ -25,7 +25,9 @@ runs after a compile run, divided by ``--calls``:
 The step keeps the tracker's default ``births_per_detection`` (32); the labelling sees the
 table after three steps on the frame (its tracks live). Prints one table per size and one
 JSON object on its last line. Usage: ``python benchmarks/phd_profile.py [--particles 2048
-100000] [--detections 18] [--repeats 11] [--calls 20]``.
+100000] [--detections 18] [--repeats 11] [--calls 20] [--cpu-threads N]`` (XLA's CPU thread
+pool as the ``jaxtrack`` command sizes it, one thread, unless ``--cpu-threads`` says otherwise;
+0: XLA's default, one per core).
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from phd_step import FRAME_RATE, HEIGHT, NUM_TARGETS, WIDTH, scene, wall_times
+from timing import add_cpu_threads_option, set_cpu_threads
 
 from jaxtrack.association.labelling import label_step
 from jaxtrack.boxes import xywh_to_cxcywh
@@ -175,7 +178,9 @@ def main() -> None:
     parser.add_argument("--detections", type=int, nargs="+", default=[18])
     parser.add_argument("--repeats", type=int, default=11, help="timed runs (median)")
     parser.add_argument("--calls", type=int, default=20, help="calls of a stage per run")
+    add_cpu_threads_option(parser)
     args = parser.parse_args()
+    cpu_threads = set_cpu_threads(args.cpu_threads)
     results = []
     for n in args.particles:
         for m in args.detections:
@@ -187,6 +192,7 @@ def main() -> None:
                 "benchmark": "phd_profile",
                 "results": results,
                 "cpu_count": os.cpu_count(),
+                "cpu_threads": cpu_threads,
                 "load_average": os.getloadavg(),
                 "platform": platform.platform(),
                 "jax_version": jax.__version__,

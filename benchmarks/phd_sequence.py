@@ -12,6 +12,9 @@ not, so the second is slower when the count is not a power of two (PETS09-S2L1: 
 the same slots with ``split_capacity`` (``PHDConfig(frame_capacity="split")``: frames that
 fit in half the slots run on that half; ``track_split_frames_per_s``, its compile
 ``track_split_compile_s``).
+XLA's CPU thread pool is sized as the ``jaxtrack`` command sizes it (one thread,
+:func:`jaxtrack.use_cpu_threads`) unless ``--cpu-threads`` says otherwise (0: XLA's default,
+one per core); ``cpu_threads`` reports the size.
 Prints JSON. Usage: ``python benchmarks/phd_sequence.py [--extraction gmm] [--particles N]``.
 """
 
@@ -27,6 +30,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+from timing import add_cpu_threads_option, set_cpu_threads
 
 from jaxtrack.filters import default_phd_params, phd_filter, run
 from jaxtrack.filters.base import fit_detections
@@ -44,7 +48,9 @@ def main() -> None:
     parser.add_argument("--births-per-detection", type=int, default=32)
     parser.add_argument("--extraction", choices=["gmm", "partition"], default="partition")
     parser.add_argument("--repeats", type=int, default=5)
+    add_cpu_threads_option(parser)
     args = parser.parse_args()
+    cpu_threads = set_cpu_threads(args.cpu_threads)
 
     sequence = load_sequence(args.sequence)
     info = sequence.info
@@ -104,6 +110,7 @@ def main() -> None:
                 "track_split_compile_s": split_first_call - split_run_time,
                 "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                 "device": str(jax.devices()[0]),
+                "cpu_threads": cpu_threads,
                 "cpu_count": os.cpu_count(),
                 "platform": platform.platform(),
                 "jax_version": jax.__version__,

@@ -42,7 +42,9 @@ stonesoup`` the same per frame inside a scan), ``min_recursion_pairs_per_s_at_la
 the recursion's over 1e5 and 1e6 particles x 18-128 detections, ``min_speedup_vs_numpy``
 the recursion's at every size, and ``pairs_per_s`` the throughputs per size. Usage:
 ``python benchmarks/phd_step.py [--quick]`` (``--quick``: 1e4 particles, 8 and 32 detections,
-3 repeats; under a minute on 2 cores).
+3 repeats; under a minute on 2 cores). XLA's CPU thread pool is sized as the ``jaxtrack``
+command sizes it (one thread, :func:`jaxtrack.use_cpu_threads`) unless ``--cpu-threads``
+says otherwise (0: XLA's default, one per core); ``cpu_threads`` reports the size.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ from importlib import metadata
 import jax
 import jax.numpy as jnp
 import numpy as np
+from timing import add_cpu_threads_option, set_cpu_threads
 
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import log_intensity
@@ -686,7 +689,9 @@ def main() -> None:
         help="skip Stone Soup above this many particle x detection pairs (about 1.3 us each)",
     )
     parser.add_argument("--quick", action="store_true", help="1e4 particles, 8 and 32 detections")
+    add_cpu_threads_option(parser)
     args = parser.parse_args()
+    cpu_threads = set_cpu_threads(args.cpu_threads)
     if args.quick:
         args.particles, args.detections, args.repeats = [10_000], [8, 32], 3
     load_before = os.getloadavg()
@@ -711,6 +716,7 @@ def main() -> None:
                 },
                 "device": str(jax.devices()[0]),
                 "cpu_count": os.cpu_count(),
+                "cpu_threads": cpu_threads,
                 "load_average_1_5_15_min_before_and_after": [load_before, os.getloadavg()],
                 "platform": platform.platform(),
                 "jax_version": jax.__version__,

@@ -7,6 +7,8 @@ import argparse
 import time
 from pathlib import Path
 
+from jaxtrack.pipelines.runtime import DEFAULT_CPU_THREADS, cpu_thread_pool_size, use_cpu_threads
+
 #: The shared data folder beside the repository.
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -41,3 +43,22 @@ def video_run_parser(description: str, sequence: bool = True) -> argparse.Argume
     parser.add_argument("--frames", type=int, default=0, help="frames tracked (0: all)")
     parser.add_argument("--repeats", type=int, default=2, help="timed runs after the first")
     return parser
+
+
+def add_cpu_threads_option(parser: argparse.ArgumentParser) -> None:
+    """``--cpu-threads N``: XLA's CPU thread pool, as the ``jaxtrack`` command sizes it by
+    default (:func:`jaxtrack.use_cpu_threads`); 0 leaves XLA's own size (one per core)."""
+    parser.add_argument(
+        "--cpu-threads",
+        type=int,
+        default=DEFAULT_CPU_THREADS,
+        help=f"threads of XLA's CPU pool (default {DEFAULT_CPU_THREADS}, as the jaxtrack "
+        "command sets it; 0: XLA's default, one per core; PJRT_NPROC set wins)",
+    )
+
+
+def set_cpu_threads(count: int) -> int:
+    """Applies ``--cpu-threads`` before JAX computes; returns the pool's size for the report."""
+    if count > 0:
+        use_cpu_threads(count)
+    return cpu_thread_pool_size()

@@ -22,7 +22,7 @@ from jaxtrack.io import MotSequence, MotTable, SequenceInfo, load_sequence, writ
 from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.parameters import ParameterProperties
 from jaxtrack.pipelines.context import learn_context
-from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores
+from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores, use_cpu_threads
 from jaxtrack.pipelines.sweep import batch_params, magnitude_grid, product_grid, sweep, sweep_frames
 from jaxtrack.pipelines.tracking import track_sequences
 from jaxtrack.pipelines.tuner import tune
@@ -74,5 +74,6 @@ __all__ = [
     "tune_sequence",
     "use_compilation_cache",
     "use_cpu_cores",
+    "use_cpu_threads",
     "write_results",
 ]

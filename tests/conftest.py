@@ -18,7 +18,7 @@ from pathlib import Path
 import jax
 import pytest
 
-from jaxtrack.pipelines.runtime import CACHE_ENV, use_cpu_cores
+from jaxtrack.pipelines.runtime import CACHE_ENV, use_cpu_cores, use_cpu_threads
 from tests.cli_workspace import build_workspace
 from tests.data import DATA_ROOT, MOT15_ROOT, require_data
 
@@ -29,8 +29,10 @@ TEST_CACHE_MIN_SECONDS = 0.5
 
 # The devices the jaxtrack command makes (one CPU device per core), set before any test
 # computes: otherwise whichever test first calls the command's main() in this process
-# would decide the devices of every later test.
+# would decide the devices of every later test. Likewise XLA's thread pool (the command's
+# one thread; the commands and notebooks the tests start inherit it by the environment).
 use_cpu_cores()
+use_cpu_threads()
 # The machine's compilation cache is not used (here and in the commands the tests start): a
 # test run should not fill it, nor start from what an earlier run left there.
 os.environ[CACHE_ENV] = ""

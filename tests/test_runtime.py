@@ -1,4 +1,5 @@
-"""The command's JAX set-up (:mod:`jaxtrack.pipelines.runtime`): the compilation cache.
+"""The command's JAX set-up (:mod:`jaxtrack.pipelines.runtime`): the compilation cache and
+XLA's CPU thread pool.
 
 Each case runs in a fresh interpreter: the settings must be made before JAX computes, and
 the test process's own are fixed by the conftest. (The CPU devices: ``tests/test_sweep.py``.)
@@ -13,8 +14,9 @@ import sys
 import textwrap
 
 import jax
+import pytest
 
-from jaxtrack.pipelines.runtime import CACHE_ENV
+from jaxtrack.pipelines.runtime import CACHE_ENV, THREAD_ENVS
 
 _CACHE_SCRIPT = textwrap.dedent(
     """
@@ -93,3 +95,91 @@ def test_no_home_folder_means_no_cache(monkeypatch):
         assert jax.config.jax_compilation_cache_dir is None  # returned before setting it
     finally:
         jax.config.update("jax_compilation_cache_dir", chosen)
+
+
+_THREADS_SCRIPT = textwrap.dedent(
+    """
+    import json, os
+    import jax, jax.numpy as jnp
+    from jaxtrack import use_cpu_threads
+    made = use_cpu_threads()
+    again = use_cpu_threads(3)  # the variable is set now: a choice made, kept
+    jax.jit(lambda x: jnp.exp(x).sum())(jnp.ones((512, 512))).block_until_ready()
+    os.environ.pop("PJRT_NPROC", None)
+    late = use_cpu_threads(2)  # the client exists: too late, nothing changes
+    tasks = os.listdir("/proc/self/task")
+    names = [open(f"/proc/self/task/{t}/comm").read().strip() for t in tasks]
+    print(json.dumps({"made": made, "again": again, "late": late,
+                      "pool": names.count("tf_XLAEigen")}))
+    """
+)
+
+
+def _without_thread_choice() -> dict:
+    return {k: v for k, v in os.environ.items() if k not in THREAD_ENVS}
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
+@pytest.mark.parametrize(
+    ("env", "expected"),
+    [
+        ({}, {"made": 1, "again": 0, "late": 0, "pool": 1}),
+        # the user's own choice is kept (XLA's pool then has that many threads)
+        ({"PJRT_NPROC": "2"}, {"made": 0, "again": 0, "late": 0, "pool": 2}),
+        ({"NPROC": "3"}, {"made": 0, "again": 0, "late": 0, "pool": 3}),
+    ],
+)
+def test_use_cpu_threads_sizes_xlas_pool_once_and_keeps_the_users_choice(env, expected):
+    done = subprocess.run(
+        [sys.executable, "-c", _THREADS_SCRIPT],
+        env={**_without_thread_choice(), "JAX_PLATFORMS": "cpu", **env},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == expected
+
+
+def test_use_cpu_threads_refuses_an_empty_pool():
+    from jaxtrack.pipelines.runtime import use_cpu_threads
+
+    with pytest.raises(ValueError, match="at least 1"):
+        use_cpu_threads(0)
+
+
+_TRACK_SCRIPT = textwrap.dedent(
+    """
+    import hashlib, json, sys
+    import jax, numpy as np
+    from jaxtrack.filters import default_phd_params, phd_filter, run
+    from jaxtrack.io import load_sequence
+    seq = load_sequence(sys.argv[1])
+    info = seq.info
+    params = default_phd_params(info.im_width, info.im_height, info.frame_rate)
+    _, out = run(phd_filter(1024), jax.random.key(3), params, seq.detections)
+    digest = hashlib.sha256()
+    for leaf in jax.tree.leaves((out.tracks, out.log_likelihood, out.mass)):
+        digest.update(np.asarray(leaf).tobytes())
+    print(json.dumps({"digest": digest.hexdigest(), "boxes": int(np.sum(out.tracks.mask))}))
+    """
+)
+
+
+def test_the_thread_pool_changes_no_result(mot15_root):
+    """The PHD tracker on TUD-Campus with XLA's pool at one thread and at two: the same
+    boxes, masses and log-likelihoods, bit for bit (the pool runs a kernel's parts, it does
+    not change them)."""
+    runs = []
+    for threads in ("1", "2"):
+        done = subprocess.run(
+            [sys.executable, "-c", _TRACK_SCRIPT, str(mot15_root / "TUD-Campus")],
+            env={**_without_thread_choice(), "JAX_PLATFORMS": "cpu", "PJRT_NPROC": threads},
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert done.returncode == 0, done.stderr[-3000:]
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    assert runs[0]["boxes"] > 0
+    assert runs[0] == runs[1]

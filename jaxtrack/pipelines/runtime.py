@@ -1,6 +1,7 @@
-"""How the ``jaxtrack`` command sets JAX up: CPU devices and the compilation cache.
+"""How the ``jaxtrack`` command sets JAX up: CPU devices, XLA's CPU threads and the
+compilation cache.
 
-Both must be set before JAX computes anything, so the command calls them first thing
+All must be set before JAX computes anything, so the command calls them first thing
 (:func:`jaxtrack.cli.main`); a notebook or script calls them right after its imports. Each
 leaves a choice the user made alone.
 """
@@ -18,6 +19,11 @@ import jax
 CACHE_MAX_BYTES = 2**30
 #: Environment variable naming the compilation cache's folder (empty: no cache).
 CACHE_ENV = "JAXTRACK_CACHE_DIR"
+#: Environment variables XLA's CPU client reads, in this order, for the size of its thread
+#: pool when JAX creates it (XLA's ``DefaultThreadPoolSize``); unset, one thread per core.
+THREAD_ENVS = ("PJRT_NPROC", "NPROC")
+#: The thread pool size :func:`use_cpu_threads` sets by default.
+DEFAULT_CPU_THREADS = 1
 
 
 def use_cpu_cores(count: int | None = None) -> int:
@@ -41,7 +47,7 @@ def use_cpu_cores(count: int | None = None) -> int:
         The number of CPU devices set, or 0 when nothing was changed.
     """
     if count is None:
-        count = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+        count = _usable_cores()
     configured = getattr(jax.config, "jax_num_cpu_devices", None)  # JAX >= 0.4.34
     chosen = (
         configured is None
@@ -56,6 +62,64 @@ def use_cpu_cores(count: int | None = None) -> int:
     except RuntimeError:  # the backends are initialised: too late to change the devices
         return 0
     return int(count)
+
+
+def use_cpu_threads(count: int = DEFAULT_CPU_THREADS) -> int:
+    """Sizes XLA's CPU thread pool (one thread by default, instead of one per core).
+
+    XLA:CPU splits every large enough kernel of a program into parts that its thread pool
+    runs side by side, and waits for them. A tracker's frame at tracking sizes is a few
+    hundred small kernels (PETS09-S2L1 at 2048 particles: about 460 per frame, a few
+    thousand elements each), and there the split and the wait cost more than the second core
+    gives: with one thread the PHD tracker runs PETS09-S2L1 at about 1.3x the frames per
+    second of the default pool on 2 cores (README, "Where the PHD step's time goes"). The
+    cores then serve the devices of :func:`use_cpu_cores` (a sweep's groups run side by side,
+    one per device). The programs and their results are the same bit for bit: the pool's
+    size changes who runs a kernel's parts, not the parts. The ``jaxtrack`` command calls
+    this at start.
+
+    It must run before JAX creates its CPU client (the first computation); it changes
+    nothing (and returns 0) when the client exists already or when the user chose a size
+    (``PJRT_NPROC`` or ``NPROC`` set).
+
+    Args:
+        count: the pool's threads, at least 1.
+
+    Returns:
+        The size set, or 0 when nothing was changed.
+
+    Raises:
+        ValueError: ``count`` below 1.
+    """
+    if count < 1:
+        raise ValueError(f"count must be at least 1, got {count}")
+    if any(os.environ.get(name) for name in THREAD_ENVS) or _backends_exist():
+        return 0
+    os.environ[THREAD_ENVS[0]] = str(int(count))
+    return int(count)
+
+
+def cpu_thread_pool_size() -> int:
+    """The size of XLA's CPU thread pool as JAX creates (or created) it: ``PJRT_NPROC``,
+    else ``NPROC``, else the cores this process may run on (XLA's own rule)."""
+    for name in THREAD_ENVS:
+        value = os.environ.get(name, "")
+        if value.strip().isdigit():
+            return int(value)
+    return _usable_cores()
+
+
+def _usable_cores() -> int:
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def _backends_exist() -> bool:
+    """True once JAX has created its backends (then the CPU client's pool is sized)."""
+    from jax._src import xla_bridge  # no public API says whether the backends exist
+
+    return bool(xla_bridge.backends_are_initialized())
 
 
 def default_cache_dir() -> Path:
