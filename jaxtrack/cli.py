@@ -87,7 +87,7 @@ def runs_the_phd_tracker(args: argparse.Namespace) -> bool:
     ``track-video`` and ``tune`` with ``--tracker phd`` (the default).
 
     There the command sizes XLA's CPU thread pool at one thread
-    (:func:`~jaxtrack.pipelines.runtime.use_cpu_threads`): a PHD frame is a few hundred small
+    (:func:`~jaxtrack.pipelines.runtime.use_cpu_threads`): a PHD frame is about 200 small
     kernels, which the pool's split and wait slow down. The other trackers' frames hold
     image-sized work that the pool speeds up (Fusion and Hierarchical ran 15-30 % slower on
     one thread), so they keep XLA's default.

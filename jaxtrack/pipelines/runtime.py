@@ -68,15 +68,16 @@ def use_cpu_threads(count: int = DEFAULT_CPU_THREADS) -> int:
     """Sizes XLA's CPU thread pool (one thread by default, instead of one per core).
 
     XLA:CPU splits every large enough kernel of a program into parts that its thread pool
-    runs side by side, and waits for them. A tracker's frame at tracking sizes is a few
-    hundred small kernels (PETS09-S2L1 at 2048 particles: about 460 per frame, a few
-    thousand elements each), and there the split and the wait cost more than the second core
-    gives: with one thread the PHD tracker runs PETS09-S2L1 at about 1.3x the frames per
+    runs side by side, and waits for them. The PHD tracker's frame at tracking sizes is about
+    200 small kernels (PETS09-S2L1 at 2048 particles, most of a few thousand elements;
+    ``benchmarks/phd_trace.py``), and there the split and the wait cost more than the
+    second core gives: on one thread the tracker runs PETS09-S2L1 at 1.1-1.3x the frames per
     second of the default pool on 2 cores (README, "Where the PHD step's time goes"). The
-    cores then serve the devices of :func:`use_cpu_cores` (a sweep's groups run side by side,
-    one per device). The programs and their results are the same bit for bit: the pool's
-    size changes who runs a kernel's parts, not the parts. The ``jaxtrack`` command calls
-    this at start.
+    other trackers' frames hold image-sized work that the pool speeds up (Fusion and
+    Hierarchical ran 15-30 % slower on one thread), so the ``jaxtrack`` command calls this
+    only for the PHD tracker (:func:`jaxtrack.cli.runs_the_phd_tracker`). The programs and
+    their results are the same bit for bit: the pool's size changes which thread runs a
+    kernel's parts, not the parts.
 
     It must run before JAX creates its CPU client (the first computation); it changes
     nothing (and returns 0) when the client exists already or when the user chose a size
