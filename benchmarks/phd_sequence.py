@@ -20,41 +20,32 @@ Prints JSON. Usage: ``python benchmarks/phd_sequence.py [--extraction gmm] [--pa
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
 import resource
 import time
-from pathlib import Path
 
 import jax
 import numpy as np
-from timing import add_cpu_threads_option, set_cpu_threads
+from timing import phd_run_parser, sequence_with_phd_params, set_cpu_threads
 
-from jaxtrack.filters import default_phd_params, phd_filter, run
+from jaxtrack.filters import phd_filter, run
 from jaxtrack.filters.base import fit_detections
-from jaxtrack.io import load_sequence
 
-DEFAULT_SEQUENCE = Path(__file__).resolve().parents[1].parent / "shared/data/mot15/PETS09-S2L1"
 #: Issue 20: PETS09-S2L1 at 2048 particles, frames per second after compile.
 GOAL_FRAMES_PER_S = 5000
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sequence", type=Path, default=DEFAULT_SEQUENCE)
-    parser.add_argument("--particles", type=int, default=2048)
+    parser = phd_run_parser(__doc__.splitlines()[0], repeats=5)
     parser.add_argument("--births-per-detection", type=int, default=32)
     parser.add_argument("--extraction", choices=["gmm", "partition"], default="partition")
-    parser.add_argument("--repeats", type=int, default=5)
-    add_cpu_threads_option(parser)
     args = parser.parse_args()
     cpu_threads = set_cpu_threads(args.cpu_threads)
 
-    sequence = load_sequence(args.sequence)
+    sequence, params = sequence_with_phd_params(args.sequence)
     info = sequence.info
-    params = default_phd_params(info.im_width, info.im_height, info.frame_rate)
     filt, split = (
         phd_filter(
             args.particles,

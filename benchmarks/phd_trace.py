@@ -21,7 +21,6 @@ unless ``--cpu-threads`` says otherwise; 0: XLA's default, one per core).
 
 from __future__ import annotations
 
-import argparse
 import collections
 import gzip
 import json
@@ -32,10 +31,9 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from timing import DATA, add_cpu_threads_option, set_cpu_threads
+from timing import phd_run_parser, sequence_with_phd_params, set_cpu_threads
 
-from jaxtrack.filters import default_phd_params, phd_filter, run
-from jaxtrack.io import load_sequence
+from jaxtrack.filters import phd_filter, run
 
 #: Kernels whose trace event spans their body's kernels (counted by those instead).
 WRAPPERS = ("while", "conditional", "call")
@@ -108,18 +106,13 @@ def kernel_stages(hlo: str) -> dict[str, tuple[str, str]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sequence", type=Path, default=DATA / "mot15" / "PETS09-S2L1")
-    parser.add_argument("--particles", type=int, default=2048)
-    parser.add_argument("--repeats", type=int, default=5, help="untraced runs (median)")
+    parser = phd_run_parser(__doc__.splitlines()[0], repeats=5)
     parser.add_argument("--top", type=int, default=25, help="costliest kernels printed")
-    add_cpu_threads_option(parser)
     args = parser.parse_args()
     cpu_threads = set_cpu_threads(args.cpu_threads)
 
-    sequence = load_sequence(args.sequence)
+    sequence, params = sequence_with_phd_params(args.sequence)
     info = sequence.info
-    params = default_phd_params(info.im_width, info.im_height, info.frame_rate)
     filt = phd_filter(args.particles)
     track = jax.jit(lambda key: run(filt, key, params, sequence.detections)[1].tracks)
     hlo = _compiled_text(track)

@@ -62,3 +62,24 @@ def set_cpu_threads(count: int) -> int:
     if count > 0:
         use_cpu_threads(count)
     return cpu_thread_pool_size()
+
+
+def phd_run_parser(description: str, repeats: int) -> argparse.ArgumentParser:
+    """A parser with the options of the PHD-tracker-on-a-sequence benchmarks: ``--sequence``
+    (PETS09-S2L1), ``--particles`` (2048), ``--repeats`` and ``--cpu-threads``."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--sequence", type=Path, default=DATA / "mot15" / "PETS09-S2L1")
+    parser.add_argument("--particles", type=int, default=2048)
+    parser.add_argument("--repeats", type=int, default=repeats, help="timed runs")
+    add_cpu_threads_option(parser)
+    return parser
+
+
+def sequence_with_phd_params(path: Path):
+    """The MOT sequence at ``path`` and the PHD tracker's default parameters for it."""
+    from jaxtrack.filters import default_phd_params
+    from jaxtrack.io import load_sequence
+
+    sequence = load_sequence(path)
+    info = sequence.info
+    return sequence, default_phd_params(info.im_width, info.im_height, info.frame_rate)
