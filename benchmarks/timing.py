@@ -7,6 +7,8 @@ import argparse
 import time
 from pathlib import Path
 
+from jaxtrack.filters import default_phd_params
+from jaxtrack.io import load_sequence
 from jaxtrack.pipelines.runtime import DEFAULT_CPU_THREADS, cpu_thread_pool_size, use_cpu_threads
 
 #: The shared data folder beside the repository.
@@ -77,9 +79,6 @@ def phd_run_parser(description: str, repeats: int) -> argparse.ArgumentParser:
 
 def sequence_with_phd_params(path: Path):
     """The MOT sequence at ``path`` and the PHD tracker's default parameters for it."""
-    from jaxtrack.filters import default_phd_params
-    from jaxtrack.io import load_sequence
-
     sequence = load_sequence(path)
     info = sequence.info
     return sequence, default_phd_params(info.im_width, info.im_height, info.frame_rate)

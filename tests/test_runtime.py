@@ -38,19 +38,23 @@ _CACHE_SCRIPT = textwrap.dedent(
 )
 
 
-def _run(path: str, **env: str) -> dict:
-    base = {
-        k: v for k, v in os.environ.items() if k not in (CACHE_ENV, "JAX_COMPILATION_CACHE_DIR")
-    }
+def _python(script: str, *args: str, drop=(), timeout: int = 300, **env: str) -> dict:
+    """Runs ``script`` in a fresh interpreter on the CPU, with this process's environment less
+    the variables ``drop`` plus ``env``; returns the JSON object on its last output line."""
+    base = {k: v for k, v in os.environ.items() if k not in drop}
     done = subprocess.run(
-        [sys.executable, "-c", _CACHE_SCRIPT, path],
+        [sys.executable, "-c", script, *args],
         env={**base, "JAX_PLATFORMS": "cpu", **env},
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=timeout,
     )
     assert done.returncode == 0, done.stderr[-3000:]
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _run(path: str, **env: str) -> dict:
+    return _python(_CACHE_SCRIPT, path, drop=(CACHE_ENV, "JAX_COMPILATION_CACHE_DIR"), **env)
 
 
 def test_a_second_process_loads_the_compiled_program_from_the_cache(tmp_path):
@@ -115,10 +119,6 @@ _THREADS_SCRIPT = textwrap.dedent(
 )
 
 
-def _without_thread_choice() -> dict:
-    return {k: v for k, v in os.environ.items() if k not in THREAD_ENVS}
-
-
 @pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
 @pytest.mark.parametrize(
     ("env", "expected"),
@@ -130,15 +130,7 @@ def _without_thread_choice() -> dict:
     ],
 )
 def test_use_cpu_threads_sizes_xlas_pool_once_and_keeps_the_users_choice(env, expected):
-    done = subprocess.run(
-        [sys.executable, "-c", _THREADS_SCRIPT],
-        env={**_without_thread_choice(), "JAX_PLATFORMS": "cpu", **env},
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert json.loads(done.stdout.strip().splitlines()[-1]) == expected
+    assert _python(_THREADS_SCRIPT, drop=THREAD_ENVS, **env) == expected
 
 
 def test_use_cpu_threads_refuses_an_empty_pool():
@@ -170,16 +162,10 @@ def test_the_thread_pool_changes_no_result(mot15_root):
     """The PHD tracker on TUD-Campus with XLA's pool at one thread and at two: the same
     boxes, masses and log-likelihoods, bit for bit (the pool runs a kernel's parts, it does
     not change them)."""
-    runs = []
-    for threads in ("1", "2"):
-        done = subprocess.run(
-            [sys.executable, "-c", _TRACK_SCRIPT, str(mot15_root / "TUD-Campus")],
-            env={**_without_thread_choice(), "JAX_PLATFORMS": "cpu", "PJRT_NPROC": threads},
-            capture_output=True,
-            text=True,
-            timeout=600,
-        )
-        assert done.returncode == 0, done.stderr[-3000:]
-        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    sequence = str(mot15_root / "TUD-Campus")
+    runs = [
+        _python(_TRACK_SCRIPT, sequence, drop=THREAD_ENVS, timeout=600, PJRT_NPROC=threads)
+        for threads in ("1", "2")
+    ]
     assert runs[0]["boxes"] > 0
     assert runs[0] == runs[1]
