@@ -34,6 +34,8 @@ from jaxtrack.commands.paths import (
 from jaxtrack.context.io import save_context
 from jaxtrack.context.learn import BIRTH_EPOCHS, CLUTTER_EPOCHS
 from jaxtrack.context.samples import WARMUP_FRAMES
+from jaxtrack.context.target_clutter import METADATA_KEY as TARGET_CLUTTER_KEY
+from jaxtrack.context.target_clutter import target_clutter_line
 from jaxtrack.datasets.context_truth import load_context_truth
 from jaxtrack.detect.sequence import video_info, video_sequence
 from jaxtrack.errors import InputError
@@ -275,6 +277,7 @@ def run(args: argparse.Namespace) -> int:
         held = info.get("heldout")
         if held is not None:
             print("    " + heldout_line(held))
+    print("  " + target_clutter_line(meta.get(TARGET_CLUTTER_KEY)))
     print("  " + calibration_line(meta.get("score_calibration", {})))
     if args.plot:
         print(f"  figures: {', '.join(str(path) for path in paths)}")

@@ -24,6 +24,7 @@ import numpy as np
 
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.context.scores import invalid_calibration
+from jaxtrack.context.target_clutter import METADATA_KEY, invalid_target_clutter
 from jaxtrack.errors import FileFormatError, InputError
 from jaxtrack.limits import FLOAT32_MAX, MAX_COORDINATE, Rule, float32_trouble
 from jaxtrack.linalg import cholesky
@@ -119,6 +120,10 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
                 raise FileFormatError(path, None, str(err)) from None
     if "score_calibration" in metadata:
         reason = invalid_calibration(metadata["score_calibration"])
+        if reason is not None:
+            raise FileFormatError(path, None, f"metadata_json: {reason}")
+    if METADATA_KEY in metadata:
+        reason = invalid_target_clutter(metadata[METADATA_KEY])
         if reason is not None:
             raise FileFormatError(path, None, f"metadata_json: {reason}")
     intensities = []

@@ -342,6 +342,40 @@ def clutter_samples_from_tracks(
     )
 
 
+def extra_detections_from_gt(
+    det_table: MotTable,
+    gt_table: MotTable,
+    span: tuple[int, int],
+    iou_threshold: float = IOU_THRESHOLD,
+    object_overlap: float = OBJECT_OVERLAP,
+) -> np.ndarray:
+    """The detections :func:`clutter_samples_from_gt` leaves out as objects' badly placed
+    detections: unmatched, overlapping a gt box of their frame by IoU >= ``object_overlap``
+    (:mod:`jaxtrack.context.target_clutter` learns what targets generate from them).
+
+    Returns:
+        ``[len(det_table)]`` booleans.
+    """
+    matched = matched_detections(det_table, gt_table, span, iou_threshold)
+    return ~matched & _overlaps_objects(det_table, gt_table, object_overlap)
+
+
+def extra_detections_from_tracks(
+    det_table: MotTable,
+    rows: MotTable,
+    iou_threshold: float = IOU_THRESHOLD,
+    object_overlap: float = OBJECT_OVERLAP,
+) -> np.ndarray:
+    """The detections :func:`clutter_samples_from_tracks` leaves out: unassociated with any
+    output box, overlapping one by IoU >= ``object_overlap``.
+
+    Returns:
+        ``[len(det_table)]`` booleans.
+    """
+    best = _best_overlaps(det_table, rows)
+    return (best < iou_threshold) & (best >= object_overlap)
+
+
 def _best_overlaps(det_table: MotTable, objects: MotTable) -> np.ndarray:
     """Each detection's best IoU with the boxes of ``objects`` in its frame (0 if none)."""
     det_frames = np.asarray(det_table.frames)

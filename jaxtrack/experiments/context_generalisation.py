@@ -49,6 +49,7 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
+from jaxtrack.context.target_clutter import METADATA_KEY as TARGET_CLUTTER_KEY
 from jaxtrack.datasets.scene_bank import FAMILIES, SEEDS, write_family_scene
 from jaxtrack.detect.pipeline import DetectorConfig, detect_video
 from jaxtrack.detect.sequence import video_sequence
@@ -151,6 +152,8 @@ CONTEXT_COLUMNS = (
     "clutter_magnitude",
     "clutter_components",
     "clutter_uniform_weight",
+    "target_clutter_events",
+    "target_clutter_rate",
 )
 #: The files written into the output folder (besides the scenes and the video's detections).
 GENERALISATION_FILES = (
@@ -506,6 +509,8 @@ def context_row(scene: str, source: str, context: Context, seed: int = 0) -> dic
 
     ``source`` names the context: ``"tracks"`` (births from a UM run: GM, A1-A5), ``"gt"``
     (A6) or ``TUNED``; ``seed`` the run's seed (a real sequence is learned once per seed).
+    The target clutter (:mod:`jaxtrack.context.target_clutter`) is given by the detections
+    found beside objects and the rate learned from them (0: not learned).
     """
     row: dict[str, Any] = {"scene": scene, "seed": seed, "context": source}
     for part in ("birth", "clutter"):
@@ -514,6 +519,9 @@ def context_row(scene: str, source: str, context: Context, seed: int = 0) -> dic
         row[f"{part}_magnitude"] = round(float(meta.get("magnitude", math.nan)), 4)
         row[f"{part}_components"] = meta.get("components_alive", math.nan)
         row[f"{part}_uniform_weight"] = round(float(meta.get("uniform_weight", math.nan)), 4)
+    extra = context.metadata.get(TARGET_CLUTTER_KEY) or {}
+    row["target_clutter_events"] = extra.get("events", math.nan)
+    row["target_clutter_rate"] = round(float(extra.get("rate", math.nan)), 4)
     return row
 
 

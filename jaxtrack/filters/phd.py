@@ -8,7 +8,9 @@ composes public stages (a benchmark or a test composes them the same way):
 3. update (eq. 10, :func:`phd_update`),
    ``w_i <- [pM + sum_z psi_z(x_i) / (kappa(z) + C(z))] w_i``,
    ``psi_z(x) = (1 - pM) g(z | x)``, ``C(z) = sum_j psi_z(x_j) w_j``, in log space, optionally
-   with the detector scores as a detection feature (:func:`score_log_ratio`);
+   with the detector scores as a detection feature (:func:`score_log_ratio`) and with the
+   detections targets generate besides their own added to ``kappa`` (:class:`TargetClutter`,
+   learned by a context; none by default);
 4. resample to ``num_particles`` preserving the mass (:mod:`~jaxtrack.filters.resampling`);
 5. extract the states (:func:`partition_estimates`, :func:`gmm_estimates`); the update's
    blocked pass already reduced what they need from the ``[detections, particles]`` pairs;
@@ -59,6 +61,29 @@ from jaxtrack.models.survival import SurvivalMap, survival_probability
 from jaxtrack.types import PAD_BOX, Detections, Tracks
 
 
+class TargetClutter(NamedTuple):
+    """Detections a target generates besides its own: ``kappa_t(z) = rate int q(z | x) D(x) dx``.
+
+    A real detector gives some targets a second box, or a box on a part of the person, beside
+    the box of the target itself (the detections :mod:`jaxtrack.context.samples` leaves out of
+    the clutter events because they overlap an object). The PHD update's model has one
+    detection per target at most; these extra detections are then explained as new targets
+    (a duplicate box) or as scene clutter along the targets' paths. Here each target
+    generates a Poisson number of them, ``rate`` per frame, spread around it by
+    ``q(z | x) = N(z; h(x), diag(s(x))^2)`` with ``s(x)`` the SDV scale of ``noise_std``
+    (relative to the box, like the likelihood's); their intensity moves with the targets and
+    adds to the scene's clutter in the update's denominator (:func:`phd_update`).
+    ``rate = 0`` (the default of every run without a learned context) is the paper's model.
+
+    Attributes:
+        rate: extra detections per target per frame, ``>= 0``.
+        noise_std: relative standard deviations ``(s_1, s_2, s_w, s_h)`` of ``q``, > 0.
+    """
+
+    rate: Float[Array, ""]
+    noise_std: Float[Array, " 4"]
+
+
 class PHDParams(NamedTuple):
     """Everything tunable in the PHD tracker (a PyTree: vmap to sweep, grad to tune).
 
@@ -83,6 +108,8 @@ class PHDParams(NamedTuple):
         mass_threshold: an extracted cluster / detection part becomes an estimate when its mass
             exceeds it, in ``(0, 1)`` (0.5 in the paper).
         labelling: gate and track-ending rule of the labelling.
+        target_clutter: the detections targets generate besides their own
+            (:class:`TargetClutter`; rate 0: none).
     """
 
     motion_noise_std: Float[Array, " 4"]
@@ -95,6 +122,7 @@ class PHDParams(NamedTuple):
     score_weight: Float[Array, ""]
     mass_threshold: Float[Array, ""]
     labelling: LabelParams
+    target_clutter: TargetClutter
 
 
 class PHDState(NamedTuple):
@@ -366,6 +394,9 @@ def phd_update(
     ``kappa(z)`` becomes ``kappa(z) / r(s_z)`` (:func:`score_log_ratio`). The log-likelihood is
     ``-sum_i (1 - pM) w_i - int kappa + sum_z log(kappa(z) + r(s_z) C(z))`` (SPEC section 1;
     with scores, up to ``sum_z log p(s_z | clutter)``, which does not depend on the tracker).
+    With a target clutter rate ``> 0`` (:class:`TargetClutter`), ``kappa(z)`` includes
+    ``kappa_t(z) = rate sum_j q(z | x_j) w_j`` (:func:`target_log_clutter`, a third pass over
+    the blocks) and ``int kappa`` its ``rate sum_j w_j``.
 
     The sums over particles and over detections run over blocks of ``block_size`` particles
     (``lax.scan``; the last block overlaps its predecessor when ``block_size`` does not divide
@@ -423,7 +454,12 @@ def phd_update(
         add_block_log_c, jnp.full(num_slots, LOG_ZERO, log_weights.dtype), jnp.arange(num_blocks)
     )
     log_ratio = score_log_ratio(scores, params.score_weight)
-    log_kappa = log_intensity(params.clutter_intensity, measurements)
+    log_kappa = jnp.logaddexp(
+        log_intensity(params.clutter_intensity, measurements),
+        target_log_clutter(
+            params.target_clutter, measurements, particles, log_weights, noise_model, block
+        ),
+    )
     log_denominator = jnp.logaddexp(log_kappa - log_ratio, log_c)
 
     def block_update(part_sums, index):
@@ -455,7 +491,7 @@ def phd_update(
         0.0,
     )
     log_likelihood_k = (
-        -params.detection_prob * jnp.sum(jnp.exp(log_weights))
+        -(params.detection_prob + params.target_clutter.rate) * jnp.sum(jnp.exp(log_weights))
         - params.clutter_intensity.magnitude
         + jnp.sum(jnp.where(mask, log_denominator + log_ratio, 0.0))
     )
@@ -467,6 +503,46 @@ def phd_update(
         detection_states=detection_states,
         particle_scores=_unblock(particle_scores, num_particles),
     )
+
+
+def target_log_clutter(
+    target_clutter: TargetClutter,
+    measurements: Float[Array, "max_detections 4"],
+    particles: Float[Array, "num_particles 6"],
+    log_weights: Float[Array, " num_particles"],
+    noise_model: NoiseModel = state_dependent_std,
+    block_size: int | None = None,
+) -> Float[Array, " max_detections"]:
+    """``log kappa_t(z) = log rate + log sum_j q(z | x_j) w_j`` (:class:`TargetClutter`).
+
+    Summed over blocks of ``block_size`` particles like ``C(z)`` in :func:`phd_update`. With
+    ``rate = 0`` it is ``LOG_ZERO`` everywhere, and the pass over the particles is skipped (a
+    ``lax.cond``; under ``vmap`` over parameter sets both branches run).
+    """
+    num_particles, num_slots = particles.shape[0], measurements.shape[0]
+    block = min(num_particles, block_size or default_block_size(num_particles, num_slots))
+    num_blocks = -(-num_particles // block)
+    empty = jnp.full(num_slots, LOG_ZERO, log_weights.dtype)
+
+    def add_block(log_sum, index):
+        start = jnp.minimum(index * block, num_particles - block)
+        fresh = start + jnp.arange(block) >= index * block
+        block_log_weights = jax.lax.dynamic_slice_in_dim(log_weights, start, block)
+        log_q = log_likelihood(
+            measurements,
+            jax.lax.dynamic_slice_in_dim(particles, start, block),
+            target_clutter.noise_std,
+            noise_model,
+        )
+        masked = jnp.where(fresh, block_log_weights, LOG_ZERO)
+        return jnp.logaddexp(log_sum, jax.nn.logsumexp(log_q + masked[None], axis=-1)), None
+
+    def spread():
+        log_sum, _ = jax.lax.scan(add_block, empty, jnp.arange(num_blocks))
+        rate = jnp.maximum(target_clutter.rate, jnp.finfo(log_weights.dtype).tiny)
+        return jnp.maximum(jnp.log(rate) + log_sum, LOG_ZERO)
+
+    return jax.lax.cond(target_clutter.rate > 0, spread, lambda: empty)
 
 
 def _block_parts(ratio, ratio_sum, top, particles, log_weights, fresh, scores):

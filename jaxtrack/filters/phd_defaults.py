@@ -18,7 +18,7 @@ from jaxtrack.context.intensity import (
     uniform_clutter_intensity,
 )
 from jaxtrack.context.scores import identity_calibration
-from jaxtrack.filters.phd import PHDParams
+from jaxtrack.filters.phd import PHDParams, TargetClutter
 
 #: SDV motion noise ``(sigma_n1, sigma_n2, sigma_nw, sigma_nh)``, relative to the box size.
 DEFAULT_MOTION_NOISE_STD = (0.05, 0.02, 0.05, 0.05)
@@ -26,6 +26,10 @@ DEFAULT_MOTION_NOISE_STD = (0.05, 0.02, 0.05, 0.05)
 DEFAULT_MEASUREMENT_NOISE_STD = (0.15, 0.08, 0.25, 0.15)
 #: Detection probability ``pD = 1 - pM``.
 DEFAULT_DETECTION_PROB = 0.8
+#: Relative spread ``(s_1, s_2, s_w, s_h)`` of the detections a target generates besides its
+#: own (:class:`~jaxtrack.filters.phd.TargetClutter`; used only with a rate > 0, which a
+#: learned context sets together with its own spread): twice the likelihood's.
+DEFAULT_TARGET_CLUTTER_NOISE_STD = tuple(2 * s for s in DEFAULT_MEASUREMENT_NOISE_STD)
 #: Survival probability ``e(x)`` per frame.
 DEFAULT_SURVIVAL_PROB = 0.99
 
@@ -77,5 +81,8 @@ def default_phd_params(
             new_track_max_iou=jnp.asarray(0.3),
             velocity_smoothing=jnp.asarray(0.8),
             score_calibration=jax.tree.map(jnp.asarray, identity_calibration()),
+        ),
+        target_clutter=TargetClutter(
+            rate=jnp.asarray(0.0), noise_std=jnp.array(DEFAULT_TARGET_CLUTTER_NOISE_STD)
         ),
     )

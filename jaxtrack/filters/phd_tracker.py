@@ -37,9 +37,10 @@ from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, se
 from jaxtrack.context.intensity import Intensity, birth_speed_limit, uniform_birth_intensity
 from jaxtrack.context.learn import volume_mass
 from jaxtrack.context.scores import ScoreCalibration, calibration_from_metadata
+from jaxtrack.context.target_clutter import target_clutter_from_metadata
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
-from jaxtrack.filters.phd import CONFIRMATIONS, PHDParams, phd_filter
+from jaxtrack.filters.phd import CONFIRMATIONS, PHDParams, TargetClutter, phd_filter
 from jaxtrack.filters.phd_defaults import (
     DEFAULT_DETECTION_PROB,
     DEFAULT_MEASUREMENT_NOISE_STD,
@@ -278,6 +279,14 @@ def phd_params(
         params = params._replace(birth_intensity=context.birth)
     if use.learned_clutter:
         params = params._replace(clutter_intensity=context.clutter)
+        target_clutter = target_clutter_from_metadata(context.metadata)
+        if target_clutter is not None:
+            rate, spread = target_clutter
+            params = params._replace(
+                target_clutter=TargetClutter(
+                    jnp.asarray(rate, jnp.float32), jnp.asarray(spread, jnp.float32)
+                )
+            )
     return params
 
 

@@ -43,9 +43,17 @@ from jaxtrack.context.samples import (
     clutter_samples_from_gt,
     clutter_samples_from_labels,
     clutter_samples_from_tracks,
+    extra_detections_from_gt,
+    extra_detections_from_tracks,
     matched_detections,
 )
 from jaxtrack.context.scores import ScoreCalibration, learn_score_calibration
+from jaxtrack.context.target_clutter import (
+    METADATA_KEY,
+    TargetClutterFit,
+    chance_events,
+    learn_target_clutter,
+)
 from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import PHDConfig, phd_params, with_score_calibration
 from jaxtrack.io.motchallenge import MotSequence, load_sequence
@@ -198,6 +206,7 @@ def learn_context(
         clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
     elif str(clutter_from) == "tracks":
         clutter = clutter_samples_from_tracks(sequence.det_table, rows, span)
+    target_clutter = _target_clutter(sequence, rows, span, str(clutter_from), clutter)
     for name, events in (("birth", births), ("clutter", clutter)):
         if events.count == 0:
             left_out = (
@@ -250,6 +259,7 @@ def learn_context(
         "birth": _summary(births, birth_state, birth_check, birth_mass),
         "clutter": _summary(clutter, clutter_state, clutter_check, clutter_mass),
         "warmup_frames": warmup_frames,
+        METADATA_KEY: target_clutter.as_dict(),
         "score_calibration": calibration_summary
         | (
             {}
@@ -269,6 +279,26 @@ def learn_context(
         birth_snapshots=birth_snapshots,
         clutter_snapshots=clutter_snapshots,
     )
+
+
+def _target_clutter(
+    sequence: MotSequence, rows, span, clutter_from: str, clutter: EventSamples
+) -> TargetClutterFit:
+    """What the targets generate besides their own detections
+    (:mod:`jaxtrack.context.target_clutter`), from the objects the clutter source knows: the
+    ground truth's boxes (every row: an ignored object's extra boxes are left out of the
+    clutter too) or the UM run's; a labels file knows no objects. The clutter events'
+    coverage says how many of them are the scene's clutter landing on objects."""
+    det = sequence.det_table
+    chance = chance_events(clutter.count, clutter.coverage)
+    if clutter_from == "gt":
+        gt = sequence.gt_table
+        extra = extra_detections_from_gt(det, gt, span)
+        return learn_target_clutter(det, gt, extra, len(gt), "gt", chance)
+    if clutter_from == "tracks":
+        extra = extra_detections_from_tracks(det, rows)
+        return learn_target_clutter(det, rows, extra, len(rows), "tracks", chance)
+    return TargetClutterFit(0.0, None, 0, 0, "labels")
 
 
 def _mean_size(sizes: np.ndarray) -> tuple[float, float]:

@@ -15,6 +15,7 @@ from jaxtrack.context.intensity import Intensity, log_intensity
 from jaxtrack.filters.births import LOG_ZERO
 from jaxtrack.filters.phd import (
     Posterior,
+    TargetClutter,
     gmm_estimates,
     partition_estimates,
     phd_births,
@@ -65,6 +66,17 @@ def _particles(num, seed=0):
     return jnp.asarray(states, jnp.float32), jnp.asarray(log_weights, jnp.float32)
 
 
+def _target_spread(noise_std, measurements, particles):
+    """``q(z | x_j)`` of :class:`~jaxtrack.filters.phd.TargetClutter`, ``[detections,
+    particles]``: a Gaussian about each particle's box with the SDV spread, written out."""
+    z = np.asarray(measurements, np.float64)[:, None, :]
+    x = np.asarray(particles, np.float64)[None]
+    boxes = x[..., [0, 2, 4, 5]]
+    std = np.asarray(noise_std, np.float64) * x[..., [4, 5, 4, 5]]
+    density = np.exp(-0.5 * ((z - boxes) / std) ** 2) / (np.sqrt(2 * np.pi) * std)
+    return np.prod(density, axis=-1)
+
+
 def _update_oracle(params, measurements, scores, mask, particles, log_weights):
     """PHD-context eq. 10 with the full ``[detections, particles]`` arrays, float64 NumPy."""
     log_psi = np.log(float(params.detection_prob)) + np.asarray(
@@ -76,8 +88,10 @@ def _update_oracle(params, measurements, scores, mask, particles, log_weights):
     clipped = np.clip(np.asarray(scores, np.float64), 1e-6, 1 - 1e-6)
     ratio = (clipped / (1 - clipped)) ** float(params.score_weight)
     kappa = np.exp(np.asarray(log_intensity(params.clutter_intensity, measurements), np.float64))
+    rate = float(params.target_clutter.rate)
+    kappa = kappa + rate * _target_spread(params.target_clutter.noise_std, measurements, x) @ w
     updated = (1 - pd) * w
-    log_likelihood_k = -pd * w.sum() - float(params.clutter_intensity.magnitude)
+    log_likelihood_k = -(pd + rate) * w.sum() - float(params.clutter_intensity.magnitude)
     log_masses, states = [], []
     terms = np.full(log_psi.shape, -np.inf)
     for z in range(len(scores)):
@@ -129,6 +143,82 @@ def test_blocked_update_matches_the_full_array_oracle(block_size):
     )
     np.testing.assert_allclose(update.particle_scores, expected["particle_scores"], rtol=1e-5)
     assert np.exp(expected["detection_log_masses"][MASK]).min() > 0.01  # parts with mass
+
+
+TARGET_CLUTTER = TargetClutter(jnp.asarray(0.3), jnp.asarray([0.3, 0.16, 0.5, 0.3]))
+
+
+@pytest.mark.parametrize("block_size", [None, 77])
+def test_update_with_target_clutter_matches_the_oracle(block_size):
+    """``kappa(z) + rate sum_j q(z | x_j) w_j`` in the denominator, ``-rate sum_j w_j`` in the
+    log-likelihood (the oracle sums ``q`` over the full array, in float64)."""
+    params = PARAMS._replace(target_clutter=TARGET_CLUTTER)
+    particles, log_weights = _particles(300)
+    update = jax.jit(phd_update, static_argnums=(6, 7))(
+        params,
+        MEASUREMENTS,
+        FRAME.scores,
+        FRAME.mask,
+        particles,
+        log_weights,
+        state_dependent_std,
+        block_size,
+    )
+    expected = _update_oracle(params, MEASUREMENTS, SCORES, MASK, particles, log_weights)
+    without = _update_oracle(PARAMS, MEASUREMENTS, SCORES, MASK, particles, log_weights)
+    np.testing.assert_allclose(update.log_weights, expected["log_weights"], rtol=1e-5)
+    np.testing.assert_allclose(update.log_likelihood, expected["log_likelihood"], rtol=1e-5)
+    np.testing.assert_allclose(
+        update.detection_log_masses, expected["detection_log_masses"], rtol=1e-5, atol=1e-5
+    )
+    # the term is not negligible here: every detection's mass falls, one by 5 %
+    drop = without["detection_log_masses"][MASK] - expected["detection_log_masses"][MASK]
+    assert drop.min() > 0.002 and drop.max() > 0.05
+
+
+def test_target_clutter_takes_the_mass_of_a_second_box_beside_a_target():
+    """One target (mass 1) and two detections: its own box and a second box shifted by 0.6 of
+    its width. The paper's update gives each detection a mass above 0.5, so each becomes an
+    estimate (a duplicate); with the extra boxes the target generates (rate 0.15, spread as
+    learned on PETS09-S2L1), the second box falls below 0.5 and the target's own box stays."""
+    rng = np.random.default_rng(3)
+    num = 400
+    target = np.array([300.0, 200.0, 40.0, 100.0])  # centre x, centre y, w, h
+    states = np.zeros((num, 6))
+    states[:, [0, 2, 4, 5]] = target + rng.normal(0, 1, (num, 4)) * [4.0, 4.0, 2.0, 4.0]
+    particles = jnp.asarray(states, jnp.float32)
+    log_weights = jnp.full(num, -np.log(num), jnp.float32)
+    second = target + np.array([24.0, 0.0, 0.0, 0.0])
+    measurements = jnp.asarray([target, second], jnp.float32)
+    scores, mask = jnp.asarray([0.9, 0.9]), jnp.asarray([True, True])
+    base = PARAMS._replace(score_weight=jnp.asarray(0.0))
+    spread = TargetClutter(jnp.asarray(0.15), jnp.asarray([0.40, 0.10, 0.66, 0.22]))
+    masses = {}
+    for name, params in (("paper", base), ("target clutter", base._replace(target_clutter=spread))):
+        update = phd_update(params, measurements, scores, mask, particles, log_weights)
+        masses[name] = np.exp(np.asarray(update.detection_log_masses))
+    assert masses["paper"].min() > 0.5
+    assert masses["target clutter"][0] > 0.5 > masses["target clutter"][1]
+
+
+def test_target_clutter_rates_mixed_in_a_vmapped_batch_equal_single_runs():
+    """Under ``vmap`` the ``lax.cond`` that skips the pass at rate 0 runs both branches; each
+    parameter set still gets its own term."""
+    particles, log_weights = _particles(300)
+    batch = [PARAMS, PARAMS._replace(target_clutter=TARGET_CLUTTER)]
+    stacked = jax.tree.map(lambda *leaves: jnp.stack(leaves), *batch)
+    run = functools.partial(
+        phd_update,
+        measurements=MEASUREMENTS,
+        scores=FRAME.scores,
+        mask=FRAME.mask,
+        particles=particles,
+        log_weights=log_weights,
+    )
+    together = jax.vmap(lambda params: run(params).log_weights)(stacked)
+    for row, params in zip(together, batch, strict=True):
+        np.testing.assert_allclose(row, run(params).log_weights, rtol=1e-6)
+    assert not np.allclose(together[0], together[1])
 
 
 def test_blocked_update_needs_memory_for_one_block_only():
