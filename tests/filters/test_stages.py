@@ -118,12 +118,10 @@ def _update_oracle(params, measurements, scores, mask, particles, log_weights):
     )
 
 
-@pytest.mark.parametrize("block_size", [None, 50, 64, 77, 300])
-def test_blocked_update_matches_the_full_array_oracle(block_size):
-    """Blocks of 50 and 64 divide 300 particles or not (77: the last block overlaps)."""
-    particles, log_weights = _particles(300)
-    update = jax.jit(phd_update, static_argnums=(6, 7))(
-        PARAMS,
+def _jit_update(params, particles, log_weights, block_size):
+    """The jitted update of the module's frame with ``block_size`` particles per block."""
+    return jax.jit(phd_update, static_argnums=(6, 7))(
+        params,
         MEASUREMENTS,
         FRAME.scores,
         FRAME.mask,
@@ -132,6 +130,13 @@ def test_blocked_update_matches_the_full_array_oracle(block_size):
         state_dependent_std,
         block_size,
     )
+
+
+@pytest.mark.parametrize("block_size", [None, 50, 64, 77, 300])
+def test_blocked_update_matches_the_full_array_oracle(block_size):
+    """Blocks of 50 and 64 divide 300 particles or not (77: the last block overlaps)."""
+    particles, log_weights = _particles(300)
+    update = _jit_update(PARAMS, particles, log_weights, block_size)
     expected = _update_oracle(PARAMS, MEASUREMENTS, SCORES, MASK, particles, log_weights)
     np.testing.assert_allclose(update.log_weights, expected["log_weights"], rtol=1e-5)
     np.testing.assert_allclose(update.log_likelihood, expected["log_likelihood"], rtol=1e-5)
@@ -154,16 +159,7 @@ def test_update_with_target_clutter_matches_the_oracle(block_size):
     log-likelihood (the oracle sums ``q`` over the full array, in float64)."""
     params = PARAMS._replace(target_clutter=TARGET_CLUTTER)
     particles, log_weights = _particles(300)
-    update = jax.jit(phd_update, static_argnums=(6, 7))(
-        params,
-        MEASUREMENTS,
-        FRAME.scores,
-        FRAME.mask,
-        particles,
-        log_weights,
-        state_dependent_std,
-        block_size,
-    )
+    update = _jit_update(params, particles, log_weights, block_size)
     expected = _update_oracle(params, MEASUREMENTS, SCORES, MASK, particles, log_weights)
     without = _update_oracle(PARAMS, MEASUREMENTS, SCORES, MASK, particles, log_weights)
     np.testing.assert_allclose(update.log_weights, expected["log_weights"], rtol=1e-5)
