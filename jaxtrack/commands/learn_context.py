@@ -72,7 +72,11 @@ Event sources:
                         (magnitude: clutter per labelled frame)
   With gt and tracks, an unmatched detection that still overlaps an object of its frame
   (IoU >= 0.2) is the object's badly placed detection, not clutter, and is left out (the
-  run prints how many).
+  run prints how many). These are what the targets generate besides their own box: their
+  rate per target and frame and their spread about the box are stored as the context's
+  "target clutter" (none when they are no more than the scene's clutter landing on objects
+  by chance); the variants with learned clutter (GM, A2, A5, A6) add it to the clutter
+  intensity, so a second box on a tracked target is not taken for a new target.
 --frames A:B is the training span (default: all frames).
 A video (or image folder) instead of SEQ_DIR: give its detections with --detections
 (`jaxtrack detect VIDEO --out DET.txt`) and, for the gt sources, its ground truth with --gt;
