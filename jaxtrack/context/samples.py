@@ -79,8 +79,11 @@ class EventSamples(NamedTuple):
         frames: ``[num_events]`` 1-based frame of each event.
         num_frames: frames the events were counted on (the magnitude's denominator).
         source: where the events come from (``"gt"``, ``"tracks"`` or a labels file).
-        object_overlaps: detections left out because they overlap an object of their
-            frame (badly placed detections of objects, see the module docstring).
+        left_out: ``[len(det_table)]`` booleans over the source's detection table, the
+            detections left out because they overlap an object of their frame (badly placed
+            detections of objects, see the module docstring; what
+            :mod:`jaxtrack.context.target_clutter` learns from); None for a source that
+            knows no objects.
         coverage: the share of the scene's events that the source could count: 1, or for
             clutter with objects left out, ``1 - p`` with ``p`` the chance that a clutter
             box overlaps an object (:func:`chance_overlap`).
@@ -90,8 +93,13 @@ class EventSamples(NamedTuple):
     frames: np.ndarray
     num_frames: int
     source: str
-    object_overlaps: int = 0
+    left_out: np.ndarray | None = None
     coverage: float = 1.0
+
+    @property
+    def object_overlaps(self) -> int:
+        """Number of detections left out as objects' badly placed detections."""
+        return 0 if self.left_out is None else int(np.sum(self.left_out))
 
     @property
     def count(self) -> int:
@@ -342,40 +350,6 @@ def clutter_samples_from_tracks(
     )
 
 
-def extra_detections_from_gt(
-    det_table: MotTable,
-    gt_table: MotTable,
-    span: tuple[int, int],
-    iou_threshold: float = IOU_THRESHOLD,
-    object_overlap: float = OBJECT_OVERLAP,
-) -> np.ndarray:
-    """The detections :func:`clutter_samples_from_gt` leaves out as objects' badly placed
-    detections: unmatched, overlapping a gt box of their frame by IoU >= ``object_overlap``
-    (:mod:`jaxtrack.context.target_clutter` learns what targets generate from them).
-
-    Returns:
-        ``[len(det_table)]`` booleans.
-    """
-    matched = matched_detections(det_table, gt_table, span, iou_threshold)
-    return ~matched & _overlaps_objects(det_table, gt_table, object_overlap)
-
-
-def extra_detections_from_tracks(
-    det_table: MotTable,
-    rows: MotTable,
-    iou_threshold: float = IOU_THRESHOLD,
-    object_overlap: float = OBJECT_OVERLAP,
-) -> np.ndarray:
-    """The detections :func:`clutter_samples_from_tracks` leaves out: unassociated with any
-    output box, overlapping one by IoU >= ``object_overlap``.
-
-    Returns:
-        ``[len(det_table)]`` booleans.
-    """
-    best = _best_overlaps(det_table, rows)
-    return (best < iou_threshold) & (best >= object_overlap)
-
-
 def _best_overlaps(det_table: MotTable, objects: MotTable) -> np.ndarray:
     """Each detection's best IoU with the boxes of ``objects`` in its frame (0 if none)."""
     det_frames = np.asarray(det_table.frames)
@@ -503,7 +477,7 @@ def _detection_events(
         frames=np.asarray(table.frames, np.int64)[keep][order],
         num_frames=span[1] - span[0] + 1,
         source=source,
-        object_overlaps=int(np.sum(left_out)),
+        left_out=left_out,
         coverage=coverage,
     )
 

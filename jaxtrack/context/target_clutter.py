@@ -1,7 +1,7 @@
 """Detections that targets generate besides their own, learned on a training span.
 
 A real detector gives some people a second box, a box on a part of the person, or one box
-around two people (on PETS09-S2L1 1:397, 317 of the 539 detections the ground truth leaves
+around two people (on PETS09-S2L1 1:397, 369 of the 508 detections the ground truth leaves
 unmatched overlap a person by IoU >= 0.2). :mod:`jaxtrack.context.samples` leaves these out
 of the clutter events, since they are not false alarms of the *scene*: counted as clutter
 they would put the clutter density on the targets' paths. What generates them is the

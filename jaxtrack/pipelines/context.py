@@ -43,8 +43,6 @@ from jaxtrack.context.samples import (
     clutter_samples_from_gt,
     clutter_samples_from_labels,
     clutter_samples_from_tracks,
-    extra_detections_from_gt,
-    extra_detections_from_tracks,
     matched_detections,
 )
 from jaxtrack.context.scores import ScoreCalibration, learn_score_calibration
@@ -206,7 +204,7 @@ def learn_context(
         clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
     elif str(clutter_from) == "tracks":
         clutter = clutter_samples_from_tracks(sequence.det_table, rows, span)
-    target_clutter = _target_clutter(sequence, rows, span, str(clutter_from), clutter)
+    target_clutter = _target_clutter(sequence, rows, str(clutter_from), clutter)
     for name, events in (("birth", births), ("clutter", clutter)):
         if events.count == 0:
             left_out = (
@@ -281,24 +279,20 @@ def learn_context(
     )
 
 
-def _target_clutter(
-    sequence: MotSequence, rows, span, clutter_from: str, clutter: EventSamples
-) -> TargetClutterFit:
+def _target_clutter(sequence: MotSequence, rows, clutter_from: str, clutter: EventSamples):
     """What the targets generate besides their own detections
-    (:mod:`jaxtrack.context.target_clutter`), from the objects the clutter source knows: the
+    (:mod:`jaxtrack.context.target_clutter`), from the detections the clutter events left
+    out beside objects (``clutter.left_out``) and the objects the clutter source knows: the
     ground truth's boxes (every row: an ignored object's extra boxes are left out of the
     clutter too) or the UM run's; a labels file knows no objects. The clutter events'
     coverage says how many of them are the scene's clutter landing on objects."""
-    det = sequence.det_table
+    if clutter_from not in ("gt", "tracks"):
+        return TargetClutterFit(0.0, None, 0, 0, "labels")
+    objects = sequence.gt_table if clutter_from == "gt" else rows
     chance = chance_events(clutter.count, clutter.coverage)
-    if clutter_from == "gt":
-        gt = sequence.gt_table
-        extra = extra_detections_from_gt(det, gt, span)
-        return learn_target_clutter(det, gt, extra, len(gt), "gt", chance)
-    if clutter_from == "tracks":
-        extra = extra_detections_from_tracks(det, rows)
-        return learn_target_clutter(det, rows, extra, len(rows), "tracks", chance)
-    return TargetClutterFit(0.0, None, 0, 0, "labels")
+    return learn_target_clutter(
+        sequence.det_table, objects, clutter.left_out, len(objects), clutter_from, chance
+    )
 
 
 def _mean_size(sizes: np.ndarray) -> tuple[float, float]:

@@ -10,11 +10,7 @@ import pytest
 
 from jaxtrack.context.intensity import uniform_intensity
 from jaxtrack.context.io import load_context, save_context
-from jaxtrack.context.samples import (
-    clutter_samples_from_gt,
-    extra_detections_from_gt,
-    extra_detections_from_tracks,
-)
+from jaxtrack.context.samples import clutter_samples_from_gt, clutter_samples_from_tracks
 from jaxtrack.context.target_clutter import (
     METADATA_KEY,
     MIN_EVENTS,
@@ -101,7 +97,8 @@ def test_the_rate_is_the_simulated_detectors_share_of_badly_placed_boxes(seed):
     config = FAMILIES["misplaced"](seed)
     det = scene.det_table.select(scene.det_table.frames <= 300)
     gt = scene.gt_table.select(scene.gt_table.frames <= 300)
-    extra = extra_detections_from_gt(det, gt, (1, 300))
+    clutter = clutter_samples_from_gt(det, gt, (1, 300))
+    extra = clutter.left_out
     fit = learn_target_clutter(det, gt, extra, len(gt), "gt")
     expected = (
         config.misplaced_detection_prob + config.extra_detection_prob
@@ -112,7 +109,6 @@ def test_the_rate_is_the_simulated_detectors_share_of_badly_placed_boxes(seed):
 
     # the scene's clutter that lands on people by chance is counted back into the clutter
     # magnitude (its coverage): on misplaced it is a few percent of the extra boxes
-    clutter = clutter_samples_from_gt(det, gt, (1, 300))
     chance = chance_events(clutter.count, clutter.coverage)
     with_chance = learn_target_clutter(det, gt, extra, len(gt), "gt", chance)
     assert 0 < chance < 0.1 * fit.events
@@ -122,21 +118,22 @@ def test_the_rate_is_the_simulated_detectors_share_of_badly_placed_boxes(seed):
     steady = generate_family_scene("flicker", seed)
     det = steady.det_table.select(steady.det_table.frames <= 300)
     gt = steady.gt_table.select(steady.gt_table.frames <= 300)
-    extra = extra_detections_from_gt(det, gt, (1, 300))
     clutter = clutter_samples_from_gt(det, gt, (1, 300))
     chance = chance_events(clutter.count, clutter.coverage)
-    by_chance = learn_target_clutter(det, gt, extra, len(gt), "gt", chance)
+    by_chance = learn_target_clutter(det, gt, clutter.left_out, len(gt), "gt", chance)
     assert 0 < by_chance.events < chance + MIN_EVENTS
     assert not by_chance.learned and by_chance.rate == 0.0
 
 
-def test_extra_detections_from_tracks_are_unassociated_boxes_on_a_track():
+def test_the_detections_left_out_beside_tracks_are_unassociated_boxes_on_a_track():
     rows = MotTable.from_arrays([1], [7], [[0, 0, 10, 20]])
     det = MotTable.from_arrays(
         [1, 1, 1], [-1, -1, -1], [[0, 0, 10, 20], [4, 0, 10, 20], [100, 100, 10, 20]]
     )
     # IoU 1 (associated), 0.43 (extra), 0 (clutter)
-    np.testing.assert_array_equal(extra_detections_from_tracks(det, rows), [False, True, False])
+    events = clutter_samples_from_tracks(det, rows, (1, 1))
+    np.testing.assert_array_equal(events.left_out, [False, True, False])
+    assert events.object_overlaps == 1 and events.count == 1
 
 
 RECORD = fit_target_clutter(
