@@ -433,26 +433,19 @@ def phd_update(
     log_detection = jnp.log(params.detection_prob)
     log_missed = jnp.log1p(-params.detection_prob)
 
-    def block_log_psi(index):
-        """``log psi_z(x_i)`` of block ``index`` (the last block overlaps its predecessor)."""
-        start = jnp.minimum(index * block, num_particles - block)
-        block_particles = jax.lax.dynamic_slice_in_dim(particles, start, block)
-        block_log_weights = jax.lax.dynamic_slice_in_dim(log_weights, start, block)
-        fresh = start + jnp.arange(block) >= index * block
-        log_psi = log_detection + log_likelihood(
+    def log_psi_of(block_particles):
+        return log_detection + log_likelihood(
             measurements, block_particles, params.measurement_noise_std, noise_model
         )
-        return log_psi, block_particles, block_log_weights, fresh
 
-    def add_block_log_c(log_c, index):
-        log_psi, _, block_log_weights, fresh = block_log_psi(index)
-        masked_log_weights = jnp.where(fresh, block_log_weights, LOG_ZERO)
-        block_log_c = jax.nn.logsumexp(log_psi + masked_log_weights[None], axis=-1)
-        return jnp.logaddexp(log_c, block_log_c), None
+    def block_log_psi(index):
+        """``log psi_z(x_i)`` of block ``index`` (the last block overlaps its predecessor)."""
+        block_particles, block_log_weights, fresh = _particle_block(
+            particles, log_weights, index, block
+        )
+        return log_psi_of(block_particles), block_particles, block_log_weights, fresh
 
-    log_c, _ = jax.lax.scan(
-        add_block_log_c, jnp.full(num_slots, LOG_ZERO, log_weights.dtype), jnp.arange(num_blocks)
-    )
+    log_c = _blocked_log_sum(log_psi_of, particles, log_weights, block, num_slots)
     log_ratio = score_log_ratio(scores, params.score_weight)
     log_kappa = jnp.logaddexp(
         log_intensity(params.clutter_intensity, measurements),
@@ -521,28 +514,51 @@ def target_log_clutter(
     """
     num_particles, num_slots = particles.shape[0], measurements.shape[0]
     block = min(num_particles, block_size or default_block_size(num_particles, num_slots))
-    num_blocks = -(-num_particles // block)
-    empty = jnp.full(num_slots, LOG_ZERO, log_weights.dtype)
 
-    def add_block(log_sum, index):
-        start = jnp.minimum(index * block, num_particles - block)
-        fresh = start + jnp.arange(block) >= index * block
-        block_log_weights = jax.lax.dynamic_slice_in_dim(log_weights, start, block)
-        log_q = log_likelihood(
-            measurements,
-            jax.lax.dynamic_slice_in_dim(particles, start, block),
-            target_clutter.noise_std,
-            noise_model,
-        )
-        masked = jnp.where(fresh, block_log_weights, LOG_ZERO)
-        return jnp.logaddexp(log_sum, jax.nn.logsumexp(log_q + masked[None], axis=-1)), None
+    def log_q_of(block_particles):
+        return log_likelihood(measurements, block_particles, target_clutter.noise_std, noise_model)
 
     def spread():
-        log_sum, _ = jax.lax.scan(add_block, empty, jnp.arange(num_blocks))
+        log_sum = _blocked_log_sum(log_q_of, particles, log_weights, block, num_slots)
         rate = jnp.maximum(target_clutter.rate, jnp.finfo(log_weights.dtype).tiny)
         return jnp.maximum(jnp.log(rate) + log_sum, LOG_ZERO)
 
+    empty = jnp.full(num_slots, LOG_ZERO, log_weights.dtype)
     return jax.lax.cond(target_clutter.rate > 0, spread, lambda: empty)
+
+
+def _particle_block(particles, log_weights, index, block: int):
+    """Block ``index`` of ``block`` particles (the last block overlaps its predecessor when
+    ``block`` does not divide the particles): ``(particles, log_weights, fresh)``, ``fresh``
+    False for the overlap's particles, which the previous block already counted."""
+    start = jnp.minimum(index * block, particles.shape[0] - block)
+    block_particles = jax.lax.dynamic_slice_in_dim(particles, start, block)
+    block_log_weights = jax.lax.dynamic_slice_in_dim(log_weights, start, block)
+    fresh = start + jnp.arange(block) >= index * block
+    return block_particles, block_log_weights, fresh
+
+
+def _blocked_log_sum(log_kernel, particles, log_weights, block: int, num_slots: int):
+    """``log sum_j k_z(x_j) w_j`` for every detection slot ``z``, a ``lax.scan`` over blocks
+    of ``block`` particles with ``log_kernel(block_particles) -> [num_slots, block]`` (``C(z)``
+    with ``log psi``, :func:`phd_update`; ``kappa_t(z) / rate`` with ``log q``,
+    :func:`target_log_clutter`)."""
+
+    def add_block(log_sum, index):
+        block_particles, block_log_weights, fresh = _particle_block(
+            particles, log_weights, index, block
+        )
+        masked_log_weights = jnp.where(fresh, block_log_weights, LOG_ZERO)
+        block_log_sum = jax.nn.logsumexp(
+            log_kernel(block_particles) + masked_log_weights[None], axis=-1
+        )
+        return jnp.logaddexp(log_sum, block_log_sum), None
+
+    num_blocks = -(-particles.shape[0] // block)
+    log_sum, _ = jax.lax.scan(
+        add_block, jnp.full(num_slots, LOG_ZERO, log_weights.dtype), jnp.arange(num_blocks)
+    )
+    return log_sum
 
 
 def _block_parts(ratio, ratio_sum, top, particles, log_weights, fresh, scores):
