@@ -63,8 +63,9 @@ which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
 and another; 0 gives the paper's tracker), ``reidentify_seconds`` (1; 0: off, the paper's
 tracker; a new component takes back the identity of a confirmed one deleted that recently,
 nearby and alike in colour), ``free_blob_frames`` (2; 0: off, the paper's tracker; a blob no
-component owns that many frames in a row starts one whatever explains it), ``output``,
-``max_gap``.
+component owns that many frames in a row starts one whatever explains it),
+``confirm_quantile`` (0.75; 1: off; a component is output once a blob scoring 0.97, or at
+least this quantile of the scores seen so far, explains it), ``output``, ``max_gap``.
 
 ``--tracker hierarchical`` runs the Hierarchical tracker (SPEC section 4,
 ``jaxtrack.filters.hierarchical``): a bank of constant-velocity Kalman filters whose tracks

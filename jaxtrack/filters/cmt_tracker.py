@@ -19,6 +19,9 @@ give the earlier tracker.
 ``free_blob_frames`` 2 (session 41) was chosen on the development scenes and the MOT15
 videos among the settings tried, then run on fresh scenes 147-152 (README, CMT: "Free-blob
 births"); 0 gives the session-40 tracker.
+``confirm_quantile`` 0.75 and ``max_components`` 32 (session 46) were set on the development
+scenes, then run once on fresh scenes and the MOT15 videos (README, CMT: "Confirmation by
+the detector's own scores"); 1 and 16 give the session-41 tracker.
 """
 
 from __future__ import annotations
@@ -81,7 +84,16 @@ class CMTConfig(TrackerConfig):
             choices=VARIANTS,
         ),
     )
-    max_components: int = setting(16, Rule("local tracker slots", int, 1, 1024))
+    max_components: int = setting(
+        32,
+        Rule(
+            "local tracker slots: the most components alive at once (16 before session 46, "
+            "when busy synthetic scenes filled them and new targets waited unborn)",
+            int,
+            1,
+            1024,
+        ),
+    )
     particles_per_component: int = setting(40, Rule("particles per local tracker", int, 1, 4096))
     max_misses: int = setting(
         3, Rule("frames a component survives without a blob supporting it", int, 0, 1000)
@@ -132,6 +144,17 @@ class CMTConfig(TrackerConfig):
             1000,
         ),
     )
+    confirm_quantile: float = setting(
+        0.75,
+        Rule(
+            "a blob confirms a component when it scores 0.97 or at least this quantile of "
+            "the scores of every blob seen so far, whichever is lower (the detector's "
+            "confident boxes, whatever its score scale; 1: 0.97 alone, the earlier tracker)",
+            float,
+            0.0,
+            1.0,
+        ),
+    )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
     smoothing: str = setting("none", SMOOTHING)
@@ -173,6 +196,7 @@ def cmt_params(config: CMTConfig, zones: SceneZones | None = None) -> CMTParams:
         appearance_weight=jnp.float32(config.appearance_weight),
         duplicate_iou=jnp.float32(DUPLICATE_IOU),
         confirm_score=jnp.float32(CONFIRM_SCORE),
+        confirm_quantile=jnp.float32(config.confirm_quantile),
         enter_distance=jnp.float32(ENTER_DISTANCE),
         zone_boxes=boxes,
         zone_mask=mask,
