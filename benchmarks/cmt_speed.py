@@ -69,7 +69,8 @@ def main() -> None:
     zones, zone_note = tracker_zones(seq, None, 0)
 
     def timed_runs(config: CMTConfig):
-        """(compiling run's seconds, best later run's seconds, the later runs, rows)."""
+        """(compiling run's seconds, best later run's seconds, the later runs' seconds, the
+        result rows, the parameters tracked with)."""
         _, params = build_tracker(config, seq.info, zones)
 
         def track():
