@@ -45,11 +45,11 @@ model look at the scene's context. One :func:`cmt_step` on
 A component is output (``tracks``) once a *confident* blob has explained it, on the frames a
 blob supports it (confident: scoring at least ``confirm_score``, or at least the
 ``confirm_quantile`` of the scores of every blob seen so far when that is lower:
-:func:`confident_score`, not in the paper); ``candidates`` are every supported
-component. The mixture weights ``pi_m`` are kept (eq. 4, reported as track scores) but the
-default deletion threshold on them is 0: with one component per target, ``pi_m`` mostly
-measures the box likelihood's density scale (bigger boxes have lower densities) and would
-delete every large target within a few frames.
+:func:`~jaxtrack.filters.score_quantile.confident_score`, not in the paper); ``candidates``
+are every supported component. The mixture weights ``pi_m`` are kept (eq. 4, reported as
+track scores) but the default deletion threshold on them is 0: with one component per
+target, ``pi_m`` mostly measures the box likelihood's density scale (bigger boxes have lower
+densities) and would delete every large target within a few frames.
 """
 
 from __future__ import annotations
@@ -102,6 +102,7 @@ from jaxtrack.filters.mixture_models import (
     nearest_detection_log_likelihood,
 )
 from jaxtrack.filters.mixture_state import MixtureParams, MixtureState, init_mixture
+from jaxtrack.filters.score_quantile import confident_score, count_scores, init_counts
 from jaxtrack.models.dynamics import MEASURED, POSITION, SIZE, VELOCITY
 from jaxtrack.models.likelihood import log_likelihood
 from jaxtrack.models.noise import state_dependent_std
@@ -127,11 +128,6 @@ REID_GATE_RATE = 0.1
 REID_MAX_GATE = 3.0
 REID_SIZE_RATIO = 1.5
 REID_MAX_DISTANCE = 0.3
-#: Bins of the histogram of blob scores on ``[0, 1]`` that :func:`confident_score` reads
-#: (scores outside are counted in the end bins).
-SCORE_BINS = 200
-#: Blobs :func:`confident_score` counts before it reads their quantile.
-MIN_SCORES = 100
 
 
 class CMTParams(NamedTuple):
@@ -149,7 +145,8 @@ class CMTParams(NamedTuple):
         confirm_score: a component is output once a blob of at least this score explains its
             local decision (the PHD tracker's rule, :mod:`~jaxtrack.filters.phd_defaults`).
         confirm_quantile: ... or a blob scoring at least this quantile of the scores of
-            every blob seen so far, when that is lower (:func:`confident_score`; 1 or more:
+            every blob seen so far, when that is lower
+            (:func:`~jaxtrack.filters.score_quantile.confident_score`; 1 or more:
             ``confirm_score`` alone).
         enter_distance: with the contextual proposal and known zones, a blob starts a
             component (*enter*) only within this many box heights of a zone (foot point to
@@ -221,7 +218,7 @@ class CMTState(NamedTuple):
         free: the last frame's unowned blobs (:class:`FreeBlobs`; read only when the step is
             built with ``free_blob_frames`` > 0).
         score_counts: ``[SCORE_BINS]`` histogram of the scores of every blob seen so far
-            (:func:`confident_score`).
+            (:func:`~jaxtrack.filters.score_quantile.confident_score`).
     """
 
     mixture: MixtureState
@@ -572,7 +569,7 @@ def init_cmt(
             boxes=jnp.zeros((max_components, 4), jnp.float32),
             runs=jnp.zeros((max_components,), jnp.int32),
         ),
-        score_counts=jnp.zeros((SCORE_BINS,), jnp.float32),
+        score_counts=init_counts(),
     )
 
 
@@ -744,38 +741,6 @@ def cmt_filter(
         num_features=num_features(),
     )
     return Filter(init=init, step=step)
-
-
-def count_scores(
-    counts: Float[Array, " score_bins"], blobs: Detections
-) -> Float[Array, " score_bins"]:
-    """``counts`` with the frame's blob scores added (bins of width ``1 / SCORE_BINS`` on
-    ``[0, 1]``; scores outside go to the end bins)."""
-    bins = jnp.clip(jnp.floor(blobs.scores * SCORE_BINS), 0, SCORE_BINS - 1).astype(jnp.int32)
-    return counts.at[bins].add(blobs.mask.astype(counts.dtype))
-
-
-def confident_score(
-    counts: Float[Array, " score_bins"],
-    confirm_score: Float[Array, ""],
-    quantile: Float[Array, ""],
-) -> Float[Array, ""]:
-    """The score from which a blob confirms a component: ``confirm_score``, or the lower edge
-    of the bin that holds the ``quantile`` of the counted scores when that is lower.
-
-    Not in the paper. A fixed score means different things for different detectors: 68 % of
-    the PETS09-S2L1 detections score 0.97 or more, 4.8 % of the synthetic scenes' (whose
-    true detections score 0.8 on average), where 720 of CMT's 1,552 dropped boxes on the
-    development scenes lay under a component that followed the person but was never
-    confirmed. A quantile of the detector's own scores is the same test for every detector.
-    With fewer than :data:`MIN_SCORES` blobs counted (a quantile of a few frames' scores is
-    noise), or ``quantile`` >= 1, ``confirm_score``.
-    """
-    total = jnp.sum(counts)
-    below = jnp.cumsum(counts) < quantile * total
-    edge = jnp.sum(below).astype(jnp.float32) / SCORE_BINS
-    learned = (total >= MIN_SCORES) & (quantile < 1)
-    return jnp.where(learned, jnp.minimum(confirm_score, edge), confirm_score)
 
 
 def _confirms(

@@ -95,6 +95,7 @@ from jaxtrack.filters.hier_reassociation import (
     own_track_gate,
     reassociate,
 )
+from jaxtrack.filters.score_quantile import confident_score, count_scores, init_counts
 from jaxtrack.types import PAD_BOX, FrameInputs, Tracks
 
 #: The variants this module steps (``"kalman"`` is the Kalman baseline's filter).
@@ -161,6 +162,7 @@ class HierarchicalParams(NamedTuple):
     min_score: Float[Array, ""]
     resume_frames: Float[Array, ""]
     confirm_score: Float[Array, ""]
+    confirm_quantile: Float[Array, ""]
     score_weight: Float[Array, ""]
 
 
@@ -194,11 +196,14 @@ class HighState(NamedTuple):
 
 
 class HierarchicalState(NamedTuple):
-    """The low-level bank, the high-level trackers and their appearance."""
+    """The low-level bank, the high-level trackers and their appearance; ``score_counts``,
+    the histogram of every detection score read so far
+    (:func:`~jaxtrack.filters.score_quantile.confident_score`)."""
 
     low: LowState
     high: HighState
     appearance: AppearanceTable
+    score_counts: Float[Array, " score_bins"]
 
 
 class HierarchicalInfo(NamedTuple):
@@ -266,6 +271,7 @@ def init_hierarchical(
         low=init_low(num_tracks, measurement),
         high=init_high(num_trackers),
         appearance=init_table(num_trackers, NUM_CURRENT, NUM_LONGRUN),
+        score_counts=init_counts(),
     )
 
 
@@ -462,12 +468,15 @@ def hierarchical_step(
     del key
     detections = inputs.detections
     num_tracks = state.low.alive.shape[0]
+    readable = detections.mask & (detections.scores >= params.min_score)
+    counts = count_scores(state.score_counts, detections._replace(mask=readable))
+    threshold = confident_score(counts, params.confirm_score, params.confirm_quantile)
     low, low_info = low_step(
         state.low,
         params.low,
         measurements_of(detections.boxes, measurement),
-        detections.mask & (detections.scores >= params.min_score),
-        detections.scores >= params.confirm_score,
+        readable,
+        detections.scores >= threshold,
         params.score_weight * score_log_odds(detections.scores, SCORE_CLIP),
         measurement=measurement,
     )
@@ -477,7 +486,7 @@ def hierarchical_step(
     ones = jnp.ones((num_tracks,), boxes.dtype)
     own_ids = low.ids + 1
     if variant == "managed":
-        state = state._replace(low=low)
+        state = state._replace(low=low, score_counts=counts)
         info = _info(
             _tracks(boxes, own_ids, measured & low.confirmed, ones),
             _tracks(boxes, own_ids, measured, ones),
@@ -557,7 +566,7 @@ def hierarchical_step(
         .at[jnp.where(following, slot, num_tracks)]
         .set(high.ids, mode="drop")
     )
-    state = HierarchicalState(low, high, table)
+    state = HierarchicalState(low, high, table, counts)
     info = _info(
         _tracks(high.boxes, high.ids, shown, jnp.ones_like(high.boxes[:, 0])),
         _tracks(boxes, jnp.where(label >= 0, label, own_ids), measured, ones),

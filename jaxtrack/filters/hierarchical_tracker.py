@@ -65,6 +65,10 @@ NEWBORN_SECONDS = 0.0
 #: tracker's appearance (8 frames at 25 fps, two thirds of the coasting the low level allows:
 #: time enough for one person to step out where another went behind something).
 RESUME_SECONDS = 0.32
+#: Default ``confirm_quantile``: a track is also confirmed by a detection scoring at least
+#: the 75th percentile of the detector's scores seen so far, when that is below
+#: :data:`CONFIRM_SCORE` (:mod:`~jaxtrack.filters.score_quantile`; CMT's value, not tuned).
+CONFIRM_QUANTILE = 0.75
 #: Seconds a new tracker is entering (the event module's default, 25 frames at 25 fps).
 ENTERING_SECONDS = 1.0
 #: Grey level of the background image when no background model is given (direct API use;
@@ -131,6 +135,16 @@ class HierarchicalConfig(TrackerConfig):
             float,
             0.0,
             1e6,
+        ),
+    )
+    confirm_quantile: float = setting(
+        CONFIRM_QUANTILE,
+        Rule(
+            "... or, when lower, at least this quantile of every detection score read so far "
+            "(jaxtrack.filters.score_quantile; 1: off)",
+            float,
+            0.0,
+            1.0,
         ),
     )
     score_weight: float = setting(
@@ -240,6 +254,7 @@ def hierarchical_params(
         background=jnp.asarray(background),
         min_score=jnp.float32(config.min_score),
         confirm_score=jnp.float32(config.confirm_score),
+        confirm_quantile=jnp.float32(config.confirm_quantile),
         score_weight=jnp.float32(config.score_weight),
         resume_frames=jnp.float32(
             max(round(config.resume_seconds * fps), 1) if config.resume_seconds > 0 else jnp.inf
@@ -353,5 +368,6 @@ def hierarchical_properties(params: Any) -> Any:
         resume_frames=named("resume_frames"),
         min_score=named("min_score"),
         confirm_score=named("confirm_score"),
+        confirm_quantile=named("confirm_quantile"),
         score_weight=named("score_weight"),
     )

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from jaxtrack.filters.base import run
-from jaxtrack.filters.cmt import MIN_SCORES, SCORE_BINS, confident_score, count_scores
 from jaxtrack.filters.cmt_tracker import CONFIRM_SCORE, CMTConfig, build_cmt
+from jaxtrack.filters.score_quantile import MIN_SCORES, SCORE_BINS, confident_score, count_scores
 from jaxtrack.types import Detections
 from tests.filters.test_cmt import COLOURS, INFO, SMALL, scene, walkers
 

@@ -137,3 +137,31 @@ def test_a_persistent_weak_false_detection_is_not_output_but_the_target_is_whole
         assert clutter.any() == (name == "paper"), name
         assert np.unique(rows.ids[target]).size == 1, name
         assert sorted(rows.frames[target].tolist()) == list(range(1, num_frames + 1)), name
+
+
+@pytest.mark.parametrize("variant", ["managed", "full"])
+def test_a_detector_whose_scores_never_reach_confirm_score_confirms_by_its_own_quantile(variant):
+    """Target detections scoring 0.8 and a false one scoring 0.6, every frame: no detection
+    reaches ``confirm_score`` 0.97, so with ``confirm_quantile`` 1 (off) nothing is output.
+    By default (0.75) the bar is the 75th percentile of the scores seen so far once 100 are
+    counted (frame 50, two a frame): 0.8, so the target is confirmed and output whole (its
+    tentative rows kept) and the false detection is still not."""
+    num_frames = 70
+    inputs = _scene(num_frames, np.full(num_frames, 0.8), 0.6)
+    background = np.full((SIZE[1], SIZE[0], 3), 128, np.uint8)
+    assert HierarchicalConfig().confirm_quantile == 0.75
+    for quantile, expected in ((1.0, []), (0.75, list(range(1, num_frames + 1)))):
+        config = HierarchicalConfig(
+            variant=variant, max_tracks=8, max_trackers=8, confirm_quantile=quantile
+        )
+        filt, params = build_hierarchical(config, INFO, background)
+        _, info = jax.jit(lambda k, p, i, f=filt: run(f, k, p, i))(
+            jax.random.PRNGKey(0), params, inputs
+        )
+        rows = output_rows(jax.device_get(info), config, 1)
+        target = np.abs(rows.boxes[:, 1] - 20.0) < 4
+        assert not (np.abs(rows.boxes[:, 1] - 70.0) < 4).any(), quantile
+        assert sorted(rows.frames[target].tolist()) == expected, quantile
+        assert np.unique(rows.ids[target]).size == len(expected[:1]), quantile
+        confirmed = np.asarray(info.low.newly_confirmed).any(axis=1)
+        assert np.flatnonzero(confirmed).tolist() == ([49] if expected else []), quantile
