@@ -23,6 +23,7 @@ from jaxtrack.filters.hier_events import (
     MIN_GROUP_SECONDS,
     drop_short_groups,
     label_exits,
+    moving_ends,
     rows_at_zones,
     unlabel_entries,
 )
@@ -157,13 +158,13 @@ def event_rows(
     last_frame = first_frame + num_frames - 1
     min_frames = max(1, round(MIN_GROUP_SECONDS * (frame_rate or 25.0)))
     codes = drop_short_groups(frames, identities, _filled(identities, codes), min_frames)
-    at_zone = None
+    boxes = rows.boxes[order]
+    passage = moving_ends(frames, identities, boxes, frame_rate or 25.0)
     if image_size is not None:
-        boxes = rows.boxes[order]
         at_zone = rows_at_zones(frames, identities, boxes, (first_frame, last_frame), image_size)
-    if at_zone is not None:
-        codes = unlabel_entries(frames, identities, codes, at_zone)
-    codes = label_exits(frames, identities, codes, last_frame, at_zone=at_zone)
+        passage = passage if at_zone is None else passage & at_zone
+    codes = unlabel_entries(frames, identities, codes, passage)
+    codes = label_exits(frames, identities, codes, last_frame, at_zone=passage)
     names = np.asarray(EVENT_NAMES, dtype=object)[codes] if codes.size else np.array([], object)
     return EventRows(frames.astype(np.int64), identities.astype(np.int64), names)
 

@@ -24,6 +24,7 @@ from jaxtrack.filters.hier_events import (
     event_step,
     is_group_birth,
     label_exits,
+    moving_ends,
     rows_at_zones,
     unlabel_entries,
 )
@@ -338,3 +339,43 @@ def test_drop_short_groups_against_a_loop():
         k = int(rng.integers(1, 6))
         got = drop_short_groups(np.arange(30), np.zeros(30, int), codes, k)
         assert got.tolist() == drop_short_oracle(codes.tolist(), k)
+
+
+def _track(speeds, height=50.0):
+    """One track's boxes, its foot point moving ``speeds[k]`` box heights per frame."""
+    x = np.concatenate([[0.0], np.cumsum(speeds)]) * height
+    return np.stack([x, np.full_like(x, 100.0), np.full_like(x, 20.0), np.full_like(x, height)], 1)
+
+
+def test_moving_ends_walkers_pass_still_tracks_do_not():
+    """Passages by motion: the six walkers of :func:`walks` (5 box heights a second at 25
+    frames/s) may enter and exit; a track that stands still neither enters nor exits; one
+    that walks in and then stands still enters only; a one-row track does neither."""
+    frames, ids, boxes = walks()
+    assert moving_ends(frames, ids, boxes, 25.0).all()
+    walk_then_stand = _track([0.2] * 30 + [0.0] * 60)
+    still = _track([0.001] * 90)
+    boxes = np.concatenate([walk_then_stand, still, still[:1]])
+    frames = np.concatenate([np.arange(91), np.arange(91), [5]])
+    ids = np.repeat([1, 2, 3], [91, 91, 1])
+    moving = moving_ends(frames, ids, boxes, 25.0)
+    assert moving[0] and not moving[90]  # walks in, stands at the end
+    assert not moving[91] and not moving[181]  # stands throughout
+    assert not moving[182]  # one row
+    assert moving[1:90].all() and moving[92:181].all()  # inner rows are never refused
+    # the end is not an exit: label_exits, with the motion as the gate, leaves it single
+    events = label_exits(frames, ids, np.full(len(ids), SINGLE), 500, 4, at_zone=moving)
+    assert not (events == EXITING).any()
+
+
+@pytest.mark.parametrize(("speed", "passes"), [(0.2, False), (0.3, True)])
+def test_moving_ends_threshold_is_the_speed_over_the_first_and_last_second(speed, passes):
+    """A track walking at ``speed`` box heights a second for 3 s at 10 frames/s: over its
+    first and last second (10 frames) the foot point moves ``speed`` heights, against the
+    default 0.25 a second."""
+    boxes = _track([speed / 10.0] * 30)
+    moving = moving_ends(np.arange(31), np.ones(31, int), boxes, 10.0)
+    assert moving[0] == passes and moving[-1] == passes
+    # a stricter or a looser threshold decides the other way
+    other = moving_ends(np.arange(31), np.ones(31, int), boxes, 10.0, min_speed=speed + 0.05)
+    assert not other[0] and not other[-1]

@@ -208,10 +208,13 @@ def test_event_rows_follow_the_results_and_label_exits():
         [[-1, -1]] * 4,
         [[SINGLE, ENTERING], [SINGLE, ENTERING], [GROUPING, SINGLE], [GROUPING, SINGLE]],
     )
+    # identity 4 walks (1 box height a frame): an exit by its motion (moving_ends)
+    boxes = np.zeros((7, 4))
+    boxes[4:] = [[10.0, 0.0, 1.0, 1.0], [11.0, 0.0, 1.0, 1.0], [12.0, 0.0, 1.0, 1.0]]
     rows = MotTable.from_arrays(
         np.array([11, 12, 13, 14, 10, 11, 12]),
         np.array([3, 3, 3, 3, 4, 4, 4]),
-        np.zeros((7, 4)),
+        boxes,
         np.ones(7),
     )
     # at 1 frame/s half a second is under a frame: every group episode is kept
@@ -233,6 +236,11 @@ def test_event_rows_follow_the_results_and_label_exits():
     assert got[(10, 4)] == "exiting" and got[(12, 4)] == "exiting"
     assert len(events.frames) == len(rows.frames)
     assert EXITING == 5
+    # standing still at the same place, identity 4 does not leave: no exit
+    still_boxes = np.where(np.arange(7)[:, None] >= 4, [[10.0, 0, 1, 1]], 0.0)
+    still = MotTable.from_arrays(rows.frames, rows.ids, still_boxes, rows.confs)
+    static = event_rows(outputs, still, first_frame=11, frame_rate=1.0)
+    assert "exiting" not in static.names[static.ids == 4].tolist()
 
 
 @pytest.mark.parametrize("variant", ["managed", "full", "kalman"])
