@@ -80,6 +80,7 @@ from jaxtrack.filters.hier_events import (
     event_step,
     is_group_birth,
 )
+from jaxtrack.filters.hier_exchanges import exchanges, model_distances
 from jaxtrack.filters.hier_low import (
     LowInfo,
     LowParams,
@@ -164,6 +165,7 @@ class HierarchicalParams(NamedTuple):
     confirm_score: Float[Array, ""]
     confirm_quantile: Float[Array, ""]
     score_weight: Float[Array, ""]
+    exchange_margin: Float[Array, ""]
 
 
 class HighState(NamedTuple):
@@ -181,6 +183,8 @@ class HighState(NamedTuple):
         age: frames since it was started.
         reassociated: it took a new track after being lost (not a new target).
         event: its event state (:data:`~jaxtrack.filters.hier_events.EVENT_NAMES`).
+        partners: ``[S, S]``, the followed trackers it collided with since they were last
+            both single (:mod:`~jaxtrack.filters.hier_exchanges`).
     """
 
     ids: Int[Array, " S"]
@@ -193,6 +197,7 @@ class HighState(NamedTuple):
     age: Int[Array, " S"]
     reassociated: Bool[Array, " S"]
     event: Int[Array, " S"]
+    partners: Bool[Array, "S S"]
 
 
 class HierarchicalState(NamedTuple):
@@ -259,6 +264,7 @@ def init_high(num_slots: int) -> HighState:
         age=zeros,
         reassociated=false,
         event=zeros,
+        partners=jnp.zeros((num_slots, num_slots), bool),
     )
 
 
@@ -454,6 +460,50 @@ def _check_resumed(
     return high, low, released, pairs
 
 
+def _undo_exchanges(
+    high: HighState,
+    collisions: Bool[Array, "S S"],
+    following: Bool[Array, " S"],
+    checkable: Bool[Array, " S"],
+    table: AppearanceTable,
+    histograms: Float[Array, "T 49 64"],
+    params: HierarchicalParams,
+) -> HighState:
+    """Two trackers that collided and are single again swap their tracks when each one's
+    appearance model is nearer the other's box (:mod:`~jaxtrack.filters.hier_exchanges`).
+
+    Args:
+        high: the trackers after this frame's births.
+        collisions: this frame's collision map of ``high.boxes``.
+        following: the trackers that follow a low-level track (not born on this frame: a
+            slot's partners are those of its tracker).
+        checkable: those measured, confirmed, single and not group trackers on the frame.
+        table: the appearance models (frozen since the trackers last were single).
+        histograms: each low-level slot's histograms on the frame.
+        params: ``exchange_margin`` and the appearance's ``min_updates``.
+
+    Returns:
+        The trackers, swapped pairs exchanged (track, identity of the track, box, velocity),
+        every pair of checkable trackers' episode closed.
+    """
+    both = following[:, None] & following[None, :]
+    partners = (high.partners | collisions) & both
+    slot = jnp.clip(high.low_slot, 0)
+    distances, trained = model_distances(table, histograms[slot], params.appearance.min_updates)
+    able = checkable & trained
+    partner = exchanges(distances, partners & able[:, None] & able[None, :], params.exchange_margin)
+    swap = partner >= 0
+    source = jnp.where(swap, partner, jnp.arange(partner.shape[0]))
+    closed = checkable[:, None] & checkable[None, :]
+    return high._replace(
+        low_slot=high.low_slot[source],
+        low_id=high.low_id[source],
+        boxes=high.boxes[source],
+        velocity=high.velocity[source],
+        partners=partners & ~closed,
+    )
+
+
 def hierarchical_step(
     key: Array,
     state: HierarchicalState,
@@ -539,6 +589,10 @@ def hierarchical_step(
     collisions = collision_map(high.boxes, alive, params.events.min_overlap)
     single = ~jnp.any(collisions, axis=1)
     table = reset_slots(state.appearance, new.born)
+    checkable = following & measured[slot] & low.confirmed[slot] & single & ~high.group
+    fresh = following & ~new.born
+    high = _undo_exchanges(high, collisions, fresh, checkable, table, histograms, params)
+    slot = jnp.clip(high.low_slot, 0)
     update = following & measured[slot] & low.confirmed[slot] & single & ~high.group
     table = update_appearance(
         table,

@@ -33,6 +33,7 @@ from jaxtrack.filters.base import Filter, frame_rate
 from jaxtrack.filters.hier_appearance import PATCH_SHAPE
 from jaxtrack.filters.hier_appearance import default_params as default_appearance_params
 from jaxtrack.filters.hier_events import default_event_params
+from jaxtrack.filters.hier_exchanges import DEFAULT_MARGIN
 from jaxtrack.filters.hier_low_defaults import DEFAULT_NOISE, low_params
 from jaxtrack.filters.hier_low_noise import estimate_box_noise
 from jaxtrack.filters.hierarchical import HierarchicalParams, hierarchical_filter
@@ -147,6 +148,17 @@ class HierarchicalConfig(TrackerConfig):
             1.0,
         ),
     )
+    exchange_margin: float = setting(
+        DEFAULT_MARGIN,
+        Rule(
+            "two trackers that collided swap their tracks once both are single again when "
+            "their appearance models are nearer each other's box by this much (sum of mean "
+            "Bhattacharyya distances; jaxtrack.filters.hier_exchanges; negative: never)",
+            float,
+            -1.0,
+            10.0,
+        ),
+    )
     score_weight: float = setting(
         1.0,
         Rule(
@@ -255,6 +267,9 @@ def hierarchical_params(
         min_score=jnp.float32(config.min_score),
         confirm_score=jnp.float32(config.confirm_score),
         confirm_quantile=jnp.float32(config.confirm_quantile),
+        exchange_margin=jnp.float32(
+            config.exchange_margin if config.exchange_margin >= 0 else jnp.inf
+        ),
         score_weight=jnp.float32(config.score_weight),
         resume_frames=jnp.float32(
             max(round(config.resume_seconds * fps), 1) if config.resume_seconds > 0 else jnp.inf
@@ -369,5 +384,6 @@ def hierarchical_properties(params: Any) -> Any:
         min_score=named("min_score"),
         confirm_score=named("confirm_score"),
         confirm_quantile=named("confirm_quantile"),
+        exchange_margin=named("exchange_margin"),
         score_weight=named("score_weight"),
     )
