@@ -86,8 +86,10 @@ level's noise measured on the tracked detections, except on the ``bs`` blobs, wh
 a priori noise; "estimated"; "default"), ``min_score``, ``confirm_score`` (0.97: a low-level
 track is confirmed only once it has held a detection scoring this; 0: the paper's rule),
 ``confirm_quantile`` (0.75: or, when lower, the 75th percentile of the detector's scores
-seen so far; 1: off), ``score_weight`` (1: the detections' score log-odds lower the
-association cost; 0: the paper's cost), ``output``, ``max_gap``; the noise used
+seen so far; 1: off), ``exchange_margin`` (0.1: two trackers that collided swap their
+tracks once apart when each one's appearance is nearer the other's box; negative: never),
+``score_weight`` (1: the detections' score log-odds lower the association cost; 0: the
+paper's cost), ``output``, ``max_gap``; the noise used
 is printed and recorded in ``RES.config.json`` (``low_noise``).
 
 ``--tracker fusion`` runs the context-aware multi-tracker Fusion tracker (SPEC section 3,

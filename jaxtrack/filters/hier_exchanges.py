@@ -27,6 +27,14 @@ output tracks; models the mean of each track's last 10 single frames before the 
 frame after it): of 207 collision episodes, the 5 exchanges had ``D(i, i) + D(j, j) - D(i,
 j) - D(j, i)`` of 0.23 to 0.66, every kept pair below -0.6 (the 5 % quantile -0.82), so a
 margin of 0.1 (:data:`DEFAULT_MARGIN`) is far from both.
+
+As built (session 47; the same twelve development scenes, full tracker, tracker seed 0,
+MOTA / IDF1 / IDSW, before -> after): detections 93.1 / 84.0 / 78 -> 93.1 / 85.5 / 90, blobs
+57.1 / 54.5 / 605 -> 57.1 / 54.8 / 611; crossings whose identities were kept 18 -> 20 of 24
+on the detections; the scripted occlusions and group walks 49 -> 49 of 87. IDSW rises: an
+exchange undone once the pair is apart is a second switch for each person (CLEAR MOT counts
+the exchange and the return), while IDF1, the share of each person's frames under one
+identity, rises.
 """
 
 from __future__ import annotations

@@ -29,6 +29,11 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
 4. **New trackers**: a confirmed track no lost tracker takes starts a high-level tracker with
    a new identity (the low-level track's); it is a *group* tracker when it is born colliding
    with two or more trackers (Sec. 5.1). Its appearance starts from the frame's histograms.
+4b. **Exchanges undone** (beyond the paper, :mod:`~jaxtrack.filters.hier_exchanges`): two
+   trackers that collided since they were last both single, and are single again, swap
+   their tracks when each one's appearance model is nearer the other's box by
+   ``exchange_margin`` (the low level's nearest-measurement association may have exchanged
+   two people where they met; no track was lost, so step 3 cannot see it).
 5. **Appearance update** (Sec. 5.2-5.3): a tracker whose track is confirmed and measured on
    the frame, that is single (it collides with no other tracker) and not a group tracker,
    re-ranks its 49 colour features against the background model and updates its pool and
