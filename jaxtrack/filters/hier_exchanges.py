@@ -50,21 +50,22 @@ from jaxtrack.filters.hier_appearance import AppearanceTable
 DEFAULT_MARGIN = 0.1
 
 
+def trained_features(table: AppearanceTable, min_updates: Float[Array, ""]) -> Bool[Array, "S 49"]:
+    """Which feature models of each tracker have at least ``min_updates`` updates."""
+    return table.models.count >= min_updates
+
+
 def model_distances(
     table: AppearanceTable,
     histograms: Float[Array, "S 49 64"],
-    min_updates: Float[Array, ""],
-) -> tuple[Float[Array, "S S"], Bool[Array, " S"]]:
-    """``D[s, t]``: the mean Bhattacharyya distance of tracker ``s``'s trained feature
-    models to ``histograms[t]`` (module docstring), and whether each tracker has a trained
-    feature (``D`` is 0 in the rows of those that have none)."""
-    trained = table.models.count >= min_updates  # [S, 49]
-    distance = jax.vmap(lambda model: bhattacharyya_distance(model[None], histograms), out_axes=0)(
-        table.models.histogram
-    )  # [S, S, 49]
-    weight = trained[:, None, :].astype(distance.dtype)
-    mean = jnp.sum(distance * weight, axis=-1) / jnp.maximum(jnp.sum(weight, axis=-1), 1.0)
-    return mean, jnp.any(trained, axis=-1)
+    trained: Bool[Array, "S 49"],
+) -> Float[Array, "S S"]:
+    """``D[s, t]``: the mean Bhattacharyya distance of tracker ``s``'s ``trained`` feature
+    models (:func:`trained_features`) to ``histograms[t]`` (module docstring); 0 in the rows
+    of trackers with no trained feature."""
+    distance = bhattacharyya_distance(table.models.histogram[:, None], histograms[None])
+    weight = trained[:, None, :].astype(distance.dtype)  # distance: [S, S, 49]
+    return jnp.sum(distance * weight, axis=-1) / jnp.maximum(jnp.sum(weight, axis=-1), 1.0)
 
 
 def exchanges(

@@ -62,6 +62,7 @@ from __future__ import annotations
 import functools
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int, UInt8
 
@@ -85,7 +86,7 @@ from jaxtrack.filters.hier_events import (
     event_step,
     is_group_birth,
 )
-from jaxtrack.filters.hier_exchanges import exchanges, model_distances
+from jaxtrack.filters.hier_exchanges import exchanges, model_distances, trained_features
 from jaxtrack.filters.hier_low import (
     LowInfo,
     LowParams,
@@ -493,10 +494,18 @@ def _undo_exchanges(
     """
     both = following[:, None] & following[None, :]
     partners = (high.partners | collisions) & both
-    slot = jnp.clip(high.low_slot, 0)
-    distances, trained = model_distances(table, histograms[slot], params.appearance.min_updates)
-    able = checkable & trained
-    partner = exchanges(distances, partners & able[:, None] & able[None, :], params.exchange_margin)
+    trained = trained_features(table, params.appearance.min_updates)
+    able = checkable & jnp.any(trained, axis=-1)
+    ready = partners & able[:, None] & able[None, :]
+
+    def check(_):
+        boxes = histograms[jnp.clip(high.low_slot, 0)]
+        distances = model_distances(table, boxes, trained)
+        return exchanges(distances, ready, params.exchange_margin)
+
+    # The [S, S, 49] distances only on frames where a pair is to be checked (most have none).
+    unswapped = jnp.full(high.ids.shape, -1, jnp.int32)
+    partner = jax.lax.cond(jnp.any(ready), check, lambda _: unswapped, None)
     swap = partner >= 0
     source = jnp.where(swap, partner, jnp.arange(partner.shape[0]))
     closed = checkable[:, None] & checkable[None, :]
@@ -598,7 +607,8 @@ def hierarchical_step(
     fresh = following & ~new.born
     high = _undo_exchanges(high, collisions, fresh, checkable, table, histograms, params)
     slot = jnp.clip(high.low_slot, 0)
-    update = following & measured[slot] & low.confirmed[slot] & single & ~high.group
+    # A swap exchanges two checkable trackers' tracks: the set to update is unchanged.
+    update = checkable
     table = update_appearance(
         table,
         histograms[slot],

@@ -156,10 +156,11 @@ def event_rows(
         np.int64,
     )
     last_frame = first_frame + num_frames - 1
-    min_frames = max(1, round(MIN_GROUP_SECONDS * (frame_rate or 25.0)))
+    rate = frame_rate or 25.0
+    min_frames = max(1, round(MIN_GROUP_SECONDS * rate))
     codes = drop_short_groups(frames, identities, _filled(identities, codes), min_frames)
     boxes = rows.boxes[order]
-    passage = moving_ends(frames, identities, boxes, frame_rate or 25.0)
+    passage = moving_ends(frames, identities, boxes, rate)
     if image_size is not None:
         at_zone = rows_at_zones(frames, identities, boxes, (first_frame, last_frame), image_size)
         passage = passage if at_zone is None else passage & at_zone

@@ -8,7 +8,12 @@ import pytest
 
 from jaxtrack.appearance.model import init_model
 from jaxtrack.filters.hier_appearance import NUM_BINS, NUM_FEATURES, init_table
-from jaxtrack.filters.hier_exchanges import DEFAULT_MARGIN, exchanges, model_distances
+from jaxtrack.filters.hier_exchanges import (
+    DEFAULT_MARGIN,
+    exchanges,
+    model_distances,
+    trained_features,
+)
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
 from tests.filters.test_cmt import COLOURS, scene
 from tests.filters.test_hierarchical import tracked
@@ -34,7 +39,10 @@ def test_model_distances_match_a_numpy_oracle():
             count=jnp.asarray(counts, jnp.float32)
         )
     )
-    got, trained = model_distances(table, jnp.asarray(boxes, jnp.float32), jnp.float32(3))
+    trained = trained_features(table, jnp.float32(3)).any(axis=-1)
+    got = model_distances(
+        table, jnp.asarray(boxes, jnp.float32), trained_features(table, jnp.float32(3))
+    )
     coefficient = np.sqrt(models[:, None] * boxes[None]).sum(-1)  # [S, T, 49]
     distance = np.sqrt(np.maximum(1 - coefficient, 0))
     expected = np.zeros((3, 3))
