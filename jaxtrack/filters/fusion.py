@@ -156,6 +156,8 @@ class FusionParams(NamedTuple):
         signature_rate: learning-rate floor of the signature models.
         reid_radius: re-identification vicinity, in new-box heights.
         reid_gate: largest signature distance of a re-identification.
+        appearance_weight: weight of a target's signature distance to a detection in the
+            assignment cost (0: motion alone).
     """
 
     classifier: ClassifierParams
@@ -175,6 +177,7 @@ class FusionParams(NamedTuple):
     signature_rate: Float[Array, ""]
     reid_radius: Float[Array, ""]
     reid_gate: Float[Array, ""]
+    appearance_weight: Float[Array, ""]
 
 
 class FusionState(NamedTuple):
@@ -339,7 +342,13 @@ def fusion_step(
     iou = iou_matrix(predicted, detections.boxes, xp=jnp)
     gated = distances <= params.chi2_gate
     near = jnp.maximum(iou, iou_matrix(state.boxes, detections.boxes, xp=jnp)) >= params.gate
-    match = _assign(cost, gated & near, detections, target, jnp.zeros((num_detections,), bool))
+    stored = state.signature.histogram
+    detection_sig = _signatures(frame, detections.boxes).histograms
+    appearance = signature_distance(stored[:, None], detection_sig[None, :])
+    target_cost = cost + params.appearance_weight * appearance
+    match = _assign(
+        target_cost, gated & near, detections, target, jnp.zeros((num_detections,), bool)
+    )
     taken = _taken(match, num_detections)
     match_h = _assign(cost, gated & (iou >= params.gate), detections, tentative, taken)
     match = jnp.where(target, match, match_h)
@@ -379,7 +388,6 @@ def fusion_step(
     # appearance of every response against the stored signature and against each other
     flat = members.reshape(-1, 4)
     member_sig = _signatures(frame, flat).histograms.reshape(num_slots, len(MEMBERS), 2, -1)
-    stored = state.signature.histogram
     similarity = 1.0 - signature_distance(stored[:, None], member_sig)
     pair_similarity = 1.0 - signature_distance(member_sig[:, :, None], member_sig[:, None, :])
     past, past_valid = _speed_history(state.history, state.count)

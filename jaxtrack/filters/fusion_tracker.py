@@ -75,6 +75,12 @@ OCCLUSION_Q = 0.3
 SIGNATURE_RATE = 0.1
 #: Re-identification vicinity (new-box heights) and largest signature distance.
 REID_RADIUS, REID_GATE = 2.0, 0.35
+#: Weight of a target's signature distance to a detection in the assignment cost (beside
+#: ``d^2 + log |S|``; session 48). Chosen among 0, 3, 10, 30, 60 and 150 on development data
+#: only (PETS09-S2L1 1:397 and synthetic video seeds 0-2, 4-6 with their detections; IDF1
+#: rose from 30 to 150 alike on the scenes, 60 was best on PETS), then confirmed on the
+#: same data's blobs.
+APPEARANCE_WEIGHT = 60.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,6 +133,17 @@ class FusionConfig(TrackerConfig):
     init_rule: str = setting("share", INIT_RULE)
     learning_rate: float = setting(
         0.35, Rule("the classifier's learning rate lambda (paper: 0.35 on PETS)", float, 0, 1)
+    )
+    appearance_weight: float = setting(
+        APPEARANCE_WEIGHT,
+        Rule(
+            "weight of a target's signature distance (in [0, 1]) to a detection in the "
+            "detection member's assignment cost, beside the Mahalanobis distance (0: motion "
+            "alone)",
+            float,
+            0.0,
+            1000.0,
+        ),
     )
     max_targets: int = setting(32, Rule("slots for targets and hypotheses", int, 1, 1024))
     output: str = setting("offline", OUTPUT)
@@ -204,6 +221,7 @@ def fusion_params(
         signature_rate=jnp.float32(SIGNATURE_RATE),
         reid_radius=jnp.float32(REID_RADIUS),
         reid_gate=jnp.float32(REID_GATE),
+        appearance_weight=jnp.float32(config.appearance_weight),
     )
 
 

@@ -142,6 +142,54 @@ def test_the_detection_members_mahalanobis_gate_refuses_a_jump_the_iou_gate_woul
     )
 
 
+@pytest.mark.parametrize("weight", [0.0, None])
+def test_the_signature_term_keeps_crossing_targets_on_their_own_detections(weight):
+    # two targets predicted 2 px apart between two people who stand 20 px apart: by motion
+    # alone each takes the person on its own side, which swaps the two (target 1 is dressed
+    # as the person on the right); the signature distance in the cost puts each on its own
+    # person (weight None: the default)
+    config = FusionConfig(max_targets=4)
+    if weight is not None:
+        config = FusionConfig(max_targets=4, appearance_weight=weight)
+    assert config.appearance_weight > 0 or weight == 0.0
+    filt, params = build_fusion(config, INFO)
+    size = (24.0, 48.0)
+    slots = [(57.0, 40.0, *size), (59.0, 40.0, *size)]
+    people = [(68.0, 40.0, *size), (48.0, 40.0, *size)]  # person k dressed in COLOURS[k]
+    seen = [(20.0, 40.0, *size), (110.0, 40.0, *size)]  # where their signatures were taken
+    seen_frame, frame = BACKGROUND.copy(), BACKGROUND.copy()
+    for k in (0, 1):
+        two_tone(seen_frame, seen[k], *COLOURS[k])
+        two_tone(frame, people[k], *COLOURS[k])
+    pad = [(0.0, 0.0, 1.0, 1.0)] * 2
+    stored = _signatures(jnp.asarray(seen_frame), jnp.asarray(seen + pad)).histograms
+    boxes = jnp.asarray(slots + pad, jnp.float32)
+    state = filt.init(jax.random.PRNGKey(0), params)
+    state = state._replace(
+        ids=jnp.asarray([1, 2, -1, -1], jnp.int32),
+        next_id=jnp.int32(3),
+        voting=state.voting._replace(
+            status=jnp.asarray([TARGET, TARGET, EMPTY, EMPTY], jnp.int32),
+            support=jnp.asarray([20, 20, 0, 0], jnp.int32),
+        ),
+        boxes=boxes,
+        history=jnp.broadcast_to(boxes[:, None], state.history.shape),
+        count=jnp.asarray([11, 11, 0, 0], jnp.int32),
+        **_filters_at(boxes, params),
+        signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2))),
+    )
+    detections = Detections(
+        jnp.asarray(people, jnp.float32), jnp.full((2,), 0.99, jnp.float32), jnp.ones(2, bool)
+    )
+    _, info = jax.jit(filt.step)(
+        jax.random.PRNGKey(0), state, params, FrameInputs(detections, jnp.asarray(frame))
+    )
+    assert info.member_valid[:2, 0].all()  # both targets take a detection
+    taken = np.asarray(info.members[:2, 0])
+    expected = people[::-1] if weight == 0.0 else people  # swapped by motion alone
+    np.testing.assert_allclose(taken, np.asarray(expected), atol=1e-4)
+
+
 def test_a_coasting_targets_evidence_is_its_filters_prediction():
     # after the walker's last detection the evidence history (the predictor's tracklet and
     # the speed reference) takes the filter's predicted box, not the fused box
