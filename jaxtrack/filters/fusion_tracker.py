@@ -267,6 +267,7 @@ def fusion_memory_estimate(
     state = slots * (12 * rows * cols + 4 * 2 * 512 + 4 * 64 + 4 * 42 + 256)
     temporaries = slots * (6 * 8 * rows * cols + 4 * (2 * 512 + 16 * samples) * 4)
     temporaries += 4 * slots * capacity * 4
+    temporaries += capacity * (2 * 512 + 16 * samples) * 4  # the detections' signatures
     frame_output = slots * (2 * 25 + 3 * 16 + 3 + 12 + 4)
     chunk = 2 * state + temporaries
     chunk += chunk_frames * (DETECTION_SLOT_BYTES * capacity + frame_output)
@@ -277,7 +278,8 @@ def fusion_properties(params: Any) -> Any:
     """The parameter-properties tree: every parameter frozen (thresholds and learned
     models); named, for sweeps (:func:`~jaxtrack.pipelines.sweep.sweep_frames`):
     ``chi2_gate`` and ``gate`` (detection assignment), ``psr_min`` (classifier response),
-    ``occlusion_q``, ``signature_rate``, ``reid_radius``, ``reid_gate``, ``th_init`` and
+    ``occlusion_q``, ``signature_rate``, ``reid_radius``, ``reid_gate``, ``appearance_weight``
+    (the assignment's signature term), ``th_init`` and
     ``th_term`` (``[3]``: active, inactive and zone regions; a sweep overrides the
     calibrated values) and the classifier's ``learning_rate`` (the configuration key)."""
     props = frozen_properties(params)
@@ -289,6 +291,7 @@ def fusion_properties(params: Any) -> Any:
         "signature_rate",
         "reid_radius",
         "reid_gate",
+        "appearance_weight",
         "th_init",
         "th_term",
     )
