@@ -163,20 +163,17 @@ def test_the_signature_term_keeps_crossing_targets_on_their_own_detections(weigh
         two_tone(frame, people[k], *COLOURS[k])
     pad = [(0.0, 0.0, 1.0, 1.0)] * 2
     stored = _signatures(jnp.asarray(seen_frame), jnp.asarray(seen + pad)).histograms
-    boxes = jnp.asarray(slots + pad, jnp.float32)
-    state = filt.init(jax.random.PRNGKey(0), params)
+    state = _hand_built(
+        filt,
+        params,
+        slots + pad,
+        [1, 2, -1, -1],
+        [TARGET, TARGET, EMPTY, EMPTY],
+        [20, 20, 0, 0],
+        [11, 11, 0, 0],
+    )
     state = state._replace(
-        ids=jnp.asarray([1, 2, -1, -1], jnp.int32),
-        next_id=jnp.int32(3),
-        voting=state.voting._replace(
-            status=jnp.asarray([TARGET, TARGET, EMPTY, EMPTY], jnp.int32),
-            support=jnp.asarray([20, 20, 0, 0], jnp.int32),
-        ),
-        boxes=boxes,
-        history=jnp.broadcast_to(boxes[:, None], state.history.shape),
-        count=jnp.asarray([11, 11, 0, 0], jnp.int32),
-        **_filters_at(boxes, params),
-        signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2))),
+        signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2)))
     )
     detections = Detections(
         jnp.asarray(people, jnp.float32), jnp.full((2,), 0.99, jnp.float32), jnp.ones(2, bool)
@@ -295,6 +292,25 @@ def _filters_at(boxes, params):
     return {"means": means, "covs": covs}
 
 
+def _hand_built(filt, params, boxes, ids, status, support, count):
+    """A state of four slots at ``boxes`` (Kalman filters born there, the history filled
+    with them) with ``ids``, ``status``, ``support`` and evidence ``count``; the next identity
+    after the largest."""
+    boxes = jnp.asarray(boxes, jnp.float32)
+    state = filt.init(jax.random.PRNGKey(0), params)
+    return state._replace(
+        ids=jnp.asarray(ids, jnp.int32),
+        next_id=jnp.int32(max(ids) + 1),
+        voting=state.voting._replace(
+            status=jnp.asarray(status, jnp.int32), support=jnp.asarray(support, jnp.int32)
+        ),
+        boxes=boxes,
+        history=jnp.broadcast_to(boxes[:, None], state.history.shape),
+        count=jnp.asarray(count, jnp.int32),
+        **_filters_at(boxes, params),
+    )
+
+
 def _reidentification_case(new_colours):
     """Slot 0: target 7, occluded, at ``old``; slot 1: hypothesis 9 one detection short of
     th_init (3), detected at ``new`` 12 px to the right, dressed in ``new_colours``."""
@@ -305,19 +321,17 @@ def _reidentification_case(new_colours):
     stored = _signatures(jnp.asarray(stored_frame), jnp.asarray([old] * 4)).histograms
     frame = BACKGROUND.copy()
     two_tone(frame, new, *new_colours)
-    state = filt.init(jax.random.PRNGKey(0), params)
-    boxes = jnp.asarray([old, new, (0, 0, 1, 1), (0, 0, 1, 1)], jnp.float32)
+    pad = (0, 0, 1, 1)
+    state = _hand_built(
+        filt,
+        params,
+        [old, new, pad, pad],
+        [7, 9, -1, -1],
+        [TARGET, TENTATIVE, EMPTY, EMPTY],
+        [5, 2, 0, 0],
+        [11, 2, 0, 0],
+    )
     state = state._replace(
-        ids=jnp.asarray([7, 9, -1, -1], jnp.int32),
-        next_id=jnp.int32(10),
-        voting=state.voting._replace(
-            status=jnp.asarray([TARGET, TENTATIVE, EMPTY, EMPTY], jnp.int32),
-            support=jnp.asarray([5, 2, 0, 0], jnp.int32),
-        ),
-        boxes=boxes,
-        history=jnp.broadcast_to(boxes[:, None], state.history.shape),
-        count=jnp.asarray([11, 2, 0, 0], jnp.int32),
-        **_filters_at(boxes, params),
         signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2))),
         occluded=jnp.asarray([True, False, False, False]),
     )
