@@ -13,10 +13,11 @@ One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each e
 
    * ``detection`` (tracking by detection): the frame's detections are assigned one-to-one to
      the targets' predicted boxes (Hungarian on the Gaussian negative log-likelihood
-     ``d^2 + log |S|``; gates ``d^2 <= chi2_gate`` and ``IoU >= gate`` with the predicted
-     box or the last fused box), then the detections left to the hypotheses (the same,
-     IoU with the predicted box); a target's response is its detection, which updates its
-     filter;
+     ``d^2 + log |S|`` plus ``appearance_weight`` times the signature distance between
+     the target's stored signature and the detection's; gates ``d^2 <= chi2_gate`` and
+     ``IoU >= gate`` with the predicted box or the last fused box), then the detections
+     left to the hypotheses (motion alone, IoU with the predicted box); a target's
+     response is its detection, which updates its filter;
    * ``classifier`` (tracking by classification): a MOSSE correlation filter per target
      (:mod:`~jaxtrack.filters.fusion_classifier`) searching around the last fused box; it
      responds when its peak-to-sidelobe ratio reaches ``psr_min``;
