@@ -387,8 +387,11 @@ def fusion_step(
     valid = valid & target[:, None]
 
     # appearance of every response against the stored signature and against each other
-    flat = members.reshape(-1, 4)
-    member_sig = _signatures(frame, flat).histograms.reshape(num_slots, len(MEMBERS), 2, -1)
+    # the detection member's response, where valid, is its detection, already described
+    others = _signatures(frame, members[:, 1:].reshape(-1, 4)).histograms
+    others = others.reshape(num_slots, len(MEMBERS) - 1, 2, -1)
+    assigned_sig = detection_sig[jnp.clip(match, 0)]
+    member_sig = jnp.concatenate([assigned_sig[:, None], others], axis=1)
     similarity = 1.0 - signature_distance(stored[:, None], member_sig)
     pair_similarity = 1.0 - signature_distance(member_sig[:, :, None], member_sig[:, None, :])
     past, past_valid = _speed_history(state.history, state.count)
