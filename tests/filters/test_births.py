@@ -5,8 +5,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
-from jaxtrack.filters.births import LOG_ZERO, sample_births
+from jaxtrack.filters.births import (
+    LOG_ZERO,
+    UNROLLED_ROWS,
+    log_mixture_density,
+    logsumexp_rows,
+    sample_births,
+)
 from jaxtrack.filters.phd_defaults import uniform_birth_intensity
 from jaxtrack.models import constant_std, log_likelihood
 
@@ -56,3 +63,47 @@ def test_no_detections_no_birth_mass():
         jax.random.key(2), MEASUREMENTS, jnp.zeros(3, bool), 16, BIRTH, BIRTH, STARTED, NOISE
     )
     assert np.all(np.asarray(log_weights) == LOG_ZERO)
+
+
+@pytest.mark.parametrize("rows", [1, 9, UNROLLED_ROWS, UNROLLED_ROWS + 8])
+def test_logsumexp_rows_is_logsumexp(rows):
+    """The row-after-row log-sum-exp keeps ``jax.nn.logsumexp``'s values and gradients up to
+    float32 rounding, masked rows and columns included."""
+    values = np.random.default_rng(rows).normal(0.0, 30.0, (rows, 300)).astype(np.float32)
+    values[rows // 2, :50] = LOG_ZERO
+    values[:, 50:60] = LOG_ZERO
+
+    def reference(x):
+        return jax.nn.logsumexp(x, axis=0)
+
+    got = np.asarray(jax.jit(logsumexp_rows)(values))
+    np.testing.assert_allclose(got, jax.jit(reference)(values), rtol=1e-6, atol=0)
+    assert np.all(got[50:60] == LOG_ZERO + np.float32(np.log(rows)))
+    weights = np.linspace(-1.0, 2.0, 300, dtype=np.float32)
+    np.testing.assert_allclose(
+        jax.jit(jax.grad(lambda x: logsumexp_rows(x) @ weights))(values),
+        jax.jit(jax.grad(lambda x: reference(x) @ weights))(values),
+        rtol=1e-5,
+        atol=1e-7,
+    )
+
+
+@pytest.mark.parametrize("num_slots", [9, UNROLLED_ROWS + 1])
+def test_log_mixture_density_matches_a_float64_reference(num_slots):
+    """Both layouts (rows reduced one by one up to ``UNROLLED_ROWS`` detections, a reduction
+    beyond) against NumPy in float64, padded detections ignored."""
+    rng = np.random.default_rng(num_slots)
+    measurements = np.column_stack(
+        [rng.uniform(50, 600, (num_slots, 2)), rng.uniform(20, 90, (num_slots, 2))]
+    ).astype(np.float32)
+    std = rng.uniform(2.0, 9.0, (num_slots, 4)).astype(np.float32)
+    mask = rng.uniform(size=num_slots) < 0.7
+    points = (measurements[rng.integers(0, num_slots, 400)] + rng.normal(0, 6.0, (400, 4))).astype(
+        np.float32
+    )
+    got = np.asarray(jax.jit(log_mixture_density)(points, measurements, std, mask))
+    offsets = (points[:, None].astype(np.float64) - measurements[None]) / std[None]
+    log_gauss = -0.5 * (offsets**2).sum(-1) - np.log(std).sum(-1)[None] - 2 * np.log(2 * np.pi)
+    top = log_gauss[:, mask].max(-1)
+    expected = top + np.log(np.exp(log_gauss[:, mask] - top[:, None]).sum(-1))
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-3)
