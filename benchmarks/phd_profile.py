@@ -47,7 +47,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from phd_step import FRAME_RATE, HEIGHT, NUM_TARGETS, WIDTH, scene, wall_times
-from timing import add_cpu_threads_option, set_cpu_threads
+from timing import add_cpu_threads_option, set_cpu_threads, set_cpu_vector_width
 
 from jaxtrack.association.labelling import label_step
 from jaxtrack.boxes import xywh_to_cxcywh
@@ -181,6 +181,7 @@ def main() -> None:
     add_cpu_threads_option(parser)
     args = parser.parse_args()
     cpu_threads = set_cpu_threads(args.cpu_threads)
+    vector_width = set_cpu_vector_width(args.vector_width)
     results = []
     for n in args.particles:
         for m in args.detections:
@@ -193,6 +194,7 @@ def main() -> None:
                 "results": results,
                 "cpu_count": os.cpu_count(),
                 "cpu_threads": cpu_threads,
+                "cpu_vector_width": vector_width,
                 "load_average": os.getloadavg(),
                 "platform": platform.platform(),
                 "jax_version": jax.__version__,

@@ -14,7 +14,9 @@ fit in half the slots run on that half; ``track_split_frames_per_s``, its compil
 ``track_split_compile_s``).
 XLA's CPU thread pool is sized as the ``jaxtrack`` command sizes it (one thread,
 :func:`jaxtrack.use_cpu_threads`) unless ``--cpu-threads`` says otherwise (0: XLA's default,
-one per core); ``cpu_threads`` reports the size.
+one per core); ``cpu_threads`` reports the size. Likewise ``--vector-width`` (default 512
+where the CPU has AVX-512, as the command asks, :func:`jaxtrack.use_cpu_vector_width`;
+``cpu_vector_width``, 0 for XLA's default).
 Prints JSON. Usage: ``python benchmarks/phd_sequence.py [--extraction gmm] [--particles N]``.
 """
 
@@ -28,7 +30,7 @@ import time
 
 import jax
 import numpy as np
-from timing import phd_run_parser, sequence_with_phd_params, set_cpu_threads
+from timing import phd_run_parser, sequence_with_phd_params, set_cpu_threads, set_cpu_vector_width
 
 from jaxtrack.filters import phd_filter, run
 from jaxtrack.filters.base import fit_detections
@@ -43,6 +45,7 @@ def main() -> None:
     parser.add_argument("--extraction", choices=["gmm", "partition"], default="partition")
     args = parser.parse_args()
     cpu_threads = set_cpu_threads(args.cpu_threads)
+    vector_width = set_cpu_vector_width(args.vector_width)
 
     sequence, params = sequence_with_phd_params(args.sequence)
     info = sequence.info
@@ -102,6 +105,7 @@ def main() -> None:
                 "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                 "device": str(jax.devices()[0]),
                 "cpu_threads": cpu_threads,
+                "cpu_vector_width": vector_width,
                 "cpu_count": os.cpu_count(),
                 "platform": platform.platform(),
                 "jax_version": jax.__version__,

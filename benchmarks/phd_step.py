@@ -63,7 +63,7 @@ from importlib import metadata
 import jax
 import jax.numpy as jnp
 import numpy as np
-from timing import add_cpu_threads_option, set_cpu_threads
+from timing import add_cpu_threads_option, set_cpu_threads, set_cpu_vector_width
 
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import log_intensity
@@ -692,6 +692,7 @@ def main() -> None:
     add_cpu_threads_option(parser)
     args = parser.parse_args()
     cpu_threads = set_cpu_threads(args.cpu_threads)
+    vector_width = set_cpu_vector_width(args.vector_width)
     if args.quick:
         args.particles, args.detections, args.repeats = [10_000], [8, 32], 3
     load_before = os.getloadavg()
@@ -717,6 +718,7 @@ def main() -> None:
                 "device": str(jax.devices()[0]),
                 "cpu_count": os.cpu_count(),
                 "cpu_threads": cpu_threads,
+                "cpu_vector_width": vector_width,
                 "load_average_1_5_15_min_before_and_after": [load_before, os.getloadavg()],
                 "platform": platform.platform(),
                 "jax_version": jax.__version__,

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from timing import phd_run_parser, sequence_with_phd_params, set_cpu_threads
+from timing import phd_run_parser, sequence_with_phd_params, set_cpu_threads, set_cpu_vector_width
 
 from jaxtrack.filters import phd_filter, run
 
@@ -110,6 +110,7 @@ def main() -> None:
     parser.add_argument("--top", type=int, default=25, help="costliest kernels printed")
     args = parser.parse_args()
     cpu_threads = set_cpu_threads(args.cpu_threads)
+    vector_width = set_cpu_vector_width(args.vector_width)
 
     sequence, params = sequence_with_phd_params(args.sequence)
     info = sequence.info
@@ -147,7 +148,10 @@ def main() -> None:
     traced = sum(micros for micros, _ in per_stage.values())
     launches = sum(count for _, count in per_stage.values())
 
-    print(f"{info.name}, {args.particles} particles, {frames} frames, XLA pool {cpu_threads}")
+    print(
+        f"{info.name}, {args.particles} particles, {frames} frames, XLA pool {cpu_threads}, "
+        f"vector width {vector_width or 'default'}"
+    )
     print(f"untraced: {1e6 * np.median(times) / frames:.1f} us per frame")
     print(
         f"traced kernels: {traced / frames:.1f} us and {launches / frames:.0f} launches per frame"
@@ -169,6 +173,7 @@ def main() -> None:
                 "num_particles": args.particles,
                 "num_frames": frames,
                 "cpu_threads": cpu_threads,
+                "cpu_vector_width": vector_width,
                 "untraced_us_per_frame": 1e6 * float(np.median(times)) / frames,
                 "traced_us_per_frame": traced / frames,
                 "kernel_launches_per_frame": launches / frames,

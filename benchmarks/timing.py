@@ -9,7 +9,14 @@ from pathlib import Path
 
 from jaxtrack.filters import default_phd_params
 from jaxtrack.io import load_sequence
-from jaxtrack.pipelines.runtime import DEFAULT_CPU_THREADS, cpu_thread_pool_size, use_cpu_threads
+from jaxtrack.pipelines.runtime import (
+    DEFAULT_CPU_THREADS,
+    DEFAULT_VECTOR_WIDTH,
+    cpu_thread_pool_size,
+    cpu_vector_width,
+    use_cpu_threads,
+    use_cpu_vector_width,
+)
 
 #: The shared data folder beside the repository.
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -49,13 +56,24 @@ def video_run_parser(description: str, sequence: bool = True) -> argparse.Argume
 
 def add_cpu_threads_option(parser: argparse.ArgumentParser) -> None:
     """``--cpu-threads N``: XLA's CPU thread pool, as the ``jaxtrack`` command sizes it by
-    default (:func:`jaxtrack.use_cpu_threads`); 0 leaves XLA's own size (one per core)."""
+    default (:func:`jaxtrack.use_cpu_threads`); 0 leaves XLA's own size (one per core).
+    ``--vector-width BITS``: the vector width, as the command asks for it
+    (:func:`jaxtrack.use_cpu_vector_width`); 0 leaves XLA's default."""
     parser.add_argument(
         "--cpu-threads",
         type=int,
         default=DEFAULT_CPU_THREADS,
         help=f"threads of XLA's CPU pool (default {DEFAULT_CPU_THREADS}, as the jaxtrack "
         "command sets it; 0: XLA's default, one per core; PJRT_NPROC set wins)",
+    )
+    parser.add_argument(
+        "--vector-width",
+        type=int,
+        choices=(0, 256, 512),
+        default=DEFAULT_VECTOR_WIDTH,
+        help=f"vector bits XLA's CPU code generator is asked for (default "
+        f"{DEFAULT_VECTOR_WIDTH}, as the jaxtrack command asks where the CPU has AVX-512; "
+        "0: XLA's default, 256; a width in XLA_FLAGS wins)",
     )
 
 
@@ -64,6 +82,14 @@ def set_cpu_threads(count: int) -> int:
     if count > 0:
         use_cpu_threads(count)
     return cpu_thread_pool_size()
+
+
+def set_cpu_vector_width(bits: int) -> int:
+    """Applies ``--vector-width`` before JAX computes; returns the width in ``XLA_FLAGS`` for
+    the report (0: XLA's default, 256)."""
+    if bits > 0:
+        use_cpu_vector_width(bits)
+    return cpu_vector_width()
 
 
 def phd_run_parser(description: str, repeats: int) -> argparse.ArgumentParser:

@@ -22,7 +22,12 @@ from jaxtrack.io import MotSequence, MotTable, SequenceInfo, load_sequence, writ
 from jaxtrack.metrics.evaluate import evaluate_sequence
 from jaxtrack.parameters import ParameterProperties
 from jaxtrack.pipelines.context import learn_context
-from jaxtrack.pipelines.runtime import use_compilation_cache, use_cpu_cores, use_cpu_threads
+from jaxtrack.pipelines.runtime import (
+    use_compilation_cache,
+    use_cpu_cores,
+    use_cpu_threads,
+    use_cpu_vector_width,
+)
 from jaxtrack.pipelines.sweep import batch_params, magnitude_grid, product_grid, sweep, sweep_frames
 from jaxtrack.pipelines.tracking import track_sequences
 from jaxtrack.pipelines.tuner import tune
@@ -75,5 +80,6 @@ __all__ = [
     "use_compilation_cache",
     "use_cpu_cores",
     "use_cpu_threads",
+    "use_cpu_vector_width",
     "write_results",
 ]

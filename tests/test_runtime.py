@@ -16,7 +16,7 @@ import textwrap
 import jax
 import pytest
 
-from jaxtrack.pipelines.runtime import CACHE_ENV, THREAD_ENVS
+from jaxtrack.pipelines.runtime import CACHE_ENV, THREAD_ENVS, cpu_features
 
 _CACHE_SCRIPT = textwrap.dedent(
     """
@@ -166,6 +166,64 @@ def test_the_thread_pool_changes_no_result(mot15_root):
     runs = [
         _python(_TRACK_SCRIPT, sequence, drop=THREAD_ENVS, timeout=600, PJRT_NPROC=threads)
         for threads in ("1", "2")
+    ]
+    assert runs[0]["boxes"] > 0
+    assert runs[0] == runs[1]
+
+
+_WIDTH_SCRIPT = textwrap.dedent(
+    """
+    import json, os
+    import jax, jax.numpy as jnp
+    from jaxtrack import use_cpu_vector_width
+    from jaxtrack.pipelines.runtime import cpu_vector_width
+    made = use_cpu_vector_width()
+    again = use_cpu_vector_width(256)  # XLA_FLAGS names a width now: a choice made, kept
+    jax.jit(lambda x: jnp.exp(x).sum())(jnp.ones((64, 64))).block_until_ready()
+    flags = os.environ.get("XLA_FLAGS", "")
+    os.environ["XLA_FLAGS"] = ""
+    late = use_cpu_vector_width()  # the backends exist: too late, nothing changes
+    os.environ["XLA_FLAGS"] = flags
+    print(json.dumps({"made": made, "again": again, "late": late, "width": cpu_vector_width(),
+                      "flags": flags}))
+    """
+)
+
+
+@pytest.mark.skipif(
+    "avx512f" not in cpu_features(), reason="asks for 512-bit vectors only with AVX-512"
+)
+def test_use_cpu_vector_width_adds_the_flag_once_and_keeps_the_users_choice():
+    made = _python(_WIDTH_SCRIPT, XLA_FLAGS="--xla_cpu_enable_fast_min_max=false")
+    assert made == {
+        "made": 512,
+        "again": 0,
+        "late": 0,
+        "width": 512,
+        "flags": "--xla_cpu_enable_fast_min_max=false --xla_cpu_prefer_vector_width=512",
+    }
+    kept = _python(_WIDTH_SCRIPT, XLA_FLAGS="--xla_cpu_prefer_vector_width=256")
+    assert kept["made"] == 0 and kept["width"] == 256
+
+
+def test_use_cpu_vector_width_refuses_other_widths():
+    from jaxtrack.pipelines.runtime import use_cpu_vector_width
+
+    with pytest.raises(ValueError, match="256, 512"):
+        use_cpu_vector_width(128)
+
+
+@pytest.mark.skipif(
+    "avx512f" not in cpu_features(), reason="the wider vectors need AVX-512 registers"
+)
+def test_the_vector_width_changes_no_result(mot15_root):
+    """The PHD tracker on TUD-Campus with XLA's default 256-bit vectors and with 512-bit
+    ones: the same boxes, masses and log-likelihoods, bit for bit (measured on the eleven
+    MOT15 training sequences; README, "Where the PHD step's time goes")."""
+    sequence = str(mot15_root / "TUD-Campus")
+    runs = [
+        _python(_TRACK_SCRIPT, sequence, drop=("XLA_FLAGS",), timeout=600, **env)
+        for env in ({}, {"XLA_FLAGS": "--xla_cpu_prefer_vector_width=512"})
     ]
     assert runs[0]["boxes"] > 0
     assert runs[0] == runs[1]

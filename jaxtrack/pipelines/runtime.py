@@ -1,5 +1,5 @@
-"""How the ``jaxtrack`` command sets JAX up: CPU devices, XLA's CPU threads and the
-compilation cache.
+"""How the ``jaxtrack`` command sets JAX up: CPU devices, XLA's CPU threads and vector width,
+and the compilation cache.
 
 All must be set before JAX computes anything, so the command calls them first thing
 (:func:`jaxtrack.cli.main`); a notebook or script calls them right after its imports. Each
@@ -24,6 +24,12 @@ CACHE_ENV = "JAXTRACK_CACHE_DIR"
 THREAD_ENVS = ("PJRT_NPROC", "NPROC")
 #: The thread pool size :func:`use_cpu_threads` sets by default.
 DEFAULT_CPU_THREADS = 1
+#: XLA's flag for the vector width (bits) its CPU code generator prefers (256 unset).
+VECTOR_WIDTH_FLAG = "xla_cpu_prefer_vector_width"
+#: The width :func:`use_cpu_vector_width` asks for by default, and the CPU feature (a
+#: ``flags`` word of ``/proc/cpuinfo``) it needs.
+DEFAULT_VECTOR_WIDTH = 512
+VECTOR_WIDTH_FEATURES = {512: "avx512f", 256: "avx2"}
 
 
 def use_cpu_cores(count: int | None = None) -> int:
@@ -98,6 +104,66 @@ def use_cpu_threads(count: int = DEFAULT_CPU_THREADS) -> int:
         return 0
     os.environ[THREAD_ENVS[0]] = str(int(count))
     return int(count)
+
+
+def use_cpu_vector_width(bits: int = DEFAULT_VECTOR_WIDTH) -> int:
+    """Asks XLA's CPU code generator for ``bits``-wide vectors (``--xla_cpu_prefer_vector_width``).
+
+    XLA:CPU emits 256-bit vector code by default, also on CPUs with 512-bit registers
+    (AVX-512). The PHD tracker's kernels are elementwise loops over particles and particle x
+    detection pairs, which 512-bit vectors do in half the instructions: on the 2-core
+    AVX-512 machine of the README, PETS09-S2L1 at 2048 particles ran at 1.02-1.10x the
+    frames per second of the default on the eleven MOT15 training sequences, and the
+    outputs were the same bit for bit on all eleven (README, "Where the PHD step's time
+    goes"; tested on TUD-Campus). The ``jaxtrack`` command calls it where it sizes the thread
+    pool, for the PHD tracker (:func:`jaxtrack.cli.runs_the_phd_tracker`).
+
+    It adds the flag to ``XLA_FLAGS``, which XLA reads when JAX creates its backends (the
+    first computation): it must run before that. It changes nothing (and returns 0) when the
+    backends exist, when ``XLA_FLAGS`` already chooses a width (the user's choice), or when
+    the CPU lacks the registers (``/proc/cpuinfo`` names no ``avx512f`` for 512, no ``avx2``
+    for 256; unreadable, as off Linux: nothing is assumed).
+
+    Args:
+        bits: 256 or 512.
+
+    Returns:
+        The width set, or 0 when nothing was changed.
+
+    Raises:
+        ValueError: ``bits`` other than 256 or 512.
+    """
+    if bits not in VECTOR_WIDTH_FEATURES:
+        raise ValueError(f"bits must be one of {sorted(VECTOR_WIDTH_FEATURES)}, got {bits}")
+    flags = os.environ.get("XLA_FLAGS", "")
+    if VECTOR_WIDTH_FLAG in flags or _backends_exist():
+        return 0
+    if VECTOR_WIDTH_FEATURES[bits] not in cpu_features():
+        return 0
+    os.environ["XLA_FLAGS"] = f"{flags} --{VECTOR_WIDTH_FLAG}={bits}".strip()
+    return bits
+
+
+def cpu_features() -> frozenset[str]:
+    """The CPU's feature words (the ``flags`` line of ``/proc/cpuinfo``; empty if unreadable)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            for line in info:
+                if line.startswith("flags"):
+                    return frozenset(line.partition(":")[2].split())
+    except OSError:
+        pass
+    return frozenset()
+
+
+def cpu_vector_width() -> int:
+    """The vector width XLA's CPU code generator is asked for in ``XLA_FLAGS`` (0: not
+    chosen, XLA's default of 256)."""
+    for flag in os.environ.get("XLA_FLAGS", "").split():
+        name, _, value = flag.lstrip("-").partition("=")
+        if name == VECTOR_WIDTH_FLAG and value.isdigit():
+            return int(value)
+    return 0
 
 
 def cpu_thread_pool_size() -> int:
