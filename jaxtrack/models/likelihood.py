@@ -7,6 +7,7 @@ of the state's box, or constant pixels).
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -43,9 +44,45 @@ def log_likelihood(
     std = noise_model(states[:, SIZE], noise_std)
     predicted = states[:, MEASURED].T
     inverse_std = (1.0 / std).T
-    log_norm = jnp.sum(jnp.log(std), axis=-1) + 0.5 * MEAS_DIM * jnp.log(2 * jnp.pi)
+    log_norm = sum_of_logs(std) + 0.5 * MEAS_DIM * jnp.log(2 * jnp.pi)
     squared_distance = sum(
         ((measurements[:, dim, None] - predicted[dim]) * inverse_std[dim]) ** 2
         for dim in range(MEAS_DIM)
     )
     return -0.5 * squared_distance - log_norm[None]
+
+
+@jax.custom_jvp
+def sum_of_logs(values: Float[Array, "n dim"]) -> Float[Array, " n"]:
+    """``sum(log(values), axis=-1)``, with a batching rule for a sweep's configurations.
+
+    Unbatched it is ``jnp.sum(jnp.log(values), axis=-1)``, which XLA:CPU hands to YNNPACK
+    (the PHD tracker's outputs are kept bit for bit). Under ``vmap`` YNNPACK's fusion also
+    takes the likelihood's particle x detection arithmetic that reads the sum, and runs it
+    about 8x slower than XLA's own loop (``benchmarks/sweep_speed.py``'s configurations,
+    README "Where the PHD step's time goes"); there the sum is written as ``dim``
+    elementwise additions of the logs, in order, which XLA fuses itself. The batched
+    results may then differ from unbatched ones at float32 rounding (a batched program
+    already rounds differently). The derivative is ``t / values`` summed, both ways.
+    """
+    return _sum_of_logs(values)
+
+
+@sum_of_logs.defjvp
+def _sum_of_logs_jvp(primals, tangents):
+    (values,), (tangent,) = primals, tangents
+    return sum_of_logs(values), jnp.sum(tangent / values, axis=-1)
+
+
+@jax.custom_batching.custom_vmap
+def _sum_of_logs(values):
+    return jnp.sum(jnp.log(values), axis=-1)
+
+
+@_sum_of_logs.def_vmap
+def _sum_of_logs_batch(axis_size: int, in_batched: list[bool], values):
+    logs = jnp.log(values)
+    total = logs[..., 0]
+    for dim in range(1, values.shape[-1]):
+        total = total + logs[..., dim]
+    return total, in_batched[0]
