@@ -47,8 +47,30 @@ def materialise(compute, *args: Array) -> Any:
     read once per state component they enter) is recomputed in each. Computed in a one-trip
     loop (:func:`when`, under a condition XLA cannot evaluate at compile time) it is written
     once. The first argument must be an unsigned or signed integer array (it decides the
-    condition: ``(args[0].flat[0] | 1) != 0``, always true).
+    condition: ``(args[0].flat[0] | 1) != 0``, always true). Under ``vmap`` the loop runs the
+    batched computation once for the whole batch (a batching rule), with the same values.
     """
+
+    @jax.custom_batching.custom_vmap
+    def once(*xs):
+        return _written_once(compute, *xs)
+
+    @once.def_vmap
+    def once_batched(axis_size: int, in_batched: list[bool], *xs):
+        # Under vmap the condition is one for the whole batch (it is always true): a loop
+        # whose condition is per member would select between its body's results and the
+        # fallback, one more pass over the outputs (the sweep's draws: 1.7x slower).
+        xs = [
+            x if batched else jnp.broadcast_to(x, (axis_size, *x.shape))
+            for x, batched in zip(xs, in_batched, strict=True)
+        ]
+        out = _written_once(jax.vmap(compute), *xs)
+        return out, jax.tree.map(lambda _: True, out)
+
+    return once(*args)
+
+
+def _written_once(compute, *args: Array) -> Any:
     fallback = jax.eval_shape(compute, *args)
     fallback = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), fallback)
     always = (jnp.ravel(args[0])[0] | 1) != 0
