@@ -75,3 +75,20 @@ def _written_once(compute, *args: Array) -> Any:
     fallback = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), fallback)
     always = (jnp.ravel(args[0])[0] | 1) != 0
     return when(always, compute, fallback, *args)
+
+
+@jax.custom_batching.custom_vmap
+def any_member(flag: Array) -> Array:
+    """``flag`` itself; under ``vmap``, whether any member's ``flag`` is true (unbatched).
+
+    A ``lax.cond`` on a batched predicate becomes a ``select`` that runs both branches for
+    every member; on ``any_member(predicate)`` it stays a conditional, which skips the
+    branch when no member of the batch needs it. The branch then runs for the whole batch,
+    so a caller keeps each member's own choice with ``jnp.where(predicate, ...)``.
+    """
+    return flag
+
+
+@any_member.def_vmap
+def _any_member_batch(axis_size: int, in_batched: list[bool], flag: Array):
+    return jnp.any(flag, axis=0), False

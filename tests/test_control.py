@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.control import materialise, when
+from jaxtrack.control import any_member, materialise, when
 
 BITS = np.random.default_rng(0).integers(0, 2**32, (3, 4, 50), dtype=np.uint32)
 
@@ -49,3 +49,27 @@ def test_when_runs_only_where_needed_and_keeps_the_fallback_elsewhere():
     got = jax.jit(jax.vmap(lambda n, x: when(n, solve, -1.0, x)))(needed, xs)
     np.testing.assert_array_equal(got, [0.0, -1.0, 4.0, -1.0])
     assert float(jax.jit(lambda x: when(jnp.asarray(False), solve, 7.0, x))(3.0)) == 7.0
+
+
+def test_any_member_keeps_a_conditional_for_the_batch():
+    """Unbatched it is the flag; under vmap it is one flag for the batch, so ``lax.cond``
+    stays a conditional: its branch runs for no member when none needs it (a batched
+    predicate would run both branches for every member)."""
+    calls = []
+
+    def branch(x):
+        jax.debug.callback(lambda: calls.append(1))
+        return x * 2.0
+
+    def gated(flag, x):
+        return jnp.where(flag, jax.lax.cond(any_member(flag), branch, lambda y: y, x), x)
+
+    assert bool(jax.jit(any_member)(jnp.asarray(True)))
+    xs = jnp.arange(3.0)
+    batched = jax.jit(jax.vmap(gated))
+    np.testing.assert_array_equal(batched(jnp.array([False, True, False]), xs), [0.0, 2.0, 2.0])
+    jax.effects_barrier()
+    assert len(calls) == 1
+    np.testing.assert_array_equal(batched(jnp.zeros(3, bool), xs), xs)
+    jax.effects_barrier()
+    assert len(calls) == 1  # no member needed the branch: not run

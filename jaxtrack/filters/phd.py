@@ -49,6 +49,7 @@ from jaxtrack.association.labelling import (
 )
 from jaxtrack.boxes import cxcywh_to_xywh, xywh_to_cxcywh
 from jaxtrack.context.intensity import Intensity, log_intensity
+from jaxtrack.control import any_member
 from jaxtrack.filters import draws
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.births import LOG_ZERO, birth_requests, sample_births
@@ -510,7 +511,8 @@ def target_log_clutter(
 
     Summed over blocks of ``block_size`` particles like ``C(z)`` in :func:`phd_update`. With
     ``rate = 0`` it is ``LOG_ZERO`` everywhere, and the pass over the particles is skipped (a
-    ``lax.cond``; under ``vmap`` over parameter sets both branches run).
+    ``lax.cond``; under ``vmap`` over parameter sets it runs for the whole batch when any
+    member has a rate, :func:`~jaxtrack.control.any_member`).
     """
     num_particles, num_slots = particles.shape[0], measurements.shape[0]
     block = min(num_particles, block_size or default_block_size(num_particles, num_slots))
@@ -524,7 +526,10 @@ def target_log_clutter(
         return jnp.maximum(jnp.log(rate) + log_sum, LOG_ZERO)
 
     empty = jnp.full(num_slots, LOG_ZERO, log_weights.dtype)
-    return jax.lax.cond(target_clutter.rate > 0, spread, lambda: empty)
+    present = target_clutter.rate > 0
+    # Under vmap the pass runs when any configuration has the rate (control.any_member),
+    # and each keeps its own branch.
+    return jnp.where(present, jax.lax.cond(any_member(present), spread, lambda: empty), empty)
 
 
 def _particle_block(particles, log_weights, index, block: int):
