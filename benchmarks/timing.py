@@ -71,9 +71,9 @@ def add_cpu_threads_option(parser: argparse.ArgumentParser) -> None:
         type=int,
         choices=(0, 256, 512),
         default=DEFAULT_VECTOR_WIDTH,
-        help=f"vector bits XLA's CPU code generator is asked for (default "
-        f"{DEFAULT_VECTOR_WIDTH}, as the jaxtrack command asks where the CPU has AVX-512; "
-        "0: XLA's default, 256; a width in XLA_FLAGS wins)",
+        help=f"vector bits XLA's CPU code generator is asked for, with plain min/max "
+        f"(default {DEFAULT_VECTOR_WIDTH}, as the jaxtrack command asks where the CPU has "
+        "AVX-512; 0: XLA's defaults, 256 bits; a width in XLA_FLAGS wins)",
     )
 
 

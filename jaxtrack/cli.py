@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     use_cpu_cores()  # a sweep's configurations run on every core (no effect on one run)
     if runs_the_phd_tracker(args):
         use_cpu_threads()  # XLA's pool at one thread: faster small kernels, the same results
-        use_cpu_vector_width()  # 512-bit vectors where the CPU has them: the same results
+        use_cpu_vector_width()  # 512-bit vectors (AVX-512), plain min/max: the same results
     use_compilation_cache()  # a later run of the same setting skips the compile
     try:
         with warnings.catch_warnings():
@@ -95,10 +95,11 @@ def runs_the_phd_tracker(args: argparse.Namespace) -> bool:
     There the command sizes XLA's CPU thread pool at one thread
     (:func:`~jaxtrack.pipelines.runtime.use_cpu_threads`): a PHD frame is about 200 small
     kernels, which the pool's split and wait slow down. It also asks for 512-bit vectors
-    where the CPU has them (:func:`~jaxtrack.pipelines.runtime.use_cpu_vector_width`). The
-    other trackers' frames hold image-sized work that the pool speeds up (Fusion and
-    Hierarchical ran 15-30 % slower on one thread), so they keep XLA's defaults (their
-    vector width was not measured).
+    and plain min/max where the CPU has AVX-512
+    (:func:`~jaxtrack.pipelines.runtime.use_cpu_vector_width`). The other trackers' frames
+    hold image-sized work that the pool speeds up (Fusion and Hierarchical ran 15-30 %
+    slower on one thread), so they keep XLA's defaults (their code generation was not
+    measured).
     """
     command = args.command.replace("-", "_")
     return command in PHD_COMMANDS and getattr(args, "tracker", "phd") == "phd"

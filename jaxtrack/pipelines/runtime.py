@@ -26,6 +26,8 @@ THREAD_ENVS = ("PJRT_NPROC", "NPROC")
 DEFAULT_CPU_THREADS = 1
 #: XLA's flag for the vector width (bits) its CPU code generator prefers (256 unset).
 VECTOR_WIDTH_FLAG = "xla_cpu_prefer_vector_width"
+#: XLA's flag for min/max without NaN tests (false unset).
+FAST_MIN_MAX_FLAG = "xla_cpu_enable_fast_min_max"
 #: The width :func:`use_cpu_vector_width` asks for by default, and the CPU feature (a
 #: ``flags`` word of ``/proc/cpuinfo``) it needs.
 DEFAULT_VECTOR_WIDTH = 512
@@ -106,26 +108,35 @@ def use_cpu_threads(count: int = DEFAULT_CPU_THREADS) -> int:
     return int(count)
 
 
-def use_cpu_vector_width(bits: int = DEFAULT_VECTOR_WIDTH) -> int:
-    """Asks XLA's CPU code generator for ``bits``-wide vectors (``--xla_cpu_prefer_vector_width``).
+def use_cpu_vector_width(bits: int = DEFAULT_VECTOR_WIDTH, fast_min_max: bool = True) -> int:
+    """Asks XLA's CPU code generator for ``bits``-wide vectors and plain min/max.
 
-    XLA:CPU emits 256-bit vector code by default, also on CPUs with 512-bit registers
-    (AVX-512). The PHD tracker's kernels are elementwise loops over particles and particle x
-    detection pairs, which 512-bit vectors do in half the instructions: on the 2-core
-    AVX-512 machine of the README, PETS09-S2L1 at 2048 particles ran at 1.02-1.10x the
-    frames per second of the default on the eleven MOT15 training sequences, and the
-    outputs were the same bit for bit on all eleven (README, "Where the PHD step's time
-    goes"; tested on TUD-Campus). The ``jaxtrack`` command calls it where it sizes the thread
-    pool, for the PHD tracker (:func:`jaxtrack.cli.runs_the_phd_tracker`).
+    * ``--xla_cpu_prefer_vector_width=bits``: XLA:CPU emits 256-bit vector code by default,
+      also on CPUs with 512-bit registers (AVX-512). The PHD tracker's kernels are
+      elementwise loops over particles and particle x detection pairs, which 512-bit
+      vectors do in half the instructions.
+    * ``--xla_cpu_enable_fast_min_max=true`` (with ``fast_min_max``): ``min`` and ``max``
+      compile to one compare-and-select instead of also testing for NaN. Only a NaN operand
+      gives another result (a number instead of NaN); the trackers' inputs are checked for
+      NaN when read, so a NaN inside a step is a bug either way.
 
-    It adds the flag to ``XLA_FLAGS``, which XLA reads when JAX creates its backends (the
+    On the 2-core AVX-512 machine of the README, PETS09-S2L1 at 2048 particles ran at
+    1.02-1.10x the frames per second with the first and about 1.03x more with both, and the
+    outputs were the same bit for bit on the eleven MOT15 training sequences (README, "Where
+    the PHD step's time goes", session 49; tested on TUD-Campus). The ``jaxtrack`` command
+    calls it where it sizes the thread pool, for the PHD tracker
+    (:func:`jaxtrack.cli.runs_the_phd_tracker`).
+
+    It adds the flags to ``XLA_FLAGS``, which XLA reads when JAX creates its backends (the
     first computation): it must run before that. It changes nothing (and returns 0) when the
     backends exist, when ``XLA_FLAGS`` already chooses a width (the user's choice), or when
     the CPU lacks the registers (``/proc/cpuinfo`` names no ``avx512f`` for 512, no ``avx2``
-    for 256; unreadable, as off Linux: nothing is assumed).
+    for 256; unreadable, as off Linux: nothing is assumed). A min/max choice in
+    ``XLA_FLAGS`` is kept too.
 
     Args:
         bits: 256 or 512.
+        fast_min_max: also ask for plain min/max.
 
     Returns:
         The width set, or 0 when nothing was changed.
@@ -140,7 +151,10 @@ def use_cpu_vector_width(bits: int = DEFAULT_VECTOR_WIDTH) -> int:
         return 0
     if VECTOR_WIDTH_FEATURES[bits] not in cpu_features():
         return 0
-    os.environ["XLA_FLAGS"] = f"{flags} --{VECTOR_WIDTH_FLAG}={bits}".strip()
+    added = [f"--{VECTOR_WIDTH_FLAG}={bits}"]
+    if fast_min_max and FAST_MIN_MAX_FLAG not in flags:
+        added.append(f"--{FAST_MIN_MAX_FLAG}=true")
+    os.environ["XLA_FLAGS"] = " ".join([flags, *added]).strip()
     return bits
 
 
