@@ -151,8 +151,8 @@ def logsumexp_rows(values: Float[Array, "rows n"]) -> Float[Array, " n"]:
     elementwise operations, which XLA emits as one vectorised loop wherever it fuses them; a
     reduction over a short axis fused into a consumer's loop (the births' log-weights joined
     to the survivors') is emitted one output element at a time, about 5x slower at 9
-    detections. The sum runs in the order of XLA:CPU's reduction; in the PHD tracker the
-    MOT15 sequences' results did not change (README, "Where the PHD step's time goes",
+    detections. The values agree with XLA:CPU's reduction up to an ulp; in the PHD tracker
+    the MOT15 sequences' results did not change (README, "Where the PHD step's time goes",
     session 49: one ulp in one frame's estimates). More rows: ``logsumexp``.
     """
     if values.shape[0] > UNROLLED_ROWS:
