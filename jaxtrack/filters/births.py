@@ -195,26 +195,24 @@ def log_mixture_density(
     block = block_size or max(1, PAIRS_PER_BLOCK // max(num_slots, 1))
     log_norm = jnp.sum(jnp.log(std), axis=-1)
 
+    # Written per dimension (one fused loop; a trailing axis of 4 to reduce does not
+    # vectorise and costs a separate reduction pass). With few detections the pairs are laid
+    # out [max_detections, block] and reduced row after row (:func:`logsumexp_rows`),
+    # otherwise [block, max_detections] and reduced by ``logsumexp``.
+    by_rows = num_slots <= UNROLLED_ROWS
+    per_slot = functools.partial(jnp.expand_dims, axis=1 if by_rows else 0)
+    per_point = functools.partial(jnp.expand_dims, axis=0 if by_rows else 1)
+
     def block_density(block_points):
-        # Written per dimension (one fused loop; a trailing axis of 4 to reduce does not
-        # vectorise and costs a separate reduction pass). With few detections the pairs are
-        # laid out [max_detections, block] and reduced row after row (:func:`logsumexp_rows`),
-        # otherwise [block, max_detections].
-        if num_slots <= UNROLLED_ROWS:
-            squares = sum(
-                ((block_points[None, :, d] - measurements[:, None, d]) / std[:, None, d]) ** 2
-                for d in range(points.shape[-1])
-            )
-            log_gauss = -0.5 * squares - log_norm[:, None]
-            log_gauss = log_gauss - 2 * math.log(2 * math.pi)
-            return logsumexp_rows(jnp.where(mask[:, None], log_gauss, LOG_ZERO))
         squares = sum(
-            ((block_points[:, None, d] - measurements[None, :, d]) / std[None, :, d]) ** 2
+            ((per_point(block_points[:, d]) - per_slot(measurements[:, d])) / per_slot(std[:, d]))
+            ** 2
             for d in range(points.shape[-1])
         )
-        log_gauss = -0.5 * squares - log_norm[None]
+        log_gauss = -0.5 * squares - per_slot(log_norm)
         log_gauss = log_gauss - 2 * math.log(2 * math.pi)
-        return jax.nn.logsumexp(jnp.where(mask[None], log_gauss, LOG_ZERO), axis=-1)
+        log_gauss = jnp.where(per_slot(mask), log_gauss, LOG_ZERO)
+        return logsumexp_rows(log_gauss) if by_rows else jax.nn.logsumexp(log_gauss, axis=-1)
 
     if num_points <= block:
         return block_density(points)
