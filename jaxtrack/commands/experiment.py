@@ -57,7 +57,9 @@ from jaxtrack.experiments.context_generalisation import (
 )
 from jaxtrack.experiments.magnitudes import run_magnitude_sweep, sweep_summary
 from jaxtrack.experiments.tuning import SUMMARY_COLUMNS, gradient_tuning_experiment
+from jaxtrack.filters.births import VELOCITY_PROPOSALS
 from jaxtrack.filters.phd import CONFIRMATIONS
+from jaxtrack.filters.phd_tracker import PHDConfig
 
 #: The data folder beside the repository (``../shared/data``).
 SHARED_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -243,6 +245,14 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
         help="every run's offline output re-estimated by the Rauch-Tung-Striebel smoother "
         "under the tracker's own dynamics (PHDConfig.smoothing; default none)",
     )
+    parser.add_argument(
+        "--birth-velocity",
+        choices=VELOCITY_PROPOSALS,
+        default=PHDConfig.birth_velocity,
+        help="the births' velocity proposal in every run (PHDConfig.birth_velocity; default "
+        f"{PHDConfig.birth_velocity}): 'detections' draws most births' velocities at the "
+        "displacements from the previous frame's detections, 'uniform' over the velocity range",
+    )
 
 
 def _context_generalisation(args: argparse.Namespace) -> int:
@@ -283,6 +293,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
         confirmation=args.confirmation,
         retrodiction=args.retrodiction,
         smoothing=args.smoothing,
+        birth_velocity=args.birth_velocity,
         progress=not args.quiet,
     )
     print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))

@@ -566,6 +566,7 @@ def run_context_generalisation(
     confirmation: str = "auto",
     retrodiction: int = 0,
     smoothing: str = "none",
+    birth_velocity: str | None = None,
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -597,6 +598,7 @@ def run_context_generalisation(
             every context of the experiment learns a calibration from the ground truth).
         retrodiction: ``PHDConfig.retrodiction`` of every run (0: off).
         smoothing: ``PHDConfig.smoothing`` of every run (``"none"`` or ``"rts"``).
+        birth_velocity: ``PHDConfig.birth_velocity`` of every run (None: the default).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -614,6 +616,8 @@ def run_context_generalisation(
     config = dataclasses.replace(
         config, confirmation=confirmation, retrodiction=retrodiction, smoothing=smoothing
     )
+    if birth_velocity is not None:
+        config = dataclasses.replace(config, birth_velocity=birth_velocity)
     notes = []
     if tuned and not tuning_takes_context():
         tuned = False
@@ -729,6 +733,7 @@ def summary_markdown(
         f"'{config.confirmation}'"
         f"{f', retrodiction {config.retrodiction} frames' if config.retrodiction else ''}"
         f"{f', smoothing {config.smoothing!r}' if config.smoothing != 'none' else ''}"
+        f", birth velocities '{config.birth_velocity}'"
         f"{', quick run' if quick else ''}. "
         "MOTA in %; per group (bank family over its scenes' seeds, or a real sequence over "
         "its tracker seeds) the mean over seeds; `gain %` = 100 (MOTA - MOTA_UM) / |MOTA_UM| "

@@ -16,12 +16,34 @@ whose velocity tails a Gaussian proposal would not cover). The weights are
 ``gamma`` the birth intensity, which makes the birth particles an unbiased estimate of
 ``gamma`` wherever the importance density covers it (the neighbourhood of the detections,
 the only place where births can gain mass in the update).
+
+**Velocities from the previous frame's detections** (``velocities="detections"``, the
+tracker's default since session 50; :func:`propose_velocities`). A uniform velocity over
+``V_v`` (46 x 46 pixels per frame at 576 rows) gives the 32 births of a detection one draw
+per ~66 (pixels per frame)^2: a new track usually starts with a velocity several pixels per
+frame off, its prediction lags the target, and where the context's clutter intensity is high
+(a clutter source the target walks through) the detections are then explained as clutter and
+the track dies (layout-change-26, issue 15). A target seen in the previous frame moved by
+about ``z - z'``; so the velocity is drawn, given the drawn box ``p = (y1, y2, w, h)``, from
+
+    q(v | p) = eps U(v; V_v) + (1 - eps) sum_j a_j(p) N(v; p_xy - z'_j, 2 diag(s_xy(p))^2),
+    a_j(p) proportional to N(p_wh - z'_j,wh; 0, 2 diag(s_wh(p))^2) over the previous
+    detections z'_j whose displacement p_xy - z'_j lies in V_v (q = U when there is none),
+
+``s(p)`` the measurement noise of a box of ``p``'s size (the difference of two detections of
+one target has twice its variance; the weights ``a_j`` prefer previous boxes of a compatible
+size) and ``eps`` = :data:`UNIFORM_VELOCITY_SHARE` (a target missed in the previous frame, or
+one whose previous box is not among the :data:`PREVIOUS_SLOTS` kept, is still covered). The
+proposal is ``p(x | Z_k) = [(1 / |Z_k|) sum_z N(p; z, Sigma(z))] q(v | p)`` and the weights
+``gamma / (J p)`` use it exactly, so the births remain an unbiased estimate of ``gamma``: the
+filter is the same, its Monte Carlo error at a new target's velocity smaller.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import jax
@@ -36,6 +58,49 @@ from jaxtrack.models.noise import NoiseModel, state_dependent_std
 #: Log-weight standing for "no mass" (finite, so that gradients and differences stay finite).
 LOG_ZERO = -1e30
 
+#: The births' velocity proposals (:func:`draw_births`): uniform over ``V_v`` (the paper's) or
+#: from the previous frame's detections (:func:`propose_velocities`).
+VELOCITY_PROPOSALS = ("uniform", "detections")
+#: Previous-frame detections a PHD state keeps for the velocity proposal (the first slots;
+#: the MOT15 training sequences have at most 16 detections per frame).
+PREVIOUS_SLOTS = 32
+#: ``eps``: share of the velocity proposal that is uniform over ``V_v`` (chosen a priori: a
+#: quarter of a detection's births as before, the rest at the previous detections'
+#: displacements).
+UNIFORM_VELOCITY_SHARE = 0.25
+
+
+class PreviousDetections(NamedTuple):
+    """The previous frame's detections, kept for the births' velocity proposal.
+
+    Attributes:
+        boxes: ``(y1, y2, w, h)`` (centre and size) of :data:`PREVIOUS_SLOTS` slots; padded
+            slots hold a positive size.
+        mask: True for real detections.
+    """
+
+    boxes: Float[Array, "slots 4"]
+    mask: Bool[Array, " slots"]
+
+
+def no_previous_detections(dtype=jnp.float32) -> PreviousDetections:
+    """The :class:`PreviousDetections` before the first frame: none."""
+    return PreviousDetections(
+        jnp.ones((PREVIOUS_SLOTS, 4), dtype), jnp.zeros((PREVIOUS_SLOTS,), bool)
+    )
+
+
+def keep_previous_detections(
+    measurements: Float[Array, "max_detections 4"], mask: Bool[Array, " max_detections"]
+) -> PreviousDetections:
+    """A frame's first :data:`PREVIOUS_SLOTS` detection slots, padded to that many (padded
+    slots hold ones whatever the frame's padding, so a step on the first half of the slots
+    keeps what the full step keeps)."""
+    pad = max(PREVIOUS_SLOTS - measurements.shape[0], 0)
+    mask = jnp.pad(mask, (0, pad))[:PREVIOUS_SLOTS]
+    boxes = jnp.pad(measurements, ((0, pad), (0, 0)))[:PREVIOUS_SLOTS]
+    return PreviousDetections(jnp.where(mask[:, None], boxes, 1), mask)
+
 
 class BirthDraws(NamedTuple):
     """Birth particles drawn around the detections, before weighting.
@@ -43,13 +108,15 @@ class BirthDraws(NamedTuple):
     Attributes:
         states: ``births_per_detection * max_detections`` states, detection-major.
         log_mixture: ``log sum_z N((y1, y2, w, h); z, Sigma(z))`` over the real detections.
-        log_velocity_volume: ``log |V_v|`` of the velocity range the velocities were drawn in.
+        log_velocity_weight: ``-log q(v | p)`` of each birth's velocity under its proposal:
+            ``log |V_v|`` (a scalar) for uniform velocities, one value per birth for
+            :func:`propose_velocities`.
         real: True for the particles of real detection slots.
     """
 
     states: Float[Array, "num_births 6"]
     log_mixture: Float[Array, " num_births"]
-    log_velocity_volume: Float[Array, ""]
+    log_velocity_weight: Float[Array, "*num_births"]
     real: Bool[Array, " num_births"]
 
 
@@ -59,17 +126,32 @@ def velocity_bounds(intensity: Intensity) -> tuple[Float[Array, " 2"], Float[Arr
 
 
 def birth_requests(
-    key: Array, draw_slots: int, births_per_detection: int, dtype=jnp.float32
+    key: Array,
+    draw_slots: int,
+    births_per_detection: int,
+    dtype=jnp.float32,
+    velocities: str = "uniform",
 ) -> list:
     """The random numbers :func:`draw_births` draws from ``key``: ``key`` split in two, the
     Gaussian draws ``normal(k1, (draw_slots, J, 4))`` and the velocities' unit draws
     ``uniform(k2, (draw_slots J, 2))`` (scaled to the velocity range by :func:`draw_births`,
-    as ``jax.random.uniform(k2, ..., minval, maxval)`` scales them)."""
+    as ``jax.random.uniform(k2, ..., minval, maxval)`` scales them). With ``velocities =
+    "detections"`` also, from ``fold_in(key, 1)`` split in two, the proposal's Gaussian
+    draws ``normal(k3, (draw_slots J, 2))`` and its choices ``uniform(k4, (draw_slots J,
+    2))`` (:func:`propose_velocities`); the first two are the same numbers either way."""
     key_gauss, key_velocity = jax.random.split(key)
-    return [
+    num_births = draw_slots * births_per_detection
+    requests = [
         draws.normal(key_gauss, (draw_slots, births_per_detection, 4), dtype),
-        draws.uniform(key_velocity, (draw_slots * births_per_detection, 2), dtype=dtype),
+        draws.uniform(key_velocity, (num_births, 2), dtype=dtype),
     ]
+    if velocities == "detections":
+        key_offset, key_choice = jax.random.split(jax.random.fold_in(key, 1))
+        requests += [
+            draws.normal(key_offset, (num_births, 2), dtype),
+            draws.uniform(key_choice, (num_births, 2), dtype=dtype),
+        ]
+    return requests
 
 
 def draw_births(
@@ -82,7 +164,9 @@ def draw_births(
     measurement_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
     draw_slots: int | None = None,
-    random: tuple[Array, Array] | None = None,
+    random: tuple[Array, ...] | None = None,
+    velocities: str = "uniform",
+    previous: PreviousDetections | None = None,
 ) -> BirthDraws:
     """Draws birth particles from ``p(x | Z_k)`` (the module's importance density).
 
@@ -100,39 +184,132 @@ def draw_births(
             ``max_detections``) and keep the first ``max_detections`` slots' share: a step
             that works on a frame's first slots only draws what the full-capacity step
             draws for them. None: ``max_detections``.
-        random: the random numbers :func:`birth_requests` asks ``key`` for, already drawn
-            (:func:`jaxtrack.filters.draws.draw`); None: drawn here.
+        random: the random numbers :func:`birth_requests` asks ``key`` for (with the same
+            ``velocities``), already drawn (:func:`jaxtrack.filters.draws.draw`); None:
+            drawn here.
+        velocities: the velocity proposal (static): ``"uniform"`` over ``V_v`` or
+            ``"detections"`` (:func:`propose_velocities`, needs ``previous``).
+        previous: the previous frame's detections (``velocities="detections"``).
 
     Returns:
         The draws (sizes clipped below at :data:`~jaxtrack.models.dynamics.MIN_SIZE`, far in
         the Gaussian's tail) and the parts of their proposal density.
 
     Raises:
-        ValueError: ``draw_slots`` below ``max_detections``.
+        ValueError: ``draw_slots`` below ``max_detections``, an unknown ``velocities``, or
+            ``"detections"`` without ``previous``.
     """
     num_slots = measurements.shape[0]
     drawn = num_slots if draw_slots is None else draw_slots
     if drawn < num_slots:
         raise ValueError(f"draw_slots ({drawn}) must be at least the {num_slots} slots")
+    if velocities not in VELOCITY_PROPOSALS:
+        raise ValueError(f"velocities must be one of {VELOCITY_PROPOSALS}, got {velocities!r}")
+    if velocities == "detections" and previous is None:
+        raise ValueError('velocities="detections" needs the previous frame\'s detections')
     num_births = num_slots * births_per_detection
     if random is None:
-        random = draws.draw(birth_requests(key, drawn, births_per_detection, measurements.dtype))
-    normal, unit = random
+        random = draws.draw(
+            birth_requests(key, drawn, births_per_detection, measurements.dtype, velocities)
+        )
+    normal, unit = random[:2]
     std = noise_model(measurements[:, 2:], measurement_noise_std)
     normal = normal[:num_slots]
     measured = (measurements[:, None, :] + std[:, None, :] * normal).reshape(-1, 4)
     measured = measured.at[:, 2:].set(jnp.maximum(measured[:, 2:], MIN_SIZE))
     # jax.random.uniform(key_velocity, shape, minval=lower, maxval=upper) on the unit draws.
     velocity = draws.scale_uniform(unit[:num_births], velocity_lower, velocity_upper)
+    log_velocity_weight = jnp.sum(jnp.log(velocity_upper - velocity_lower))
+    if velocities == "detections":
+        offsets, choices = (numbers[:num_births] for numbers in random[2:])
+        velocity, log_velocity_density = propose_velocities(
+            measured,
+            velocity,
+            velocity_lower,
+            velocity_upper,
+            previous,
+            std_of=functools.partial(noise_model, noise_std=measurement_noise_std),
+            offsets=offsets,
+            choices=choices,
+        )
+        log_velocity_weight = -log_velocity_density
     # (y1, vy1, y2, vy2, w, h) stacked as rows, then transposed (see phd_step's join).
     y1, y2, width, height = (measured[:, i] for i in range(4))
     states = jnp.stack([y1, velocity[:, 0], y2, velocity[:, 1], width, height], axis=0).T
     return BirthDraws(
         states=states,
         log_mixture=log_mixture_density(measured, measurements, std, mask),
-        log_velocity_volume=jnp.sum(jnp.log(velocity_upper - velocity_lower)),
+        log_velocity_weight=log_velocity_weight,
         real=jnp.repeat(mask, births_per_detection),
     )
+
+
+def propose_velocities(
+    points: Float[Array, "num_births 4"],
+    uniform_velocity: Float[Array, "num_births 2"],
+    velocity_lower: Float[Array, " 2"],
+    velocity_upper: Float[Array, " 2"],
+    previous: PreviousDetections,
+    std_of: Callable[[Array], Array],
+    offsets: Float[Array, "num_births 2"],
+    choices: Float[Array, "num_births 2"],
+) -> tuple[Float[Array, "num_births 2"], Float[Array, " num_births"]]:
+    """Draws each birth's velocity from ``q(v | p)`` (the module docstring) and its log-density.
+
+    Args:
+        points: the births' drawn boxes ``p = (y1, y2, w, h)``.
+        uniform_velocity: a velocity drawn uniformly over ``V_v`` per birth (kept where the
+            choice is the uniform part).
+        velocity_lower: lower corner of ``V_v``.
+        velocity_upper: upper corner of ``V_v``.
+        previous: the previous frame's detections ``z'_j``.
+        std_of: the measurement noise ``s(p)`` of boxes of the given sizes ``[..., 2]``
+            (pixels, ``[..., 4]``); held constant for gradients (the proposal's spread).
+        offsets: standard normal draws, the Gaussian part's offsets.
+        choices: unit uniform draws: column 0 picks ``j`` (by ``a_j(p)``), column 1 the part
+            (uniform when below :data:`UNIFORM_VELOCITY_SHARE`).
+
+    Returns:
+        The velocities and ``log q(v | p)``.
+    """
+    std = jax.lax.stop_gradient(std_of(points[:, 2:]))
+    velocity_std = math.sqrt(2.0) * std[:, :2]
+    displacement = points[:, None, :2] - previous.boxes[None, :, :2]
+    reachable = previous.mask[None, :] & jnp.all(
+        (displacement >= velocity_lower) & (displacement <= velocity_upper), axis=-1
+    )
+    size_gap = (points[:, None, 2:] - previous.boxes[None, :, 2:]) / (
+        math.sqrt(2.0) * std[:, None, 2:]
+    )
+    log_share = jnp.where(reachable, -0.5 * jnp.sum(size_gap**2, axis=-1), LOG_ZERO)
+    log_share = log_share - jax.nn.logsumexp(log_share, axis=1, keepdims=True)
+    any_reachable = jnp.any(reachable, axis=1)
+    # j by inverse transform of the shares' cumulative sum (one unit draw per birth).
+    cumulative = jnp.cumsum(jnp.where(reachable, jnp.exp(log_share), 0.0), axis=1)
+    target = choices[:, :1] * cumulative[:, -1:]
+    index = jnp.minimum(jnp.sum(cumulative < target, axis=1), previous.mask.shape[0] - 1)
+    picked = jnp.take_along_axis(displacement, index[:, None, None], axis=1)[:, 0]
+    uniform = (choices[:, 1] < UNIFORM_VELOCITY_SHARE) | ~any_reachable
+    velocity = jnp.where(uniform[:, None], uniform_velocity, picked + velocity_std * offsets)
+    log_volume = jnp.sum(jnp.log(velocity_upper - velocity_lower))
+    inside = jnp.all((velocity >= velocity_lower) & (velocity <= velocity_upper), axis=-1)
+    log_uniform = jnp.where(inside, -log_volume, LOG_ZERO)
+    scaled = (velocity[:, None, :] - displacement) / velocity_std[:, None, :]
+    log_gauss = (
+        -0.5 * jnp.sum(scaled**2, axis=-1)
+        - jnp.sum(jnp.log(velocity_std), axis=-1)[:, None]
+        - math.log(2 * math.pi)
+    )
+    log_mixture = jax.nn.logsumexp(log_share + log_gauss, axis=1)
+    log_density = jnp.where(
+        any_reachable,
+        jnp.logaddexp(
+            math.log(UNIFORM_VELOCITY_SHARE) + log_uniform,
+            math.log1p(-UNIFORM_VELOCITY_SHARE) + log_mixture,
+        ),
+        log_uniform,
+    )
+    return velocity, log_density
 
 
 #: Point x detection pairs per block of :func:`log_mixture_density`: its ``[block,
@@ -227,7 +404,8 @@ def birth_log_weights(
 ) -> Float[Array, " num_births"]:
     """``log w = log gamma(x) - log(J p(x | Z_k))`` of drawn births.
 
-    ``J p(x | Z_k) = births_per_detection sum_z N(x; z, Sigma(z)) / |V_v|``.
+    ``J p(x | Z_k) = births_per_detection sum_z N(p; z, Sigma(z)) q(v | p)``, ``p`` the box
+    and ``v`` the velocity of ``x``, ``q = 1 / |V_v|`` for uniform velocities.
 
     Args:
         draws: the births (:func:`draw_births`).
@@ -241,7 +419,7 @@ def birth_log_weights(
         log_intensity(birth_intensity, draws.states)
         - math.log(births_per_detection)
         - draws.log_mixture
-        + draws.log_velocity_volume
+        + draws.log_velocity_weight
     )
     return jnp.where(draws.real, log_weights, LOG_ZERO)
 
@@ -257,7 +435,9 @@ def sample_births(
     measurement_noise_std: Float[Array, " 4"],
     noise_model: NoiseModel = state_dependent_std,
     draw_slots: int | None = None,
-    random: tuple[Array, Array] | None = None,
+    random: tuple[Array, ...] | None = None,
+    velocities: str = "uniform",
+    previous: PreviousDetections | None = None,
 ) -> tuple[Float[Array, "num_births 6"], Float[Array, " num_births"]]:
     """Draws one frame's birth particles and weights them by ``gamma / (J p)``.
 
@@ -278,6 +458,8 @@ def sample_births(
         noise_model: the likelihood's noise model.
         draw_slots: slots the random numbers are drawn for (:func:`draw_births`).
         random: :func:`draw_births`'s random numbers, already drawn (None: drawn there).
+        velocities: the velocity proposal (static; :func:`draw_births`).
+        previous: the previous frame's detections (``velocities="detections"``).
 
     Returns:
         ``births_per_detection * max_detections`` states, detection-major, and their
@@ -298,6 +480,8 @@ def sample_births(
         noise_model,
         draw_slots,
         random,
+        velocities,
+        previous,
     )
     log_weights = jnp.where(
         started,

@@ -52,7 +52,15 @@ from jaxtrack.context.intensity import Intensity, log_intensity
 from jaxtrack.control import any_member
 from jaxtrack.filters import draws
 from jaxtrack.filters.base import Filter
-from jaxtrack.filters.births import LOG_ZERO, birth_requests, sample_births
+from jaxtrack.filters.births import (
+    LOG_ZERO,
+    VELOCITY_PROPOSALS,
+    PreviousDetections,
+    birth_requests,
+    keep_previous_detections,
+    no_previous_detections,
+    sample_births,
+)
 from jaxtrack.filters.extraction import gmm_clusters, measurement_partition
 from jaxtrack.filters.resampling import ResamplingScheme, resample, systematic
 from jaxtrack.models.dynamics import MEASURED, STATE_DIM, sample_constant_velocity
@@ -135,6 +143,7 @@ class PHDState(NamedTuple):
         mass: total PHD mass ``sum_i w_i`` (expected number of targets).
         labels: the labelling's track table.
         started: False before the first frame (which uses ``params.initial_intensity``).
+        previous: the previous frame's detections (the births' velocity proposal).
     """
 
     particles: Float[Array, "num_particles 6"]
@@ -142,6 +151,7 @@ class PHDState(NamedTuple):
     mass: Float[Array, ""]
     labels: LabelState
     started: Bool[Array, ""]
+    previous: PreviousDetections
 
 
 class PHDInfo(NamedTuple):
@@ -226,6 +236,7 @@ def init_phd(key: Array, params: PHDParams, num_particles: int, max_tracks: int)
         mass=jnp.zeros(()),
         labels=init_labels(max_tracks),
         started=jnp.asarray(False),
+        previous=no_previous_detections(particles.dtype),
     )
 
 
@@ -266,7 +277,9 @@ def phd_births(
     births_per_detection: int,
     noise_model: NoiseModel = state_dependent_std,
     draw_slots: int | None = None,
-    random: tuple[Array, Array] | None = None,
+    random: tuple[Array, ...] | None = None,
+    velocities: str = "uniform",
+    previous: PreviousDetections | None = None,
 ) -> tuple[Float[Array, "num_births 6"], Float[Array, " num_births"]]:
     """One frame's measurement-driven births (:func:`~jaxtrack.filters.births.sample_births`).
 
@@ -282,6 +295,11 @@ def phd_births(
             ``measurements``; :func:`~jaxtrack.filters.births.draw_births`).
         random: the draws' random numbers, already drawn
             (:func:`~jaxtrack.filters.births.birth_requests`; None: drawn here).
+        velocities: the births' velocity proposal (static): ``"uniform"`` over the birth
+            intensity's velocity range (the paper's) or ``"detections"`` (from the previous
+            frame's detections, :func:`~jaxtrack.filters.births.propose_velocities`).
+        previous: the previous frame's detections (``velocities="detections"``;
+            :func:`phd_step` passes the state's).
 
     Returns:
         The birth particles and their log-weights ``log(gamma / (J p))``.
@@ -298,6 +316,8 @@ def phd_births(
         noise_model,
         draw_slots,
         random,
+        velocities,
+        previous,
     )
 
 
@@ -795,7 +815,12 @@ def _joint_draws(predict_stage, births_stage, key_motion, key_birth, state, dete
     births = None
     if births_stage is not None:
         slots = births_stage.keywords.get("draw_slots") or detections.mask.shape[0]
-        births = (slots, births_stage.keywords["births_per_detection"], detections.boxes.dtype)
+        births = (
+            slots,
+            births_stage.keywords["births_per_detection"],
+            detections.boxes.dtype,
+            births_stage.keywords.get("velocities", "uniform"),
+        )
     normal, random = recursion_draws(
         key_motion, key_birth, state.particles.shape[0], state.particles.dtype, births
     )
@@ -807,12 +832,12 @@ def recursion_draws(
     key_birth: Array,
     num_particles: int,
     dtype,
-    births: tuple[int, int, Any] | None = None,
+    births: tuple[int, int, Any] | tuple[int, int, Any, str] | None = None,
 ) -> tuple[Array, tuple[Array, ...] | None]:
     """The random numbers of one PHD recursion from one Threefry evaluation
     (:func:`~jaxtrack.filters.draws.draw`): the motion noise :func:`predict` draws from
     ``key_motion`` (``[num_particles, 4]`` standard normals of ``dtype``) and, with ``births
-    = (draw_slots, births_per_detection, birth_dtype)``, the births' numbers
+    = (draw_slots, births_per_detection, birth_dtype[, velocities])``, the births' numbers
     :func:`phd_births` draws from ``key_birth``
     (:func:`~jaxtrack.filters.births.birth_requests`). The same numbers as the stages' own
     draws, bit for bit; pass them as ``predict(..., normal=)`` and ``phd_births(...,
@@ -823,10 +848,16 @@ def recursion_draws(
     """
     requests = [draws.normal(key_motion, (num_particles, 4), dtype)]
     if births is not None:
-        slots, per_slot, birth_dtype = births
-        requests += birth_requests(key_birth, slots, per_slot, birth_dtype)
+        requests += birth_requests(key_birth, *births)
     drawn = draws.draw(requests)
     return drawn[0], (tuple(drawn[1:]) if births is not None else None)
+
+
+def _births_keyword(births_stage, name: str):
+    """A keyword bound on :func:`phd_births` (None for another births stage or none bound)."""
+    if not isinstance(births_stage, functools.partial) or births_stage.func is not phd_births:
+        return None
+    return births_stage.keywords.get(name)
 
 
 def _is_stage(stage, function) -> bool:
@@ -856,6 +887,8 @@ def _frame_step(
         key_motion, state.particles, state.log_weights, params, **motion_kw
     )
     if births is not None:
+        if _births_keyword(births, "velocities") == "detections":
+            birth_kw["previous"] = state.previous
         born, birth_log_weights = births(
             key_birth, measurements, detections.mask, params, state.started, **birth_kw
         )
@@ -874,7 +907,14 @@ def _frame_step(
     estimates = extract(key_extract, updated, posterior, detections, params)
     label_state, labels = label(state.labels, params.labelling, estimates)
     mass = jnp.exp(jax.nn.logsumexp(new_log_weights))
-    new_state = PHDState(new_particles, new_log_weights, mass, label_state, jnp.asarray(True))
+    new_state = PHDState(
+        new_particles,
+        new_log_weights,
+        mass,
+        label_state,
+        jnp.asarray(True),
+        keep_previous_detections(measurements, detections.mask),
+    )
     info = PHDInfo(
         tracks=_tracks(estimates, labels, labels.confirmed),
         candidates=_tracks(estimates, labels, labels.ids >= 0),
@@ -910,6 +950,7 @@ def phd_filter(
     block_size: int | None = None,
     split_capacity: bool = False,
     confirmation: Literal["auto", "score", "evidence"] = "auto",
+    birth_velocities: Literal["uniform", "detections"] = "uniform",
 ) -> Filter:
     """Builds the particle PHD tracker from its stages; all arguments are static.
 
@@ -951,6 +992,12 @@ def phd_filter(
             (default, :func:`~jaxtrack.association.labelling.confirm_by_calibrated_evidence`:
             ``"evidence"`` when the parameters carry a learned score calibration, as a
             context learned from the ground truth does, ``"score"`` otherwise).
+        birth_velocities: the births' velocity proposal: ``"uniform"`` over the birth
+            intensity's velocity range (default here, the paper's) or ``"detections"``
+            (mostly at the displacements from the previous frame's detections,
+            :func:`~jaxtrack.filters.births.propose_velocities`; the tracker's default,
+            :class:`~jaxtrack.filters.phd_tracker.PHDConfig`). Both are importance
+            densities of the same birth intensity.
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter`.
@@ -963,6 +1010,10 @@ def phd_filter(
         raise ValueError("soft_resampling and stop_gradient_resampling are exclusive")
     if confirmation not in CONFIRMATIONS:
         raise ValueError(f"confirmation must be one of {list(CONFIRMATIONS)}, got {confirmation!r}")
+    if birth_velocities not in VELOCITY_PROPOSALS:
+        raise ValueError(
+            f"birth_velocities must be one of {list(VELOCITY_PROPOSALS)}, got {birth_velocities!r}"
+        )
 
     extract = (
         partition_estimates
@@ -976,6 +1027,7 @@ def phd_filter(
             phd_births,
             births_per_detection=births_per_detection,
             noise_model=measurement_noise_model,
+            velocities=birth_velocities,
         )
         if births_per_detection > 0
         else None

@@ -40,6 +40,7 @@ from jaxtrack.context.scores import ScoreCalibration, calibration_from_metadata
 from jaxtrack.context.target_clutter import target_clutter_from_metadata
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter
+from jaxtrack.filters.births import VELOCITY_PROPOSALS
 from jaxtrack.filters.phd import CONFIRMATIONS, PHDParams, TargetClutter, phd_filter
 from jaxtrack.filters.phd_defaults import (
     DEFAULT_DETECTION_PROB,
@@ -160,6 +161,17 @@ class PHDConfig(TrackerConfig):
         ),
     )
     smoothing: str = setting("none", SMOOTHING)
+    birth_velocity: str = setting(
+        "detections",
+        Rule(
+            "the births' velocity proposal: 'detections' (mostly at the displacements from the "
+            "previous frame's detections of a compatible size, a quarter uniform; since session "
+            "50) or 'uniform' (uniform over the birth intensity's velocity range, the paper's "
+            "and the earlier default); both weight the births by the same birth intensity",
+            str,
+            choices=VELOCITY_PROPOSALS,
+        ),
+    )
     frame_capacity: str = setting(
         "full",
         Rule(
@@ -323,6 +335,7 @@ def phd_filter_of(config: PHDConfig) -> Filter:
         config.extraction,
         config.frame_capacity == "split",
         config.confirmation,
+        config.birth_velocity,
     )
 
 
@@ -333,6 +346,7 @@ def _phd_filter(
     extraction: str,
     split_capacity: bool,
     confirmation: str,
+    birth_velocity: str,
 ) -> Filter:
     return phd_filter(
         num_particles,
@@ -342,6 +356,7 @@ def _phd_filter(
         max_tracks=MAX_TRACKS,
         split_capacity=split_capacity,
         confirmation=confirmation,
+        birth_velocities=birth_velocity,
     )
 
 

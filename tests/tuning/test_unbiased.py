@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from jaxtrack.association.labelling import init_labels
+from jaxtrack.filters.births import no_previous_detections
 from jaxtrack.filters.phd import PHDState
 from jaxtrack.filters.phd_defaults import default_phd_params
 from jaxtrack.tuning import tuning_filter
@@ -109,6 +110,7 @@ def _particle_value_and_score(estimator, key):
             jnp.asarray(1.0),
             init_labels(4),
             jnp.asarray(True),
+            no_previous_detections(jnp.float64),
         )
 
         def body(state, inputs):
