@@ -995,9 +995,9 @@ def phd_filter(
         birth_velocities: the births' velocity proposal: ``"uniform"`` over the birth
             intensity's velocity range (default here, the paper's) or ``"detections"``
             (mostly at the displacements from the previous frame's detections,
-            :func:`~jaxtrack.filters.births.propose_velocities`; the tracker's default,
-            :class:`~jaxtrack.filters.phd_tracker.PHDConfig`). Both are importance
-            densities of the same birth intensity.
+            :func:`~jaxtrack.filters.births.propose_velocities`;
+            :class:`~jaxtrack.filters.phd_tracker.PHDConfig`'s ``birth_velocity``). Both
+            are importance densities of the same birth intensity.
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter`.

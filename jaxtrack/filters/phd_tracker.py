@@ -162,12 +162,12 @@ class PHDConfig(TrackerConfig):
     )
     smoothing: str = setting("none", SMOOTHING)
     birth_velocity: str = setting(
-        "detections",
+        "uniform",
         Rule(
-            "the births' velocity proposal: 'detections' (mostly at the displacements from the "
-            "previous frame's detections of a compatible size, a quarter uniform; since session "
-            "50) or 'uniform' (uniform over the birth intensity's velocity range, the paper's "
-            "and the earlier default); both weight the births by the same birth intensity",
+            "the births' velocity proposal: 'uniform' (uniform over the birth intensity's "
+            "velocity range, the paper's) or 'detections' (three quarters at the displacements "
+            "from the previous frame's detections of a compatible size); both weight the "
+            "births by the same birth intensity (an importance density, not a model change)",
             str,
             choices=VELOCITY_PROPOSALS,
         ),

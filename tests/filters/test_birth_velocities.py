@@ -19,7 +19,6 @@ import pytest
 from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.births import (
-    LOG_ZERO,
     PREVIOUS_SLOTS,
     UNIFORM_VELOCITY_SHARE,
     PreviousDetections,
@@ -267,12 +266,11 @@ def test_the_state_keeps_the_frame_s_detections_and_the_first_frame_is_the_unifo
     assert previous.mask.tolist() == [True] + [False] * (PREVIOUS_SLOTS - 1)
 
 
-def test_the_tracker_default_is_the_detections_proposal_and_bad_values_are_refused():
-    assert PHDConfig().birth_velocity == "detections"
+def test_the_tracker_default_is_the_uniform_proposal_and_bad_values_are_refused():
+    assert PHDConfig().birth_velocity == "uniform"
     with pytest.raises(InputError, match="birth_velocity"):
         PHDConfig(birth_velocity="gaussian")
-    uniform = phd_filter_of(PHDConfig(birth_velocity="uniform"))
-    assert uniform is not phd_filter_of(PHDConfig())
-    state = phd_filter_of(PHDConfig()).init(jax.random.key(0), None)
+    proposal = phd_filter_of(PHDConfig(birth_velocity="detections"))
+    assert proposal is not phd_filter_of(PHDConfig())
+    state = proposal.init(jax.random.key(0), None)
     assert state.previous.mask.shape == (PREVIOUS_SLOTS,) and not bool(state.previous.mask.any())
-    assert LOG_ZERO < 0
