@@ -505,11 +505,17 @@ def test_generalisation_confirmation_reaches_the_experiment(tmp_path, monkeypatc
     assert seen["smoothing"] == "rts"
     assert _experiment("context-generalisation", *argv, "--smoothing", "kalman") == 2
     assert "invalid choice: 'kalman'" in capsys.readouterr().err
+    assert seen["birth_velocity"] == "uniform"
+    with pytest.raises(SystemExit):
+        _experiment("context-generalisation", *argv, "--birth-velocity", "detections")
+    assert seen["birth_velocity"] == "detections"
+    assert _experiment("context-generalisation", *argv, "--birth-velocity", "random") == 2
+    assert "invalid choice: 'random'" in capsys.readouterr().err
 
 
 def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
-    """The experiment's tracker configuration carries ``retrodiction`` and ``smoothing`` (the
-    scene's runs are stubbed after the first scene is written)."""
+    """The experiment's tracker configuration carries ``retrodiction``, ``smoothing`` and
+    ``birth_velocity`` (the scene's runs are stubbed after the first scene is written)."""
     from jaxtrack.experiments import context_generalisation as experiment
 
     seen = []
@@ -528,9 +534,11 @@ def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
             tuned=False,
             retrodiction=50,
             smoothing="rts",
+            birth_velocity="detections",
         )
     assert seen[0].retrodiction == 50
     assert seen[0].smoothing == "rts"
+    assert seen[0].birth_velocity == "detections"
     assert seen[0].output == "offline"
 
 

@@ -710,6 +710,13 @@ def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
         timings[key] = timings.get(key, 0.0) + time.perf_counter() - began
 
 
+def _birth_velocity_note(config: PHDConfig) -> str:
+    """The summary's words for a velocity proposal other than the default's."""
+    if config.birth_velocity == PHDConfig.birth_velocity:
+        return ""
+    return f", birth velocities {config.birth_velocity!r}"
+
+
 def summary_markdown(
     summary: Sequence[dict[str, Any]],
     goals: Sequence[Goal],
@@ -733,7 +740,7 @@ def summary_markdown(
         f"'{config.confirmation}'"
         f"{f', retrodiction {config.retrodiction} frames' if config.retrodiction else ''}"
         f"{f', smoothing {config.smoothing!r}' if config.smoothing != 'none' else ''}"
-        f", birth velocities '{config.birth_velocity}'"
+        f"{_birth_velocity_note(config)}"
         f"{', quick run' if quick else ''}. "
         "MOTA in %; per group (bank family over its scenes' seeds, or a real sequence over "
         "its tracker seeds) the mean over seeds; `gain %` = 100 (MOTA - MOTA_UM) / |MOTA_UM| "
