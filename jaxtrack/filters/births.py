@@ -30,7 +30,8 @@ drawn, given the drawn box ``p = (y1, y2, w, h)``, from
 
     q(v | p) = eps U(v; V_v) + (1 - eps) sum_j a_j(p) N(v; p_xy - z'_j, 2 diag(s_xy(p))^2),
     a_j(p) proportional to N(p_wh - z'_j,wh; 0, 2 diag(s_wh(p))^2) over the previous
-    detections z'_j whose displacement p_xy - z'_j lies in V_v (q = U when there is none),
+    detections z'_j whose displacement p_xy - z'_j lies in V_v and whose size passes a
+    99 % chi-square gate (SIZE_GATE; q = U when there is none),
 
 ``s(p)`` the measurement noise of a box of ``p``'s size (the difference of two detections of
 one target has twice its variance; the weights ``a_j`` prefer previous boxes of a compatible
@@ -71,6 +72,12 @@ PREVIOUS_SLOTS = 32
 #: quarter of a detection's births as before, the rest at the previous detections'
 #: displacements).
 UNIFORM_VELOCITY_SHARE = 0.25
+
+
+#: Gate on a previous box's size: ``|(p_wh - z'_wh) / (sqrt(2) s_wh(p))|^2`` at most the 99 %
+#: quantile of the chi-square law with 2 degrees of freedom (a box of another size is not the
+#: same target; :func:`propose_velocities`).
+SIZE_GATE = 9.21
 
 
 class PreviousDetections(NamedTuple):
@@ -300,12 +307,24 @@ def propose_velocities(
         & (shift_y >= velocity_lower[1])
         & (shift_y <= velocity_upper[1])
     )
-    shares = jnp.where(reachable, jnp.exp(-0.5 * (gap_w * gap_w + gap_h * gap_h)), 0.0)
+    size_gap = gap_w * gap_w + gap_h * gap_h
+    # Only boxes of a compatible size: their shares then lie in [exp(-SIZE_GATE / 2), 1], far
+    # above float32's rounding of the cumulative sums and its flushed subnormals (a pick's
+    # probability must be what its density says, or its births' weights explode).
+    reachable = reachable & (size_gap <= SIZE_GATE)
+    shares = jnp.where(reachable, jnp.exp(-0.5 * size_gap), 0.0)
     cumulative = shares @ jnp.triu(jnp.ones((num_previous, num_previous), shares.dtype))
     total = cumulative[:, -1]
     any_reachable = total > 0
-    index = jnp.sum(cumulative < choices[:, :1] * total[:, None], axis=1)
-    picked = jnp.arange(num_previous)[None, :] == jnp.minimum(index, num_previous - 1)[:, None]
+    # The first box of positive share whose cumulative sum reaches the target (the last one
+    # when rounding leaves none): the sums are separate dot products, so a zero share may
+    # round to a step of the cumulative sum, and a box of no share must never be picked
+    # (its displacement may be far outside the mixture's support).
+    positive = shares > 0
+    reached = positive & (cumulative >= choices[:, :1] * total[:, None])
+    last = num_previous - 1 - jnp.argmax(positive[:, ::-1], axis=1)
+    index = jnp.where(jnp.any(reached, axis=1), jnp.argmax(reached, axis=1), last)
+    picked = jnp.arange(num_previous)[None, :] == index[:, None]
     centre = jnp.stack(
         [jnp.sum(jnp.where(picked, shift, 0.0), axis=1) for shift in (shift_x, shift_y)], -1
     )

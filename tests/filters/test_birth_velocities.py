@@ -20,6 +20,7 @@ from jaxtrack.context.intensity import Intensity
 from jaxtrack.errors import InputError
 from jaxtrack.filters.births import (
     PREVIOUS_SLOTS,
+    SIZE_GATE,
     UNIFORM_VELOCITY_SHARE,
     PreviousDetections,
     draw_births,
@@ -55,7 +56,8 @@ def _numpy_log_density(points, velocity, previous_boxes, noise=NOISE):
     reachable = np.all((shift >= LOWER) & (shift <= UPPER), axis=2)
     size_var, var = 2 * noise[2:] ** 2, 2 * noise[:2] ** 2
     size_gap = points[:, None, 2:] - previous_boxes[None, :, 2:]
-    shares = np.where(reachable, np.exp(-0.5 * np.sum(size_gap**2 / size_var, axis=2)), 0.0)
+    squares = np.sum(size_gap**2 / size_var, axis=2)
+    shares = np.where(reachable & (squares <= SIZE_GATE), np.exp(-0.5 * squares), 0.0)
     total = shares.sum(axis=1, keepdims=True)
     shares = shares / np.where(total > 0, total, 1.0)
     gauss = np.exp(-0.5 * np.sum((velocity[:, None] - shift) ** 2 / var, axis=2)) / (
@@ -85,11 +87,17 @@ def _propose(points, previous, key, uniform_velocity=None):
 
 
 def test_log_density_matches_a_float64_numpy_reference():
-    """Previous boxes: two reachable (different sizes), one beyond the speed range; births
-    near them and one with no reachable previous box (density = the uniform's)."""
+    """Previous boxes: two reachable (different sizes), one beyond the speed range, one of
+    another size; births near them and one with no reachable previous box (density = the
+    uniform's)."""
     rng = np.random.default_rng(3)
     previous_boxes = np.array(
-        [[100.0, 100.0, 30.0, 70.0], [130.0, 95.0, 40.0, 90.0], [300.0, 300.0, 30.0, 70.0]]
+        [
+            [100.0, 100.0, 30.0, 70.0],
+            [130.0, 95.0, 40.0, 90.0],
+            [300.0, 300.0, 30.0, 70.0],  # beyond the speed range
+            [115.0, 105.0, 10.0, 30.0],  # within reach, of another size: gated out
+        ]
     )
     points = np.concatenate(
         [
@@ -107,6 +115,28 @@ def test_log_density_matches_a_float64_numpy_reference():
     )
     # The last birth has no reachable previous box: its velocity is the uniform draw.
     np.testing.assert_allclose(log_q[-1], -np.log(np.prod(UPPER - LOWER)), rtol=1e-12)
+
+
+def test_a_box_of_another_size_is_no_candidate_and_the_weights_stay_bounded():
+    """A thin box (9 px wide) after a wide one (54 px) at the same place: without the size
+    gate its share underflowed to a subnormal that float32 arithmetic flushed to zero in the
+    density but not in the pick, and one birth's weight reached 1e26 (uniform-0, frame 117).
+    With the gate every velocity is the uniform draw, with the uniform density."""
+    measurements = jnp.asarray([[79.2, 451.3, 9.16, 113.9]], jnp.float32)
+    lower, upper = jnp.asarray(LOWER, jnp.float32), jnp.asarray(UPPER, jnp.float32)
+    previous = _previous([[82.5, 445.7, 53.8, 134.0]], jnp.float32)
+    draws = draw_births(
+        jax.random.key(3),
+        measurements,
+        jnp.array([True]),
+        256,
+        lower,
+        upper,
+        jnp.array([0.15, 0.08, 0.25, 0.15]),
+        velocities="detections",
+        previous=previous,
+    )
+    np.testing.assert_allclose(draws.log_velocity_weight, np.log(np.prod(UPPER - LOWER)), rtol=1e-6)
 
 
 def test_draws_follow_the_density_they_report():
