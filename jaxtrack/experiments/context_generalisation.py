@@ -566,7 +566,7 @@ def run_context_generalisation(
     confirmation: str = "auto",
     retrodiction: int = 0,
     smoothing: str = "none",
-    birth_velocity: str | None = None,
+    birth_velocity: str = PHDConfig.birth_velocity,
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -598,7 +598,8 @@ def run_context_generalisation(
             every context of the experiment learns a calibration from the ground truth).
         retrodiction: ``PHDConfig.retrodiction`` of every run (0: off).
         smoothing: ``PHDConfig.smoothing`` of every run (``"none"`` or ``"rts"``).
-        birth_velocity: ``PHDConfig.birth_velocity`` of every run (None: the default).
+        birth_velocity: ``PHDConfig.birth_velocity`` of every run (``"uniform"`` or
+            ``"detections"``).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -614,10 +615,12 @@ def run_context_generalisation(
     if particles is not None:
         config = dataclasses.replace(config, num_particles=particles)
     config = dataclasses.replace(
-        config, confirmation=confirmation, retrodiction=retrodiction, smoothing=smoothing
+        config,
+        confirmation=confirmation,
+        retrodiction=retrodiction,
+        smoothing=smoothing,
+        birth_velocity=birth_velocity,
     )
-    if birth_velocity is not None:
-        config = dataclasses.replace(config, birth_velocity=birth_velocity)
     notes = []
     if tuned and not tuning_takes_context():
         tuned = False

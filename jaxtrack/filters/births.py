@@ -19,14 +19,15 @@ the only place where births can gain mass in the update).
 
 **Velocities from the previous frame's detections** (``velocities="detections"``,
 :func:`propose_velocities`; the tracker's option ``PHDConfig.birth_velocity``, default
-``"uniform"``: on the scene bank it did not track better, README "Births' velocities from
-the previous frame", session 50). A uniform velocity over ``V_v`` (46 x 46 pixels per frame
-at 576 rows) gives the 32 births of a detection one draw per ~66 (pixels per frame)^2: a new
-track may start with a velocity several pixels per frame off, its prediction then lags the
-target, and where the context's clutter intensity is high (a clutter source the target walks
-through) its detections are explained as clutter and the track dies (layout-change-26, issue
-15). A target seen in the previous frame moved by about ``z - z'``; so the velocity is
-drawn, given the drawn box ``p = (y1, y2, w, h)``, from
+``"uniform"``: on the scene bank it did not track better, README "A held-out failure
+traced, and births' velocities from the previous frame", session 50). A uniform velocity
+over ``V_v`` (46 x 46 pixels per frame at 576 rows) gives the 32 births of a detection one
+draw per ~66 (pixels per frame)^2: a new track may start with a velocity several pixels
+per frame off, its prediction then lags the target, and where the context's clutter
+intensity is high (a clutter source the target walks through) its detections are explained
+as clutter and the track dies (layout-change-26, issue 15). A target seen in the previous
+frame moved by about ``z - z'``; so the velocity is drawn, given the drawn box ``p = (y1, y2,
+w, h)``, from
 
     q(v | p) = eps U(v; V_v) + (1 - eps) sum_j a_j(p) N(v; p_xy - z'_j, 2 diag(s_xy(p))^2),
     a_j(p) proportional to N(p_wh - z'_j,wh; 0, 2 diag(s_wh(p))^2) over the previous

@@ -819,7 +819,7 @@ def _joint_draws(predict_stage, births_stage, key_motion, key_birth, state, dete
             slots,
             births_stage.keywords["births_per_detection"],
             detections.boxes.dtype,
-            births_stage.keywords.get("velocities", "uniform"),
+            _births_keyword(births_stage, "velocities") or "uniform",
         )
     normal, random = recursion_draws(
         key_motion, key_birth, state.particles.shape[0], state.particles.dtype, births
