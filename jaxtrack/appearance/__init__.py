@@ -38,6 +38,7 @@ from jaxtrack.appearance.histograms import (
 )
 from jaxtrack.appearance.model import AppearanceModel, init_model, update_model, within_gate
 from jaxtrack.appearance.mutual_information import (
+    chance_information,
     decay_update,
     feature_values,
     feature_weights,
@@ -80,6 +81,7 @@ __all__ = [
     "best_split",
     "bhattacharyya_coefficient",
     "bhattacharyya_distance",
+    "chance_information",
     "decay_update",
     "epanechnikov",
     "feature_values",

@@ -17,6 +17,16 @@ Mutual information is in nats (the base cancels in ``rho``). A target alone in i
 context (or whose classes have no samples) has ``I = 0`` for every feature; its weights are
 then uniform, ``1 / num_features``. The paper's threshold that drops low-scoring features is
 left to the tracker.
+
+*Chance level* (not in the paper; ``correction`` > 0): the plug-in estimate of eq. 13 is
+biased upwards, by about ``(B - 1)(C - 1) / (2N)`` nats when feature and identity are
+independent (Miller-Madow; ``B`` value bins in use, ``C`` classes, ``N`` samples), and more for
+a feature spread over more bins. Among look-alike targets, eq. 14 then gives most of the
+weight to the noisiest feature. :func:`chance_information` estimates that level from the
+counts (``B`` the perplexity of the pooled values, ``N`` the decayed sample mass, which
+overstates the bias a little: decayed samples weigh less than one);
+:func:`multiresolution_mutual_information` lowers each level's ``I_r`` by ``correction`` times
+it, floored at 0.
 """
 
 from __future__ import annotations
@@ -105,12 +115,38 @@ def mutual_information(
     return jnp.sum(jnp.where(positive, joint * jnp.log(ratio), 0.0))
 
 
+def chance_information(
+    counts: Float[Array, "num_classes num_values"], classes: Bool[Array, " num_classes"]
+) -> Float[Array, ""]:
+    """The plug-in ``I`` that sampling noise alone gives (module docstring, *chance level*).
+
+    ``(B - 1)(C - 1) / (2 N)`` nats: ``N`` the decayed sample mass of the classes marked True,
+    ``C`` how many of them hold samples, ``B = exp(H(V))`` the perplexity of their pooled value
+    distribution (the value bins in use). 0 when no class holds samples.
+    """
+    kept = counts * classes[:, None]
+    total = jnp.sum(kept)
+    value_prob = jnp.sum(kept, axis=0) / jnp.where(total > 0, total, 1.0)
+    positive = value_prob > 0
+    entropy = -jnp.sum(
+        jnp.where(positive, value_prob * jnp.log(jnp.where(positive, value_prob, 1.0)), 0.0)
+    )
+    present = jnp.sum(jnp.sum(kept, axis=1) > 0)
+    chance = (jnp.exp(entropy) - 1.0) * (present - 1) / (2.0 * jnp.where(total > 0, total, 1.0))
+    return jnp.maximum(chance, 0.0)
+
+
 def multiresolution_mutual_information(
     counts: Float[Array, "num_classes num_values"],
     classes: Bool[Array, " num_classes"],
     num_levels: int,
+    correction: Float[Array, ""] | float = 0.0,
 ) -> Float[Array, ""]:
     """``I = sum_{r < num_levels} 2^-r I_r`` (CMT eq. 17), level ``r`` merging ``2^r`` bins.
+
+    With ``correction`` ``c > 0``, each level's ``I_r`` is first lowered by ``c`` times its
+    :func:`chance_information` and floored at 0 (module docstring, *chance level*; ``c = 0``:
+    the paper's plug-in estimate).
 
     Raises:
         InputError: ``num_values`` is not divisible by ``2^(num_levels - 1)``.
@@ -124,7 +160,11 @@ def multiresolution_mutual_information(
     total = jnp.zeros((), counts.dtype)
     for level in range(num_levels):
         merged = counts.reshape(num_classes, num_values >> level, 2**level).sum(axis=-1)
-        total = total + mutual_information(merged, classes) / 2**level
+        information = mutual_information(merged, classes)
+        if not (isinstance(correction, (int, float)) and correction == 0):
+            lowered = information - correction * chance_information(merged, classes)
+            information = jnp.where(correction > 0, jnp.maximum(lowered, 0.0), information)
+        total = total + information / 2**level
     return total
 
 
@@ -132,6 +172,7 @@ def feature_weights(
     counts: Float[Array, "max_targets num_features num_values"],
     context: Bool[Array, "max_targets max_targets"],
     num_levels: int,
+    correction: Float[Array, ""] | float = 0.0,
 ) -> Float[Array, "max_targets num_features"]:
     """``rho_k`` of every target (CMT eq. 14), uniform where every ``I`` is 0.
 
@@ -142,13 +183,15 @@ def feature_weights(
         counts: decayed histograms ``G`` (:func:`decay_update`).
         context: fields of context (:func:`field_of_context`).
         num_levels: quantisation levels of eq. 17, static.
+        correction: multiple of the chance level taken off each feature's ``I``
+            (:func:`multiresolution_mutual_information`; 0: the paper's plug-in estimate).
     """
     per_feature = jnp.swapaxes(counts, 0, 1)
 
     def weights(classes):
         information = jax.vmap(
             lambda feature_counts: multiresolution_mutual_information(
-                feature_counts, classes, num_levels
+                feature_counts, classes, num_levels, correction
             )
         )(per_feature)
         information = jnp.maximum(information, 0.0)  # rounding can leave -1e-9 for I = 0

@@ -62,12 +62,16 @@ class COMParams(NamedTuple):
             ``min_feature_score / F`` are dropped and the others renormalised (Sec. VI).
         model_rate: rate ``beta`` in ``(0, 1]`` of the model's recursive mean,
             ``mu_k <- (1 - beta) mu_k + beta f_k``.
+        information_correction: ``c >= 0``; each feature's mutual information is lowered by
+            ``c`` times its chance level before eq. 14 (not in the paper;
+            :func:`~jaxtrack.appearance.chance_information`; 0: the plug-in estimate).
     """
 
     feature_std: Float[Array, ""]
     decay: Float[Array, ""]
     min_feature_score: Float[Array, ""]
     model_rate: Float[Array, ""]
+    information_correction: Float[Array, ""]
 
 
 def default_com_params() -> COMParams:
@@ -76,13 +80,15 @@ def default_com_params() -> COMParams:
     ``sigma = 0.1``: a bucket holding a share ``p`` of a half's 64 samples fluctuates by
     ``sqrt(p (1 - p) / 64) <= 0.06`` between frames; ``alpha = 0.05``: samples of the last
     ~20 frames dominate ``G``; ``min_feature_score = 0.5``: features below half the uniform
-    weight are dropped; ``beta = 0.1``.
+    weight are dropped; ``beta = 0.1``; ``information_correction = 0``: the paper's plug-in
+    mutual information (the correction did not track better on held-out scenes, README).
     """
     return COMParams(
         feature_std=jnp.asarray(0.1, jnp.float32),
         decay=jnp.asarray(0.05, jnp.float32),
         min_feature_score=jnp.asarray(0.5, jnp.float32),
         model_rate=jnp.asarray(0.1, jnp.float32),
+        information_correction=jnp.asarray(0.0, jnp.float32),
     )
 
 
@@ -201,7 +207,7 @@ def observation_weights(
         return jnp.full((num_components, num_pool), 1.0 / num_pool, counts.dtype)
     radii = jnp.broadcast_to(radius, (num_components,))[:, None]
     context = field_of_context(positions, alive, radii)
-    weights = feature_weights(counts, context, num_levels)
+    weights = feature_weights(counts, context, num_levels, params.information_correction)
     return drop_weak_features(weights, params.min_feature_score)
 
 

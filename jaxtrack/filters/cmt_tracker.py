@@ -155,6 +155,18 @@ class CMTConfig(TrackerConfig):
             1.0,
         ),
     )
+    information_correction: float = setting(
+        0.0,
+        Rule(
+            "COM: multiple of the chance-level mutual information (what sampling noise "
+            "alone gives) taken off each feature's score before the weights are normalised "
+            "(0: the paper's plug-in estimate, which favours the noisiest features when the "
+            "targets look alike)",
+            float,
+            0.0,
+            100.0,
+        ),
+    )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
     smoothing: str = setting("none", SMOOTHING)
@@ -192,7 +204,9 @@ def cmt_params(config: CMTConfig, zones: SceneZones | None = None) -> CMTParams:
         proposal=default_cpd_params()._replace(
             group_area_ratio=jnp.float32(config.group_area_ratio)
         ),
-        observation=default_com_params(),
+        observation=default_com_params()._replace(
+            information_correction=jnp.float32(config.information_correction)
+        ),
         appearance_weight=jnp.float32(config.appearance_weight),
         duplicate_iou=jnp.float32(DUPLICATE_IOU),
         confirm_score=jnp.float32(CONFIRM_SCORE),
