@@ -207,7 +207,12 @@ def observation_weights(
         return jnp.full((num_components, num_pool), 1.0 / num_pool, counts.dtype)
     radii = jnp.broadcast_to(radius, (num_components,))[:, None]
     context = field_of_context(positions, alive, radii)
-    weights = feature_weights(counts, context, num_levels, params.information_correction)
+    correction = params.information_correction
+    weights = jax.lax.cond(  # the default (0) skips the chance levels' cost
+        correction > 0,
+        lambda: feature_weights(counts, context, num_levels, correction),
+        lambda: feature_weights(counts, context, num_levels),
+    )
     return drop_weak_features(weights, params.min_feature_score)
 
 

@@ -18,9 +18,15 @@ from jaxtrack.appearance import (
     chance_information,
     decay_update,
     feature_weights,
+    field_of_context,
     multiresolution_mutual_information,
     mutual_information,
     quantise_values,
+)
+from jaxtrack.filters.cmt_observation import (
+    default_com_params,
+    drop_weak_features,
+    observation_weights,
 )
 from jaxtrack.filters.cmt_tracker import CMTConfig, cmt_params
 
@@ -141,3 +147,31 @@ def test_config_sets_the_correction():
     assert float(cmt_params(CMTConfig()).observation.information_correction) == 0.0
     params = cmt_params(CMTConfig(information_correction=1.0))
     assert float(params.observation.information_correction) == 1.0
+
+
+def test_observation_weights_read_the_correction_also_in_a_sweep():
+    """COM's weights with the correction on equal the corrected feature weights (then the
+    weak features dropped); a vmapped sweep over ``[0, 1]`` gives both settings' weights."""
+    rng = np.random.default_rng(23)
+    counts = jnp.asarray(rng.uniform(0, 2, (4, 5, 16)) * (rng.uniform(0, 1, (4, 5, 16)) < 0.4))
+    positions = jnp.asarray([[0.0, 0.0], [10.0, 0.0], [200.0, 0.0], [205.0, 5.0]])
+    alive = jnp.array([True, True, True, False])
+    context = field_of_context(positions, alive, 50.0)
+    base = default_com_params()
+
+    def weights(params):
+        return observation_weights(counts, positions, alive, 50.0, params, 3, True)
+
+    for correction in (0.0, 1.0):
+        params = base._replace(information_correction=jnp.float32(correction))
+        expected = drop_weak_features(
+            feature_weights(counts, context, 3, correction), base.min_feature_score
+        )
+        np.testing.assert_allclose(weights(params), expected, rtol=1e-6)
+    swept = jax.vmap(lambda c: weights(base._replace(information_correction=c)))(
+        jnp.array([0.0, 1.0], jnp.float32)
+    )
+    for index, correction in enumerate((0.0, 1.0)):
+        single = weights(base._replace(information_correction=jnp.float32(correction)))
+        np.testing.assert_allclose(swept[index], single, rtol=1e-6)
+    assert not np.allclose(swept[0], swept[1])  # the correction changes something here
