@@ -26,7 +26,8 @@ model look at the scene's context. One :func:`cmt_step` on
    explains it) for more than ``max_misses`` frames (four times as many under the contextual
    proposal while another component is in its field of context: a *merge*, the target
    hidden behind another), or whose ``pi_m`` falls below ``min_mixture_weight``, is deleted
-   (CMT Algorithm 1);
+   (CMT Algorithm 1); with ``box_support`` (not in the paper) the support is summed under
+   the box likelihood alone, so the appearance exponent does not move it;
 5. resample per component; **merge velocity** (``velocity_rate`` > 0, contextual
    proposal only): a component whose predicted centre shares a blob with another's
    (:func:`~jaxtrack.filters.cmt_conditions.sharing_blob`: one box over two targets) keeps
@@ -296,6 +297,7 @@ def cmt_step(
     hold_velocity: bool = False,
     reidentify: int = 0,
     free_blob_frames: int = 0,
+    box_support: bool = False,
     step: float = STEP,
     patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
     num_levels: int = NUM_LEVELS,
@@ -323,6 +325,11 @@ def cmt_step(
             unconfirmed component, not only a newborn, may take back a dead one's identity
             (static; 0: never, the paper's dispelling rule; :func:`free_runs`,
             :func:`_crowded`).
+        box_support: a component's support ``log w_m`` (verification, step 4) sums its
+            particles' weights under the box likelihood alone, not times the appearance
+            likelihood (static; False: the full likelihood, as eq. 4's ``pi_m`` always is).
+            With the full likelihood the appearance exponent moves every support, so the
+            threshold set for ``appearance_weight`` 1 deletes components at 2.
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
         num_levels: quantisation levels of eq. 17 (static).
@@ -404,6 +411,14 @@ def cmt_step(
         log_q,
     )
     log_pi, log_support, _ = mixture_weights(mixture.log_mixture_weights, log_weights, alive)
+    if box_support:  # the blobs' evidence alone, whatever the appearance exponent
+        box_weights = reweight(
+            mixture.log_weights,
+            jnp.where(exited, LOG_ZERO, log_box),
+            log_transition(particles, mixture.particles, params.mixture),
+            log_q,
+        )
+        log_support = jax.nn.logsumexp(box_weights, axis=-1)
     log_weights = normalise_weights(log_weights)
     estimates = jax.vmap(local_estimate)(particles, log_weights)
 
@@ -695,6 +710,7 @@ def cmt_filter(
     hold_velocity: bool = False,
     reidentify: int = 0,
     free_blob_frames: int = 0,
+    box_support: bool = False,
 ) -> Filter:
     """Builds CMT; all arguments are static.
 
@@ -710,6 +726,7 @@ def cmt_filter(
             component's identity (see :func:`cmt_step`; 0: never).
         free_blob_frames: frames a blob stays unowned before it starts a component whatever
             explains it (see :func:`cmt_step`; 0: never).
+        box_support: supports from the box likelihood alone (see :func:`cmt_step`).
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter` (steps on
@@ -733,6 +750,7 @@ def cmt_filter(
         hold_velocity=hold_velocity,
         reidentify=reidentify,
         free_blob_frames=free_blob_frames,
+        box_support=box_support,
     )
     init = functools.partial(
         init_cmt,

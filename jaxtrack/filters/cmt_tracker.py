@@ -47,6 +47,8 @@ from jaxtrack.parameters import LOG, ParameterProperties, frozen_properties
 from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
 from jaxtrack.types import SequenceInfo
 
+#: What a component's support is computed from (``CMTConfig.support``).
+SUPPORTS = ("likelihood", "box")
 #: Log-likelihood of a particle no blob explains (the floor of the box likelihood): about
 #: 3.5 standard deviations off in each of the 4 box coordinates for a 50 x 100 box.
 BACKGROUND_LOG_LIKELIHOOD = -38.0
@@ -155,6 +157,17 @@ class CMTConfig(TrackerConfig):
             1.0,
         ),
     )
+    support: str = setting(
+        "likelihood",
+        Rule(
+            "what a component's support (deleted after max_misses frames below the "
+            "threshold) is computed from: 'likelihood' (box times appearance^"
+            "appearance_weight, the paper's) or 'box' (the blobs' evidence alone, which "
+            "appearance_weight then leaves alone)",
+            str,
+            choices=SUPPORTS,
+        ),
+    )
     information_correction: float = setting(
         0.0,
         Rule(
@@ -240,6 +253,7 @@ def build_cmt(
         config.velocity_rate > 0,
         reidentify_frames(config, info),
         config.free_blob_frames,
+        config.support == "box",
     )
     return filt, cmt_params(config, context)
 
