@@ -65,7 +65,11 @@ tracker; a new component takes back the identity of a confirmed one deleted that
 nearby and alike in colour), ``free_blob_frames`` (2; 0: off, the paper's tracker; a blob no
 component owns that many frames in a row starts one whatever explains it),
 ``confirm_quantile`` (0.75; 1: off; a component is output once a blob scoring 0.97, or at
-least this quantile of the scores seen so far, explains it), ``output``, ``max_gap``.
+least this quantile of the scores seen so far, explains it), ``support`` (``likelihood``,
+the paper's; ``box``: a component's support from the blobs' box likelihood alone, so
+``appearance_weight`` above 1 no longer deletes followed targets), ``information_correction``
+(0, the paper's; COM's mutual information lowered by this multiple of its chance level),
+``output``, ``max_gap``.
 
 ``--tracker hierarchical`` runs the Hierarchical tracker (SPEC section 4,
 ``jaxtrack.filters.hierarchical``): a bank of constant-velocity Kalman filters whose tracks
