@@ -126,13 +126,14 @@ def chance_information(
     """
     kept = counts * classes[:, None]
     total = jnp.sum(kept)
-    value_prob = jnp.sum(kept, axis=0) / jnp.where(total > 0, total, 1.0)
+    mass = jnp.where(total > 0, total, 1.0)
+    value_prob = jnp.sum(kept, axis=0) / mass
     positive = value_prob > 0
     entropy = -jnp.sum(
         jnp.where(positive, value_prob * jnp.log(jnp.where(positive, value_prob, 1.0)), 0.0)
     )
     present = jnp.sum(jnp.sum(kept, axis=1) > 0)
-    chance = (jnp.exp(entropy) - 1.0) * (present - 1) / (2.0 * jnp.where(total > 0, total, 1.0))
+    chance = (jnp.exp(entropy) - 1.0) * (present - 1) / (2.0 * mass)
     return jnp.maximum(chance, 0.0)
 
 

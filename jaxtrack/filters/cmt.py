@@ -404,20 +404,12 @@ def cmt_step(
         )
     log_likelihood = log_box + params.appearance_weight * log_appearance
     log_likelihood = jnp.where(exited, LOG_ZERO, log_likelihood)
-    log_weights = reweight(
-        mixture.log_weights,
-        log_likelihood,
-        log_transition(particles, mixture.particles, params.mixture),
-        log_q,
-    )
+    log_prior = log_transition(particles, mixture.particles, params.mixture)
+    log_weights = reweight(mixture.log_weights, log_likelihood, log_prior, log_q)
     log_pi, log_support, _ = mixture_weights(mixture.log_mixture_weights, log_weights, alive)
     if box_support:  # the blobs' evidence alone, whatever the appearance exponent
-        box_weights = reweight(
-            mixture.log_weights,
-            jnp.where(exited, LOG_ZERO, log_box),
-            log_transition(particles, mixture.particles, params.mixture),
-            log_q,
-        )
+        box_likelihood = jnp.where(exited, LOG_ZERO, log_box)
+        box_weights = reweight(mixture.log_weights, box_likelihood, log_prior, log_q)
         log_support = jax.nn.logsumexp(box_weights, axis=-1)
     log_weights = normalise_weights(log_weights)
     estimates = jax.vmap(local_estimate)(particles, log_weights)
