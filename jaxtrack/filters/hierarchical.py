@@ -172,6 +172,7 @@ class HierarchicalParams(NamedTuple):
     confirm_quantile: Float[Array, ""]
     score_weight: Float[Array, ""]
     exchange_margin: Float[Array, ""]
+    drift_check: Float[Array, ""]
 
 
 class HighState(NamedTuple):
@@ -442,6 +443,18 @@ def _check_resumed(
     slot = jnp.clip(high.low_slot, 0)
     following = (high.ids >= 0) & (high.low_slot >= 0)
     resumed = following & measured[slot] & (previous.low.misses[slot] >= params.resume_frames)
+    # Drift check: a tracker single again after a collision episode checks its track too.
+    apart = ~jnp.any(collision_map(high.boxes, following, params.events.min_overlap), axis=1)
+    separated = (
+        following
+        & measured[slot]
+        & low.confirmed[slot]
+        & apart
+        & ~high.group
+        & jnp.any(previous.high.partners, axis=1)
+        & (params.drift_check > 0)
+    )
+    resumed = resumed | separated
     gated, testable = own_track_gate(previous.appearance, histograms[slot], params.appearance)
     release = resumed & testable & ~gated
     released = (

@@ -49,6 +49,11 @@ from jaxtrack.types import Detections, SequenceInfo
 CONFIRM_SCORE = 0.97
 #: The low level's measurements (:mod:`~jaxtrack.filters.hier_low`).
 MEASUREMENTS = ("box", "ellipse")
+#: Default slots of both levels. 32 overflowed on the toolkit's blobs of the development
+#: scenes (synthetic video seeds 0-2, 4-6, 168-173: on up to 20 frames of a scene every slot
+#: was taken, mostly by lost trackers waiting for re-association and tentative tracks on
+#: clutter, and a confirmed track then got no tracker); 64 never did there.
+MAX_SLOTS = 64
 #: Where the low level's noise comes from (``HierarchicalConfig.noise``).
 NOISE_SOURCES = ("auto", "estimated", "default")
 #: The variants, in the order of the paper's levels.
@@ -96,8 +101,8 @@ class HierarchicalConfig(TrackerConfig):
         "box",
         Rule("the low level's measurement, 'box' or 'ellipse'", str, choices=MEASUREMENTS),
     )
-    max_tracks: int = setting(32, Rule("low-level track slots", int, 1, 1024))
-    max_trackers: int = setting(32, Rule("high-level tracker slots", int, 1, 1024))
+    max_tracks: int = setting(MAX_SLOTS, Rule("low-level track slots", int, 1, 1024))
+    max_trackers: int = setting(MAX_SLOTS, Rule("high-level tracker slots", int, 1, 1024))
     lost_seconds: float = setting(
         4.0,
         Rule("seconds a lost tracker waits to be re-associated", float, 0.0, 3600.0),
@@ -157,6 +162,17 @@ class HierarchicalConfig(TrackerConfig):
             float,
             -1.0,
             10.0,
+        ),
+    )
+    drift_check: int = setting(
+        1,
+        Rule(
+            "1: a tracker single again after colliding checks its track's box against its "
+            "appearance, as after coasting, and lets the track go when the gate refuses it "
+            "(0: only after coasting)",
+            int,
+            0,
+            1,
         ),
     )
     score_weight: float = setting(
@@ -271,6 +287,7 @@ def hierarchical_params(
             config.exchange_margin if config.exchange_margin >= 0 else jnp.inf
         ),
         score_weight=jnp.float32(config.score_weight),
+        drift_check=jnp.float32(config.drift_check),
         resume_frames=jnp.float32(
             max(round(config.resume_seconds * fps), 1) if config.resume_seconds > 0 else jnp.inf
         ),
@@ -385,5 +402,6 @@ def hierarchical_properties(params: Any) -> Any:
         confirm_score=named("confirm_score"),
         confirm_quantile=named("confirm_quantile"),
         exchange_margin=named("exchange_margin"),
+        drift_check=named("drift_check"),
         score_weight=named("score_weight"),
     )

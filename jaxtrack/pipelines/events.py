@@ -33,20 +33,29 @@ from jaxtrack.types import MotTable, Tracks
 
 class EventOutputs(NamedTuple):
     """Per frame: the tracks and candidates (for the result rows), the slots' events and
-    identities, and the identities merged into them by re-associations."""
+    identities, the identities merged into them by re-associations, and whether a table was
+    full (``overflow``; None for a tracker without the flag)."""
 
     tracks: Tracks
     candidates: Tracks
     events: Array
     event_ids: Array
     merged: Array
+    overflow: Any = None
 
 
 def event_outputs(state: Any, info: Any, index: Any) -> EventOutputs:
     """The per-frame output of a run that writes events (``frame_output`` of
     :func:`~jaxtrack.filters.base.run`)."""
     del state, index
-    return EventOutputs(info.tracks, info.candidates, info.events, info.event_ids, info.merged)
+    return EventOutputs(
+        info.tracks,
+        info.candidates,
+        info.events,
+        info.event_ids,
+        info.merged,
+        getattr(info, "overflow", None),
+    )
 
 
 def identity_merges(merged: np.ndarray, event_ids: np.ndarray) -> dict[int, int]:

@@ -31,6 +31,7 @@ from jaxtrack.pipelines.tracking import (
     output_rows,
     track_outputs,
     warn_if_no_tracks,
+    warn_if_overflow,
 )
 from jaxtrack.types import MotTable
 
@@ -146,6 +147,7 @@ def streamed_rows(
     rows = output_rows(outputs, config, seq.first_frame, seq.detections)
     if warn:
         warn_if_no_tracks(seq, rows, config)
+        warn_if_overflow(seq, getattr(outputs, "overflow", None), config)
     if not (events and writes_events(config)):
         return StreamedRows(rows, None, outputs)
     size = (seq.info.im_width, seq.info.im_height)

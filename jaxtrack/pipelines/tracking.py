@@ -17,6 +17,7 @@ frames by linear interpolation (:func:`~jaxtrack.association.offline.finalise_tr
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 from typing import Any, NamedTuple
@@ -166,6 +167,44 @@ def warn_if_no_tracks(seq: MotSequence, rows: MotTable, config: TrackerConfig) -
         )
 
 
+def warn_if_overflow(
+    seq: MotSequence, overflow: Any, config: TrackerConfig, first_frame: int | None = None
+) -> None:
+    """Warns (:class:`~jaxtrack.errors.InputWarning`) when a tracker's tables were full on
+    some frames (per-frame ``overflow`` flags, any leading batch axes): a detection then
+    started no track (or no tracker), and its target is missing from the result. Names the
+    frames and the configuration's slot settings to raise.
+
+    Args:
+        seq: the tracked sequence (name; first frame of the flags).
+        overflow: per-frame flags ``[..., frames]``, or None (a tracker without them).
+        config: the tracker's configuration.
+        first_frame: the frame of the first flag (default ``seq.first_frame``).
+    """
+    if overflow is None:
+        return
+    flags = np.asarray(overflow, bool)
+    full = np.nonzero(flags.reshape(-1, flags.shape[-1]).any(axis=0))[0] if flags.ndim else []
+    if len(full) == 0:
+        return
+    start = seq.first_frame if first_frame is None else first_frame
+    slots = {
+        field.name: getattr(config, field.name)
+        for field in dataclasses.fields(config)
+        if field.name.startswith("max_") and field.name != "max_gap"
+    }
+    now = ", ".join(f"{name}={value}" for name, value in slots.items())
+    example = ", ".join(f'"{name}": {2 * value}' for name, value in slots.items())
+    warnings.warn(
+        InputWarning(
+            f"{seq.info.name}: on {len(full)} frame(s) (first: frame {start + int(full[0])}) "
+            f"the {config.tracker} tracker's tables were full and a new track was not "
+            f"started ({now}); raise them with --config, e.g. {{{example}}}"
+        ),
+        stacklevel=3,
+    )
+
+
 def check_tracking_memory(
     sequences: Sequence[MotSequence],
     config: TrackerConfig,
@@ -205,17 +244,20 @@ def check_tracking_memory(
 
 
 class TrackOutputs(NamedTuple):
-    """What :func:`track_sequences` keeps of each frame's info: the tracks and candidates."""
+    """What :func:`track_sequences` keeps of each frame's info: the tracks and candidates,
+    and for a tracker whose info has one, the frame's ``overflow`` flag (a new track or
+    component found its table full; :func:`warn_if_overflow`), else None."""
 
     tracks: Tracks
     candidates: Tracks
+    overflow: Any = None
 
 
 def track_outputs(state: Any, info: Any, index: Any) -> TrackOutputs:
     """The per-frame output of a tracking run (``frame_output`` of
     :func:`~jaxtrack.filters.base.run`): only what :func:`output_rows` reads."""
     del state, index
-    return TrackOutputs(info.tracks, info.candidates)
+    return TrackOutputs(info.tracks, info.candidates, getattr(info, "overflow", None))
 
 
 def load_tracker_context(path: str | None) -> Context | None:
