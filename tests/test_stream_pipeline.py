@@ -4,18 +4,25 @@ stream's images."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 from jaxtrack import resources
 from jaxtrack.detect.sequence import video_sequence
-from jaxtrack.errors import InputError
+from jaxtrack.errors import InputError, InputWarning
+from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
 from jaxtrack.filters.kalman_tracker import KalmanConfig
 from jaxtrack.filters.registry import TRACKERS
 from jaxtrack.io.frame_stream import stream_bytes
 from jaxtrack.io.video import VideoReader
 from jaxtrack.pipelines.stream import STREAM_CHUNK_FRAMES, track_streamed
-from jaxtrack.pipelines.tracking import check_tracking_memory, track_sequences
+from jaxtrack.pipelines.tracking import (
+    check_tracking_memory,
+    track_sequences,
+    warn_if_overflow,
+)
 from jaxtrack.resources import ResourceError
 from jaxtrack.types import MotTable, SequenceInfo
 from tests.filters.frame_filters import MEAN_COLOUR_ENTRY, MeanColourConfig, numpy_mean_colours
@@ -72,3 +79,36 @@ def test_memory_check_counts_the_streams_images(walk, monkeypatch):
     monkeypatch.setattr(resources, "available_memory_bytes", lambda: tracker + images - 1)
     with pytest.raises(ResourceError, match="tracking walk"):
         check_tracking_memory([seq], config, chunk)
+
+
+def test_full_tables_warn_with_the_frames_and_the_slot_settings(walk):
+    """Two detections per frame and one slot per level: the second never starts a track,
+    and the run says so (first frame, the settings and what to raise them to)."""
+    folder, seq = walk
+    boxes = [person_box(k) for k in range(1, NUM_FRAMES + 1)]
+    second = [(x + 60.0, y, w, h) for x, y, w, h in boxes]
+    frames = np.arange(1, NUM_FRAMES + 1)
+    table = MotTable.from_arrays(
+        np.concatenate([frames, frames]), -np.ones(2 * NUM_FRAMES), boxes + second
+    )
+    crowded = video_sequence(folder, table, (5, 30), seq.info)
+    for variant in ("managed", "full"):
+        config = HierarchicalConfig(variant=variant, max_tracks=1, max_trackers=1)
+        with VideoReader(folder) as reader:
+            with pytest.warns(InputWarning, match=r"first: frame 5\) the hierarchical") as got:
+                track_streamed(crowded, reader, config)
+        message = str(got[0].message)
+        assert "max_tracks=1, max_trackers=1" in message
+        assert '{"max_tracks": 2, "max_trackers": 2}' in message
+
+
+def test_no_overflow_warning_without_flags_or_full_frames():
+    seq = type("Seq", (), {"info": SequenceInfo("s", 3, 10, 10), "first_frame": 1})()
+    config = HierarchicalConfig()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_if_overflow(seq, None, config)
+        warn_if_overflow(seq, np.zeros((2, 3), bool), config)
+    with pytest.warns(InputWarning, match=r"on 2 frame\(s\) \(first: frame 2\)"):
+        # batch axes: a frame counts once whichever member overflowed
+        warn_if_overflow(seq, np.array([[False, True, False], [False, True, True]]), config)

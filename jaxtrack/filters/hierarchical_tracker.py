@@ -165,7 +165,7 @@ class HierarchicalConfig(TrackerConfig):
         ),
     )
     drift_check: int = setting(
-        1,
+        0,
         Rule(
             "1: a tracker single again after colliding checks its track's box against its "
             "appearance, as after coasting, and lets the track go when the gate refuses it "
