@@ -83,7 +83,8 @@ entering, exiting) written beside the results as ``<RES>.events.csv`` (``frame,i
 ``--detections bs`` detects by background subtraction on the frames first (the paper's
 blobs; ``jaxtrack detect``'s defaults), ``--detections det`` (default) uses ``det/det.txt``.
 Its configuration (``HierarchicalConfig``) takes ``variant``, ``measurement`` ("box" or
-"ellipse"), ``max_tracks``, ``max_trackers``, ``lost_seconds``, ``resume_seconds`` (a track
+"ellipse"), ``max_tracks``, ``max_trackers`` (64 each; a run whose tables were full warns),
+``lost_seconds``, ``resume_seconds`` (a track
 resuming after coasting this long is checked against its tracker's appearance; 0: never),
 ``noise`` ("auto": the low
 level's noise measured on the tracked detections, except on the ``bs`` blobs, which keep the
@@ -92,6 +93,8 @@ track is confirmed only once it has held a detection scoring this; 0: the paper'
 ``confirm_quantile`` (0.75: or, when lower, the 75th percentile of the detector's scores
 seen so far; 1: off), ``exchange_margin`` (0.1: two trackers that collided swap their
 tracks once apart when each one's appearance is nearer the other's box; negative: never),
+``drift_check`` (0; 1: a tracker single again after colliding lets its track go when its
+appearance gate refuses the track's box),
 ``score_weight`` (1: the detections' score log-odds lower the association cost; 0: the
 paper's cost), ``output``, ``max_gap``; the noise used
 is printed and recorded in ``RES.config.json`` (``low_noise``).
