@@ -21,6 +21,9 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
    is within the gate, the tracker lets the track go and is lost (propagated from where it
    was), and the track is renamed (a new low-level identity) and treated as confirmed on this
    frame: offered to the lost trackers (except the one that let it go), else a new tracker.
+   With ``drift_check`` (off by default) the same check runs for a tracker that is single
+   again after colliding, while its collision episode is open (a track the low level moved
+   onto a neighbour where people met).
 3. **Appearance association** (Sec. 5.4, :mod:`~jaxtrack.filters.hier_appearance`): a
    low-level track confirmed on this frame is first offered to the lost trackers: gated on
    the coincident features' Bhattacharyya distances, it goes to the nearest lost tracker
@@ -157,6 +160,11 @@ class HierarchicalParams(NamedTuple):
         score_weight: weight of the detections' score log-odds
             (:func:`~jaxtrack.association.labelling.score_log_odds`, clipped at
             :data:`SCORE_CLIP`) in the low level's association cost (0: the paper's cost).
+        confirm_quantile: a track is also confirmed by a detection scoring at least this
+            quantile of the scores read so far (:mod:`~jaxtrack.filters.score_quantile`).
+        exchange_margin: the margin of the exchange check (step 4b; ``inf``: never).
+        drift_check: > 0: the drift check of step 2b (0: only tracks resuming after
+            coasting are checked).
     """
 
     low: LowParams
@@ -423,7 +431,11 @@ def _check_resumed(
     params: HierarchicalParams,
 ) -> tuple[HighState, LowState, Bool[Array, " T"], Bool[Array, "S T"]]:
     """Step 2b: trackers whose track resumed after coasting ``resume_frames`` frames and
-    whose appearance model does not gate the track's measured box let the track go.
+    whose appearance model does not gate the track's measured box let the track go. With
+    ``drift_check`` so do trackers that are single on this frame (measured, confirmed, not
+    group trackers) while they still have partners from a collision episode
+    (``HighState.partners``, closed once both of a pair are checkable: see
+    :func:`_undo_exchanges`): a track the low level moved onto a neighbour where people met.
 
     Args:
         previous: the state before the frame (the tracks' coasting counts, the trackers'

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig
-from tests.filters.test_hier_exchanges import _identities_on_each_side, bounce_scene
+from tests.filters.test_hier_exchanges import assert_sides, bounce_scene
 from tests.filters.test_hierarchical import tracked
 
 
@@ -17,12 +17,7 @@ def test_a_drift_at_a_meeting_is_undone_without_the_exchange_check(drift_check, 
     trackers are apart; re-associated by appearance, each identity ends with its own target.
     Without either check the identities end on the wrong sides."""
     _, rows = tracked("full", bounce_scene(), exchange_margin=-1.0, drift_check=drift_check)
-    sides = _identities_on_each_side(rows)
-    (left, right), (left_after, right_after) = sides["before"], sides["after"]
-    assert len(left) == 1 and len(right) == 1 and left != right
-    assert len(left_after) == 1 and len(right_after) == 1
-    assert (left_after == left and right_after == right) == kept
-    assert (left_after == right and right_after == left) == (not kept)
+    assert_sides(rows, kept)
 
 
 def test_the_drift_check_is_off_by_default():

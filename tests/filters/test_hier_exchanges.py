@@ -118,6 +118,12 @@ def test_an_exchange_at_a_meeting_is_undone_by_appearance(margin, kept):
     (margin < 0) the identities end on the wrong sides."""
     assert HierarchicalConfig().exchange_margin == DEFAULT_MARGIN
     _, rows = tracked("full", bounce_scene(), exchange_margin=margin)
+    assert_sides(rows, kept)
+
+
+def assert_sides(rows, kept):
+    """One identity on each side before and after the meeting; ``kept``: each ends on its
+    own side, else on the other's."""
     sides = _identities_on_each_side(rows)
     (left, right), (left_after, right_after) = sides["before"], sides["after"]
     assert len(left) == 1 and len(right) == 1 and left != right
