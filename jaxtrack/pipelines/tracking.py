@@ -167,9 +167,7 @@ def warn_if_no_tracks(seq: MotSequence, rows: MotTable, config: TrackerConfig) -
         )
 
 
-def warn_if_overflow(
-    seq: MotSequence, overflow: Any, config: TrackerConfig, first_frame: int | None = None
-) -> None:
+def warn_if_overflow(seq: MotSequence, overflow: Any, config: TrackerConfig) -> None:
     """Warns (:class:`~jaxtrack.errors.InputWarning`) when a tracker's tables were full on
     some frames (per-frame ``overflow`` flags, any leading batch axes): a detection then
     started no track (or no tracker), and its target is missing from the result. Names the
@@ -179,7 +177,6 @@ def warn_if_overflow(
         seq: the tracked sequence (name; first frame of the flags).
         overflow: per-frame flags ``[..., frames]``, or None (a tracker without them).
         config: the tracker's configuration.
-        first_frame: the frame of the first flag (default ``seq.first_frame``).
     """
     if overflow is None:
         return
@@ -187,7 +184,6 @@ def warn_if_overflow(
     full = np.nonzero(flags.reshape(-1, flags.shape[-1]).any(axis=0))[0] if flags.ndim else []
     if len(full) == 0:
         return
-    start = seq.first_frame if first_frame is None else first_frame
     slots = {
         field.name: getattr(config, field.name)
         for field in dataclasses.fields(config)
@@ -195,9 +191,10 @@ def warn_if_overflow(
     }
     now = ", ".join(f"{name}={value}" for name, value in slots.items())
     example = ", ".join(f'"{name}": {2 * value}' for name, value in slots.items())
+    first = seq.first_frame + int(full[0])
     warnings.warn(
         InputWarning(
-            f"{seq.info.name}: on {len(full)} frame(s) (first: frame {start + int(full[0])}) "
+            f"{seq.info.name}: on {len(full)} frame(s) (first: frame {first}) "
             f"the {config.tracker} tracker's tables were full and a new track was not "
             f"started ({now}); raise them with --config, e.g. {{{example}}}"
         ),
