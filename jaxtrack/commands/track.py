@@ -106,7 +106,8 @@ target) and ``predictor`` (local motion models), comma-separated in any order; d
 three; one member is that tracker alone) whose responses are fused per target (``--fusion
 proposed``: weighted by confidence and accordance, the paper's eq. 6, default; ``--fusion
 naive``: their mean), targets initiated and terminated by voting with thresholds per region,
-occlusion reasoning and re-identification. It first learns its scene on a training span
+occlusion reasoning and re-identification, and identity exchanges undone once two targets
+that met are apart again. It first learns its scene on a training span
 (``--train-frames A:B``, inside the tracked frames; default: the first half of the tracked
 frames, ``train_fraction`` of its configuration): the entry/exit zones and activity mask
 and the local motion models of the span's trajectories (its ground truth when the folder has
@@ -118,7 +119,10 @@ own frames (``--train-frames`` is refused). ``.config.json`` records the pool, t
 and how the context was learned (``training``). Its configuration (``FusionConfig``) takes
 ``pool``, ``fusion``, ``train_fraction``, ``share``, ``init_rule`` (``"share"``, the paper's
 99 % rule, or ``"cost"``: th_init with the fewest false-target and late-start frames on the
-training span), ``learning_rate``, ``max_targets``, ``output``, ``max_gap``, ``smoothing``;
+training span), ``learning_rate``, ``appearance_weight`` (the detection member's signature
+term, 60; 0: motion alone), ``exchange_margin`` (two targets that met swap identities once
+apart when each one's signature is nearer the other's detection by this much, 0.2;
+negative: never), ``max_targets``, ``output``, ``max_gap``, ``smoothing``;
 ``--pool`` and ``--fusion`` override the file's.
 
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance

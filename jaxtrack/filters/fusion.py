@@ -52,6 +52,16 @@ One :func:`fusion_step` on frame ``k`` over a fixed table of ``S`` slots, each e
    and signature stop learning (on the next frame for the classifier, which learns as it
    localises). An occluded target stays occluded "until it becomes fully visible again"
    (Sec. 2.2): until a detection supports it while it is no group's occluded member.
+7. **Exchanges undone** (beyond the paper; session 53): two targets that were in one
+   occlusion group are checked once, on the first frame both are in no group and both
+   detected: with ``D(i, j)`` the signature distance of target ``i``'s stored model to
+   target ``j``'s detection, the pair swaps identities, signature models and classifier
+   filters (not boxes, motion or votes, which follow the places) when
+   ``D(i, j) + D(j, i) + exchange_margin < D(i, i) + D(j, j)``: each model is nearer the
+   other's detection (:func:`~jaxtrack.filters.hier_exchanges.exchanges`, the Hierarchical
+   tracker's check; pairs greedily by gain). The detection assignment weighs appearance
+   frame by frame, but while two people overlap their detections' signatures mix, and the
+   wrong pairing can win on motion; the check looks again once they are apart.
 
 The output (:class:`FusionInfo`): ``tracks`` are the targets (fused boxes), ``candidates``
 the targets and hypotheses (a hypothesis carries the identity it keeps when voted in), so the
@@ -109,6 +119,7 @@ from jaxtrack.filters.fusion_voting import (
     voting_init,
     voting_step,
 )
+from jaxtrack.filters.hier_exchanges import exchanges
 from jaxtrack.filters.kalman import (
     idle_filters,
     kalman_birth,
@@ -159,6 +170,7 @@ class FusionParams(NamedTuple):
         reid_gate: largest signature distance of a re-identification.
         appearance_weight: weight of a target's signature distance to a detection in the
             assignment cost (0: motion alone).
+        exchange_margin: the margin of the exchange check (step 7; ``inf``: never).
     """
 
     classifier: ClassifierParams
@@ -179,6 +191,7 @@ class FusionParams(NamedTuple):
     reid_radius: Float[Array, ""]
     reid_gate: Float[Array, ""]
     appearance_weight: Float[Array, ""]
+    exchange_margin: Float[Array, ""]
 
 
 class FusionState(NamedTuple):
@@ -199,6 +212,8 @@ class FusionState(NamedTuple):
         classifier: the correlation filters.
         signature: the signature models (``histogram`` ``[S, 2, bins]``).
         occluded: ``[S]`` occluded on the last frame.
+        met: ``[S, S]`` the two targets were in one occlusion group since they were last
+            checked apart (step 7).
     """
 
     ids: Int[Array, " S"]
@@ -212,6 +227,7 @@ class FusionState(NamedTuple):
     classifier: ClassifierState
     signature: AppearanceModel
     occluded: Bool[Array, " S"]
+    met: Bool[Array, "S S"]
 
 
 class FusionInfo(NamedTuple):
@@ -265,6 +281,7 @@ def init_fusion(key: Array, params: FusionParams, *, num_slots: int) -> FusionSt
             jnp.zeros((num_slots, 2, bins), jnp.float32), zeros, zeros, zeros
         ),
         occluded=jnp.zeros((num_slots,), bool),
+        met=jnp.zeros((num_slots, num_slots), bool),
     )
 
 
@@ -476,6 +493,30 @@ def fusion_step(
     # occluded until fully visible again: re-detected, and the occluder of its group or alone
     hidden = status_now.occluded | (state.occluded & ~supported)
     occluded = hidden & now_target
+
+    # exchanges undone: two targets that met, apart again and both detected, swap their
+    # identities (and appearance models) when each one's model is nearer the other's
+    # detection
+    continuing = now_target & target & ~reid
+    together = (
+        status_now.related[:, None]
+        & (status_now.occluder[:, None] == status_now.occluder[None, :])
+        & ~jnp.eye(num_slots, dtype=bool)
+    )
+    pair = continuing[:, None] & continuing[None, :]
+    met = (state.met | together) & pair
+    clear = ~status_now.related & supported & continuing & (signature.count[:, 0] > 0)
+    ready = met & clear[:, None] & clear[None, :]
+    distances = signature_distance(signature.histogram[:, None], assigned_sig[None, :])
+    partner = exchanges(distances, ready, params.exchange_margin)
+    swapped = partner >= 0
+    source = jnp.where(swapped, partner, jnp.arange(num_slots))
+    ids = ids[source]
+    signature = jax.tree.map(lambda leaf: leaf[source], signature)
+    classifier = classifier._replace(
+        numerator=classifier.numerator[source], denominator=classifier.denominator[source]
+    )
+    met = met & ~ready
     signature = update_signatures(
         signature, observed, occluded | ~now_target | initiated, params.signature_rate
     )
@@ -504,6 +545,7 @@ def fusion_step(
         classifier=classifier,
         signature=signature,
         occluded=occluded,
+        met=met,
     )
     evidence = (supported | new.born).astype(jnp.float32)
     info = FusionInfo(

@@ -81,6 +81,11 @@ REID_RADIUS, REID_GATE = 2.0, 0.35
 #: rose from 30 to 150 alike on the scenes, 60 was best on PETS), then confirmed on the
 #: same data's blobs.
 APPEARANCE_WEIGHT = 60.0
+#: Margin of the exchange check (``FusionConfig.exchange_margin``; session 53). Chosen among
+#: 0.1, 0.2 and 0.3 on development data only (PETS09-S2L1 1:397 and synthetic video seeds
+#: 0-2, 4-6, their detections and blobs): 0.1 made one wrong swap on PETS09-S2L1's
+#: detections (IDF1 -7), 0.2 and 0.3 none there, 0.2 gained most on the scenes' blobs.
+EXCHANGE_MARGIN = 0.2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -143,6 +148,17 @@ class FusionConfig(TrackerConfig):
             float,
             0.0,
             1000.0,
+        ),
+    )
+    exchange_margin: float = setting(
+        EXCHANGE_MARGIN,
+        Rule(
+            "two targets that met in an occlusion group swap their identities once both are "
+            "apart and re-detected when each one's signature model is nearer the other's box "
+            "by this much (sum of two signature distances; negative: never)",
+            float,
+            -1.0,
+            10.0,
         ),
     )
     max_targets: int = setting(32, Rule("slots for targets and hypotheses", int, 1, 1024))
@@ -222,6 +238,9 @@ def fusion_params(
         reid_radius=jnp.float32(REID_RADIUS),
         reid_gate=jnp.float32(REID_GATE),
         appearance_weight=jnp.float32(config.appearance_weight),
+        exchange_margin=jnp.float32(
+            config.exchange_margin if config.exchange_margin >= 0 else jnp.inf
+        ),
     )
 
 
@@ -257,14 +276,15 @@ def fusion_memory_estimate(
     """The tracker's memory for a detection capacity, from the sizes (frames left out).
 
     Per slot the state holds two correlation-filter planes (complex and real), the
-    signature model (two 512-bin histograms) and a Kalman filter (6 + 36 floats); a step's
+    signature model (two 512-bin histograms), a Kalman filter (6 + 36 floats) and a row of
+    the pair table of the exchange check (a byte per slot); a step's
     temporaries are the filters' search windows and FFTs and the signatures of four boxes
     per slot.
     """
     slots = config.max_targets
     rows, cols = CLASSIFIER_PATCH_SHAPE
     samples = SIGNATURE_PATCH[0] * SIGNATURE_PATCH[1]
-    state = slots * (12 * rows * cols + 4 * 2 * 512 + 4 * 64 + 4 * 42 + 256)
+    state = slots * (12 * rows * cols + 4 * 2 * 512 + 4 * 64 + 4 * 42 + 256 + slots)
     temporaries = slots * (6 * 8 * rows * cols + 4 * (2 * 512 + 16 * samples) * 4)
     temporaries += 4 * slots * capacity * 4
     temporaries += capacity * (2 * 512 + 16 * samples) * 4  # the detections' signatures
@@ -279,7 +299,7 @@ def fusion_properties(params: Any) -> Any:
     models); named, for sweeps (:func:`~jaxtrack.pipelines.sweep.sweep_frames`):
     ``chi2_gate`` and ``gate`` (detection assignment), ``psr_min`` (classifier response),
     ``occlusion_q``, ``signature_rate``, ``reid_radius``, ``reid_gate``, ``appearance_weight``
-    (the assignment's signature term), ``th_init`` and
+    (the assignment's signature term), ``exchange_margin`` (the exchange check), ``th_init`` and
     ``th_term`` (``[3]``: active, inactive and zone regions; a sweep overrides the
     calibrated values) and the classifier's ``learning_rate`` (the configuration key)."""
     props = frozen_properties(params)
@@ -292,6 +312,7 @@ def fusion_properties(params: Any) -> Any:
         "reid_radius",
         "reid_gate",
         "appearance_weight",
+        "exchange_margin",
         "th_init",
         "th_term",
     )

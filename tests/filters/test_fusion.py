@@ -18,6 +18,7 @@ from jaxtrack.filters.fusion import (
     _signatures,
     fusion_filter,
 )
+from jaxtrack.filters.fusion_profile import signature_distance
 from jaxtrack.filters.fusion_tracker import (
     FusionConfig,
     FusionContext,
@@ -185,6 +186,122 @@ def test_the_signature_term_keeps_crossing_targets_on_their_own_detections(weigh
     taken = np.asarray(info.members[:2, 0])
     expected = people[::-1] if weight == 0.0 else people  # swapped by motion alone
     np.testing.assert_allclose(taken, np.asarray(expected), atol=1e-4)
+
+
+def _exchange_case(dressed, met, config):
+    """Targets 1 and 2 in slots 0 and 1, 90 px apart, their models taken of people dressed in
+    COLOURS[0] and COLOURS[1]; on this frame each is detected at its own place (the gates
+    allow nothing else) on a person dressed in ``COLOURS[dressed[k]]``; ``met``: the two were
+    in one occlusion group since they were last checked."""
+    filt, params = build_fusion(config, INFO)
+    size = (24.0, 48.0)
+    places = [(20.0, 40.0, *size), (110.0, 40.0, *size)]
+    pad = [(0.0, 0.0, 1.0, 1.0)] * 2
+    seen_frame, frame = BACKGROUND.copy(), BACKGROUND.copy()
+    for k in (0, 1):
+        two_tone(seen_frame, places[k], *COLOURS[k])
+        two_tone(frame, places[k], *COLOURS[dressed[k]])
+    stored = _signatures(jnp.asarray(seen_frame), jnp.asarray(places + pad)).histograms
+    state = _hand_built(
+        filt,
+        params,
+        places + pad,
+        [1, 2, -1, -1],
+        [TARGET, TARGET, EMPTY, EMPTY],
+        [20, 20, 0, 0],
+        [11, 11, 0, 0],
+    )
+    pair = jnp.zeros((4, 4), bool).at[0, 1].set(met).at[1, 0].set(met)
+    state = state._replace(
+        signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2))), met=pair
+    )
+    detections = Detections(
+        jnp.asarray(places, jnp.float32), jnp.full((2,), 0.99, jnp.float32), jnp.ones(2, bool)
+    )
+    new_state, info = jax.jit(filt.step)(
+        jax.random.PRNGKey(0), state, params, FrameInputs(detections, jnp.asarray(frame))
+    )
+    assert info.member_valid[:2, 0].all()  # each target detected
+    np.testing.assert_allclose(np.asarray(info.members[:2, 0]), np.asarray(places), atol=1e-4)
+    return stored, new_state, info
+
+
+def _exchange_gain(dressed) -> float:
+    """``D(0, 0) + D(1, 1) - D(0, 1) - D(1, 0)`` of :func:`_exchange_case`'s pair, from the
+    signatures of the two drawings (the models have one observation each)."""
+    places = np.asarray([(20.0, 40.0, 24.0, 48.0), (110.0, 40.0, 24.0, 48.0)], np.float32)
+    seen_frame, frame = BACKGROUND.copy(), BACKGROUND.copy()
+    for k in (0, 1):
+        two_tone(seen_frame, places[k], *COLOURS[k])
+        two_tone(frame, places[k], *COLOURS[dressed[k]])
+    models = _signatures(jnp.asarray(seen_frame), jnp.asarray(places)).histograms
+    seen = _signatures(jnp.asarray(frame), jnp.asarray(places)).histograms
+    d = np.asarray(signature_distance(models[:, None], seen[None, :]))
+    return float(d[0, 0] + d[1, 1] - d[0, 1] - d[1, 0])
+
+
+@pytest.mark.parametrize(
+    "dressed, met, margin, swapped",
+    [
+        ((1, 0), True, None, True),  # the default check undoes the exchange
+        ((1, 0), False, None, False),  # the two never met: nothing to check
+        ((1, 0), True, -1.0, False),  # the check off
+        ((1, 0), True, "below", True),  # a margin just below the pair's gain
+        ((1, 0), True, "above", False),  # just above it
+        ((0, 1), True, None, False),  # each on its own person
+    ],
+)
+def test_two_targets_that_met_swap_identities_when_each_looks_like_the_other(
+    dressed, met, margin, swapped
+):
+    config = FusionConfig(max_targets=4)
+    if isinstance(margin, str):
+        gain = _exchange_gain(dressed)
+        margin = gain - 0.01 if margin == "below" else gain + 0.01
+    if margin is not None:
+        config = FusionConfig(max_targets=4, exchange_margin=margin)
+    stored, state, info = _exchange_case(dressed, met, config)
+    expected = [2, 1] if swapped else [1, 2]
+    assert np.asarray(info.tracks.ids[:2]).tolist() == expected
+    assert np.asarray(state.ids[:2]).tolist() == expected
+    # the models went with the identities (then learned from the detections); the places,
+    # motion and votes stayed with the slots
+    own = signature_distance(state.signature.histogram[:2], stored[:2])
+    other = signature_distance(state.signature.histogram[:2], stored[1::-1])
+    assert bool(jnp.all(other < own)) == swapped
+    np.testing.assert_array_equal(np.asarray(state.voting.support[:2]), [21, 21])
+    # a pair is checked once: its episode is closed whatever the outcome
+    assert not bool(state.met.any())
+
+
+def test_targets_in_one_occlusion_group_are_marked_as_met():
+    # two targets whose boxes overlap (Q > 0.3), each detected: the pair is marked for a
+    # check once they are apart; a third target far away is not
+    filt, params = build_fusion(FusionConfig(max_targets=4), INFO)
+    size = (24.0, 48.0)
+    places = [(40.0, 40.0, *size), (50.0, 40.0, *size), (120.0, 40.0, *size)]
+    frame = BACKGROUND.copy()
+    for k, place in enumerate(places):
+        two_tone(frame, place, *COLOURS[k % 2])
+    state = _hand_built(
+        filt,
+        params,
+        [*places, (0.0, 0.0, 1.0, 1.0)],
+        [1, 2, 3, -1],
+        [TARGET, TARGET, TARGET, EMPTY],
+        [20, 20, 20, 0],
+        [11, 11, 11, 0],
+    )
+    detections = Detections(
+        jnp.asarray(places, jnp.float32), jnp.full((3,), 0.99, jnp.float32), jnp.ones(3, bool)
+    )
+    state, info = jax.jit(filt.step)(
+        jax.random.PRNGKey(0), state, params, FrameInputs(detections, jnp.asarray(frame))
+    )
+    assert np.asarray(info.tracks.ids[:3]).tolist() == [1, 2, 3]
+    expected = np.zeros((4, 4), bool)
+    expected[0, 1] = expected[1, 0] = True
+    np.testing.assert_array_equal(np.asarray(state.met), expected)
 
 
 def test_a_coasting_targets_evidence_is_its_filters_prediction():
