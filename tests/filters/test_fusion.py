@@ -143,6 +143,53 @@ def test_the_detection_members_mahalanobis_gate_refuses_a_jump_the_iou_gate_woul
     )
 
 
+SIZE_24_48 = (24.0, 48.0)
+#: Two places 90 px apart: where the two targets' signatures were taken (and, in the
+#: exchange tests, where the two targets stand).
+APART = [(20.0, 40.0, *SIZE_24_48), (110.0, 40.0, *SIZE_24_48)]
+
+
+def _drawn(places, dressed) -> np.ndarray:
+    """The background with person ``k`` at ``places[k]`` dressed in ``COLOURS[dressed[k]]``."""
+    frame = BACKGROUND.copy()
+    for place, colours in zip(places, dressed, strict=True):
+        two_tone(frame, place, *COLOURS[colours])
+    return frame
+
+
+def _two_targets_step(config, slots, people, dressed, met=False):
+    """Targets 1 and 2 in slots 0 and 1 at ``slots`` (each a model of a person dressed in
+    ``COLOURS[0]`` / ``COLOURS[1]``, taken at :data:`APART`), ``met`` or not, and one step on
+    a frame with people at ``people`` dressed in ``COLOURS[dressed[k]]``, each detected.
+    Returns ``(stored models, state, info)``."""
+    filt, params = build_fusion(config, INFO)
+    pad = [(0.0, 0.0, 1.0, 1.0)] * 2
+    stored = _signatures(jnp.asarray(_drawn(APART, (0, 1))), jnp.asarray(APART + pad))
+    state = _hand_built(
+        filt,
+        params,
+        slots + pad,
+        [1, 2, -1, -1],
+        [TARGET, TARGET, EMPTY, EMPTY],
+        [20, 20, 0, 0],
+        [11, 11, 0, 0],
+    )
+    pair = jnp.zeros((4, 4), bool).at[0, 1].set(met).at[1, 0].set(met)
+    state = state._replace(
+        signature=state.signature._replace(histogram=stored.histograms, count=jnp.ones((4, 2))),
+        met=pair,
+    )
+    detections = Detections(
+        jnp.asarray(people, jnp.float32), jnp.full((2,), 0.99, jnp.float32), jnp.ones(2, bool)
+    )
+    frame = jnp.asarray(_drawn(people, dressed))
+    state, info = jax.jit(filt.step)(
+        jax.random.PRNGKey(0), state, params, FrameInputs(detections, frame)
+    )
+    assert info.member_valid[:2, 0].all()  # both targets take a detection
+    return stored.histograms, state, info
+
+
 @pytest.mark.parametrize("weight", [0.0, None])
 def test_the_signature_term_keeps_crossing_targets_on_their_own_detections(weight):
     # two targets predicted 2 px apart between two people who stand 20 px apart: by motion
@@ -153,89 +200,29 @@ def test_the_signature_term_keeps_crossing_targets_on_their_own_detections(weigh
     if weight is not None:
         config = FusionConfig(max_targets=4, appearance_weight=weight)
     assert config.appearance_weight > 0 or weight == 0.0
-    filt, params = build_fusion(config, INFO)
-    size = (24.0, 48.0)
-    slots = [(57.0, 40.0, *size), (59.0, 40.0, *size)]
-    people = [(68.0, 40.0, *size), (48.0, 40.0, *size)]  # person k dressed in COLOURS[k]
-    seen = [(20.0, 40.0, *size), (110.0, 40.0, *size)]  # where their signatures were taken
-    seen_frame, frame = BACKGROUND.copy(), BACKGROUND.copy()
-    for k in (0, 1):
-        two_tone(seen_frame, seen[k], *COLOURS[k])
-        two_tone(frame, people[k], *COLOURS[k])
-    pad = [(0.0, 0.0, 1.0, 1.0)] * 2
-    stored = _signatures(jnp.asarray(seen_frame), jnp.asarray(seen + pad)).histograms
-    state = _hand_built(
-        filt,
-        params,
-        slots + pad,
-        [1, 2, -1, -1],
-        [TARGET, TARGET, EMPTY, EMPTY],
-        [20, 20, 0, 0],
-        [11, 11, 0, 0],
-    )
-    state = state._replace(
-        signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2)))
-    )
-    detections = Detections(
-        jnp.asarray(people, jnp.float32), jnp.full((2,), 0.99, jnp.float32), jnp.ones(2, bool)
-    )
-    _, info = jax.jit(filt.step)(
-        jax.random.PRNGKey(0), state, params, FrameInputs(detections, jnp.asarray(frame))
-    )
-    assert info.member_valid[:2, 0].all()  # both targets take a detection
+    slots = [(57.0, 40.0, *SIZE_24_48), (59.0, 40.0, *SIZE_24_48)]
+    people = [(68.0, 40.0, *SIZE_24_48), (48.0, 40.0, *SIZE_24_48)]
+    _, _, info = _two_targets_step(config, slots, people, (0, 1))
     taken = np.asarray(info.members[:2, 0])
     expected = people[::-1] if weight == 0.0 else people  # swapped by motion alone
     np.testing.assert_allclose(taken, np.asarray(expected), atol=1e-4)
 
 
 def _exchange_case(dressed, met, config):
-    """Targets 1 and 2 in slots 0 and 1, 90 px apart, their models taken of people dressed in
-    COLOURS[0] and COLOURS[1]; on this frame each is detected at its own place (the gates
-    allow nothing else) on a person dressed in ``COLOURS[dressed[k]]``; ``met``: the two were
-    in one occlusion group since they were last checked."""
-    filt, params = build_fusion(config, INFO)
-    size = (24.0, 48.0)
-    places = [(20.0, 40.0, *size), (110.0, 40.0, *size)]
-    pad = [(0.0, 0.0, 1.0, 1.0)] * 2
-    seen_frame, frame = BACKGROUND.copy(), BACKGROUND.copy()
-    for k in (0, 1):
-        two_tone(seen_frame, places[k], *COLOURS[k])
-        two_tone(frame, places[k], *COLOURS[dressed[k]])
-    stored = _signatures(jnp.asarray(seen_frame), jnp.asarray(places + pad)).histograms
-    state = _hand_built(
-        filt,
-        params,
-        places + pad,
-        [1, 2, -1, -1],
-        [TARGET, TARGET, EMPTY, EMPTY],
-        [20, 20, 0, 0],
-        [11, 11, 0, 0],
-    )
-    pair = jnp.zeros((4, 4), bool).at[0, 1].set(met).at[1, 0].set(met)
-    state = state._replace(
-        signature=state.signature._replace(histogram=stored, count=jnp.ones((4, 2))), met=pair
-    )
-    detections = Detections(
-        jnp.asarray(places, jnp.float32), jnp.full((2,), 0.99, jnp.float32), jnp.ones(2, bool)
-    )
-    new_state, info = jax.jit(filt.step)(
-        jax.random.PRNGKey(0), state, params, FrameInputs(detections, jnp.asarray(frame))
-    )
-    assert info.member_valid[:2, 0].all()  # each target detected
-    np.testing.assert_allclose(np.asarray(info.members[:2, 0]), np.asarray(places), atol=1e-4)
-    return stored, new_state, info
+    """Targets 1 and 2 at :data:`APART`, each detected at its own place (the gates allow
+    nothing else) on a person dressed in ``COLOURS[dressed[k]]``; ``met``: the two were in
+    one occlusion group since they were last checked."""
+    stored, state, info = _two_targets_step(config, APART, APART, dressed, met)
+    np.testing.assert_allclose(np.asarray(info.members[:2, 0]), np.asarray(APART), atol=1e-4)
+    return stored, state, info
 
 
 def _exchange_gain(dressed) -> float:
     """``D(0, 0) + D(1, 1) - D(0, 1) - D(1, 0)`` of :func:`_exchange_case`'s pair, from the
     signatures of the two drawings (the models have one observation each)."""
-    places = np.asarray([(20.0, 40.0, 24.0, 48.0), (110.0, 40.0, 24.0, 48.0)], np.float32)
-    seen_frame, frame = BACKGROUND.copy(), BACKGROUND.copy()
-    for k in (0, 1):
-        two_tone(seen_frame, places[k], *COLOURS[k])
-        two_tone(frame, places[k], *COLOURS[dressed[k]])
-    models = _signatures(jnp.asarray(seen_frame), jnp.asarray(places)).histograms
-    seen = _signatures(jnp.asarray(frame), jnp.asarray(places)).histograms
+    places = jnp.asarray(APART)
+    models = _signatures(jnp.asarray(_drawn(APART, (0, 1))), places).histograms
+    seen = _signatures(jnp.asarray(_drawn(APART, dressed)), places).histograms
     d = np.asarray(signature_distance(models[:, None], seen[None, :]))
     return float(d[0, 0] + d[1, 1] - d[0, 1] - d[1, 0])
 
@@ -278,11 +265,8 @@ def test_targets_in_one_occlusion_group_are_marked_as_met():
     # two targets whose boxes overlap (Q > 0.3), each detected: the pair is marked for a
     # check once they are apart; a third target far away is not
     filt, params = build_fusion(FusionConfig(max_targets=4), INFO)
-    size = (24.0, 48.0)
-    places = [(40.0, 40.0, *size), (50.0, 40.0, *size), (120.0, 40.0, *size)]
-    frame = BACKGROUND.copy()
-    for k, place in enumerate(places):
-        two_tone(frame, place, *COLOURS[k % 2])
+    places = [(x, 40.0, *SIZE_24_48) for x in (40.0, 50.0, 120.0)]
+    frame = _drawn(places, (0, 1, 0))
     state = _hand_built(
         filt,
         params,
