@@ -33,6 +33,7 @@ from jaxtrack.filters.base import Filter
 from jaxtrack.filters.fusion import FUSIONS, MEMBERS, SIGNATURE_PATCH, FusionParams, fusion_filter
 from jaxtrack.filters.fusion_classifier import CLASSIFIER_PATCH_SHAPE, classifier_params
 from jaxtrack.filters.fusion_voting import SHARE, Thresholds
+from jaxtrack.filters.hier_exchanges import margin_parameter
 from jaxtrack.filters.kalman import CHI2_4DOF, default_kalman_params
 from jaxtrack.parameters import ParameterProperties, frozen_properties
 from jaxtrack.resources import DETECTION_SLOT_BYTES, MemoryEstimate
@@ -238,9 +239,7 @@ def fusion_params(
         reid_radius=jnp.float32(REID_RADIUS),
         reid_gate=jnp.float32(REID_GATE),
         appearance_weight=jnp.float32(config.appearance_weight),
-        exchange_margin=jnp.float32(
-            config.exchange_margin if config.exchange_margin >= 0 else jnp.inf
-        ),
+        exchange_margin=margin_parameter(config.exchange_margin),
     )
 
 

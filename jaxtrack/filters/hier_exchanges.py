@@ -50,6 +50,12 @@ from jaxtrack.filters.hier_appearance import AppearanceTable
 DEFAULT_MARGIN = 0.1
 
 
+def margin_parameter(margin: float) -> Float[Array, ""]:
+    """A configuration's margin as the check's parameter: ``margin``, or ``inf`` (never
+    swap) when it is negative."""
+    return jnp.float32(margin if margin >= 0 else jnp.inf)
+
+
 def trained_features(table: AppearanceTable, min_updates: Float[Array, ""]) -> Bool[Array, "S 49"]:
     """Which feature models of each tracker have at least ``min_updates`` updates."""
     return table.models.count >= min_updates

@@ -33,7 +33,7 @@ from jaxtrack.filters.base import Filter, frame_rate
 from jaxtrack.filters.hier_appearance import PATCH_SHAPE
 from jaxtrack.filters.hier_appearance import default_params as default_appearance_params
 from jaxtrack.filters.hier_events import default_event_params
-from jaxtrack.filters.hier_exchanges import DEFAULT_MARGIN
+from jaxtrack.filters.hier_exchanges import DEFAULT_MARGIN, margin_parameter
 from jaxtrack.filters.hier_low_defaults import DEFAULT_NOISE, low_params
 from jaxtrack.filters.hier_low_noise import estimate_box_noise
 from jaxtrack.filters.hierarchical import HierarchicalParams, hierarchical_filter
@@ -283,9 +283,7 @@ def hierarchical_params(
         min_score=jnp.float32(config.min_score),
         confirm_score=jnp.float32(config.confirm_score),
         confirm_quantile=jnp.float32(config.confirm_quantile),
-        exchange_margin=jnp.float32(
-            config.exchange_margin if config.exchange_margin >= 0 else jnp.inf
-        ),
+        exchange_margin=margin_parameter(config.exchange_margin),
         score_weight=jnp.float32(config.score_weight),
         drift_check=jnp.float32(config.drift_check),
         resume_frames=jnp.float32(
