@@ -155,8 +155,8 @@ class FusionConfig(TrackerConfig):
         EXCHANGE_MARGIN,
         Rule(
             "two targets that met in an occlusion group swap their identities once both are "
-            "apart and re-detected when each one's signature model is nearer the other's box "
-            "by this much (sum of two signature distances; negative: never)",
+            "apart and re-detected when each one's signature model is nearer the other's "
+            "detection by this much (sum of two signature distances; negative: never)",
             float,
             -1.0,
             10.0,
