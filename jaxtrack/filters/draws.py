@@ -5,8 +5,8 @@ measurement noise and their velocities), each with its own key. ``jax.random`` e
 Threefry-2x32 hash once per call, and on CPU each evaluation is a rolled loop of five
 iterations of about sixteen small kernels: at tracking sizes (2048 particles) the three
 loops were half of the kernels a frame runs, each costing a fixed launch overhead whatever
-its size. :func:`draw` evaluates the hash once for every request (the keys broadcast per
-element: the hash is elementwise in its key and counter words) and converts the bits as
+its size. :func:`draw` evaluates the hash once for every request (the keys chosen per
+element from the element's index: the hash is elementwise in its key and counter words) and converts the bits as
 ``jax.random.normal`` and ``jax.random.uniform`` do, so each array equals the separate
 call's bit for bit (tested). The arrays are written to memory once
 (:func:`~jaxtrack.control.materialise`), which changes how XLA fuses the arithmetic that
@@ -74,11 +74,21 @@ def draw(requests: list[Request]) -> list[Array]:
     if not all(_merges(r.key) and r.dtype == jnp.float32 for r in requests):
         return [_separate(r) for r in requests]
     sizes = [math.prod(r.shape) for r in requests]
-    words = [(_key_words(r.key), n) for r, n in zip(requests, sizes, strict=True)]
-    key_hi = jnp.concatenate([jnp.full(n, w[0], jnp.uint32) for w, n in words])
-    key_lo = jnp.concatenate([jnp.full(n, w[1], jnp.uint32) for w, n in words])
-    # Element i of a draw hashes the 64-bit counter i: high word 0 below 2^32 elements.
-    count_lo = jnp.asarray(np.concatenate([np.arange(n, dtype=np.uint32) for n in sizes]))
+    words = [_key_words(r.key) for r in requests]
+    # Element i of a draw hashes the 64-bit counter i (high word 0 below 2^32 elements)
+    # with its request's key. Keys and counters are formed per element from one iota
+    # (a select per request boundary), inside the hash's fusion: no full-size arrays.
+    index = jax.lax.iota(jnp.uint32, sum(sizes))
+    key_hi = jnp.full_like(index, words[0][0])
+    key_lo = jnp.full_like(index, words[0][1])
+    count_lo = index
+    start = 0
+    for word, size in zip(words[1:], sizes[:-1], strict=True):
+        start += size
+        later = index >= jnp.uint32(start)
+        key_hi = jnp.where(later, word[0], key_hi)
+        key_lo = jnp.where(later, word[1], key_lo)
+        count_lo = jnp.where(later, index - jnp.uint32(start), count_lo)
     count_hi = jnp.zeros_like(count_lo)
     bits_hi, bits_lo = threefry2x32(key_hi, key_lo, count_hi, count_lo)
     bits = bits_hi ^ bits_lo
