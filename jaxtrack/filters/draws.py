@@ -5,10 +5,10 @@ measurement noise and their velocities), each with its own key. ``jax.random`` e
 Threefry-2x32 hash once per call, and on CPU each evaluation is a rolled loop of five
 iterations of about sixteen small kernels: at tracking sizes (2048 particles) the three
 loops were half of the kernels a frame runs, each costing a fixed launch overhead whatever
-its size. :func:`draw` evaluates the hash once for every request (the keys chosen per
-element from the element's index: the hash is elementwise in its key and counter words) and converts the bits as
-``jax.random.normal`` and ``jax.random.uniform`` do, so each array equals the separate
-call's bit for bit (tested). The arrays are written to memory once
+its size. :func:`draw` evaluates the hash once for every request (each element's key and
+counter words chosen from its index, inside the hash's fusion: the hash is elementwise in
+them) and converts the bits as ``jax.random.normal`` and ``jax.random.uniform`` do, so each
+array equals the separate call's bit for bit (tested). The arrays are written to memory once
 (:func:`~jaxtrack.control.materialise`), which changes how XLA fuses the arithmetic that
 reads them: a tracker's results then differ from the separate calls' at float32 rounding.
 
