@@ -63,7 +63,7 @@ from jaxtrack.filters.births import (
 )
 from jaxtrack.filters.extraction import gmm_clusters, measurement_partition
 from jaxtrack.filters.resampling import ResamplingScheme, resample, systematic
-from jaxtrack.models.dynamics import MEASURED, STATE_DIM, sample_constant_velocity
+from jaxtrack.models.dynamics import MEASURED, STATE_DIM, rows_layout, sample_constant_velocity
 from jaxtrack.models.likelihood import log_likelihood
 from jaxtrack.models.noise import NoiseModel, state_dependent_std
 from jaxtrack.models.survival import SurvivalMap, survival_probability
@@ -326,12 +326,18 @@ def join_particles(
 ) -> Float[Array, "num_particles 6"]:
     """The predicted survivors followed by the births (``concatenate`` along the particles).
 
-    Joined as ``[6, n]`` rows and transposed back: :func:`predict` and :func:`phd_births`
-    build their states as rows, so XLA cancels the transposes, where a join of the ``[n, 6]``
-    arrays along the particle axis fuses the two sets of formulas into one slow per-element
-    select (3x slower at 2048 particles, 10x at 1e5). Same values as ``jnp.concatenate``.
+    Joined as :func:`predict` forms the survivors
+    (:func:`~jaxtrack.models.dynamics.rows_layout`). Up to
+    :data:`~jaxtrack.models.dynamics.ROWS_MAX_PARTICLES` survivors, as ``[6, n]`` rows
+    transposed back: :func:`predict` and :func:`phd_births` build their states as rows, so
+    XLA cancels the transposes, where a join of the ``[n, 6]`` arrays along the particle axis
+    fuses the two sets of row formulas into one slow per-element select (3x slower at 2048
+    particles, 10x at 1e5). Above, in the states' own ``[n, 6]`` layout, as the survivors
+    are then formed (session 54). Same values as ``jnp.concatenate`` either way.
     """
-    return jnp.concatenate([survivors.T, born.T], axis=1).T
+    if rows_layout(survivors.shape[0]):
+        return jnp.concatenate([survivors.T, born.T], axis=1).T
+    return jnp.concatenate([survivors, born], axis=0)
 
 
 def expected_birth_mass_term(

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from jaxtrack.models.noise import NoiseModel, state_dependent_std
+from jaxtrack.models.noise import NoiseModel, state_dependent_std, std_columns
 
 STATE_DIM = 6
 #: Indices of the measured components (y1, y2, w, h) in the state (``C`` of the likelihood).
@@ -73,20 +73,53 @@ def sample_constant_velocity(
     """
     if normal is None:
         normal = jax.random.normal(key, (states.shape[0], 4), states.dtype)
-    scaled = noise_model(states[:, SIZE], noise_std) * normal
     # G x + B n written out per component (T = 1): the same sums as the matrix products
     # with transition_matrix() and noise_gain(), without a matrix product or a scatter.
-    y1, vy1, y2, vy2, width, height = (states[:, i] for i in range(STATE_DIM))
-    n1, n2, nw, nh = (scaled[:, i] for i in range(4))
-    return jnp.stack(
-        [
-            (y1 + vy1) + 0.5 * n1,
-            vy1 + n1,
-            (y2 + vy2) + 0.5 * n2,
-            vy2 + n2,
-            jnp.maximum(width + nw, MIN_SIZE),
-            jnp.maximum(height + nh, MIN_SIZE),
-        ],
-        axis=0,
-    ).T  # stacked as rows, then transposed: a stack along the trailing axis of 6 compiles to
-    # a per-element select between the six formulas (3x slower on CPU, 3x more under vmap)
+    if rows_layout(states.shape[0]):
+        scaled = noise_model(states[:, SIZE], noise_std) * normal
+        y1, vy1, y2, vy2, width, height = (states[:, i] for i in range(STATE_DIM))
+        n1, n2, nw, nh = (scaled[:, i] for i in range(4))
+        return jnp.stack(
+            [
+                (y1 + vy1) + 0.5 * n1,
+                vy1 + n1,
+                (y2 + vy2) + 0.5 * n2,
+                vy2 + n2,
+                jnp.maximum(width + nw, MIN_SIZE),
+                jnp.maximum(height + nh, MIN_SIZE),
+            ],
+            axis=0,
+        ).T  # stacked as rows, then transposed: a stack along the trailing axis of 6
+        # compiles to a per-element select between the six formulas (3x slower on CPU)
+    # Above ROWS_MAX_PARTICLES: one elementwise expression over the [n, 6] states in their
+    # own layout, (x + velocity) + noise with velocity = (vy1, -0, vy2, -0, -0, -0) (adding
+    # -0 is exact) and noise = (n1 / 2, n1, n2 / 2, n2, nw, nh). Each output element reads
+    # its particle's row once, where the rows form reads the states with a stride once per
+    # component and writes the stacked [n, 4] standard deviations out.
+    std = std_columns(noise_model, states[:, SIZE[0] : SIZE[1] + 1], noise_std)
+    n1, n2, nw, nh = (std[k] * normal[:, k : k + 1] for k in range(4))
+    none = jnp.full_like(states[:, :1], -0.0)
+    velocity = jnp.concatenate([states[:, 1:2], none, states[:, 3:4], none, none, none], 1)
+    noise = jnp.concatenate([0.5 * n1, n1, 0.5 * n2, n2, nw, nh], 1)
+    lowest = jnp.array([-jnp.inf] * 4 + [MIN_SIZE] * 2, states.dtype)
+    return jnp.maximum((states + velocity) + noise, lowest)
+
+
+#: Particles up to which :func:`sample_constant_velocity` forms its output as ``[6, n]`` rows
+#: (transposed back), above which as one elementwise expression over the ``[n, 6]`` states.
+ROWS_MAX_PARTICLES = 8192
+
+
+def rows_layout(num_particles: int) -> bool:
+    """Whether :func:`sample_constant_velocity` forms ``num_particles`` predictions as rows.
+
+    Both forms compute the same sums. The rows form lets a consumer that reads the states
+    as rows (the PHD update's likelihood; :func:`~jaxtrack.filters.phd.join_particles`
+    joins rows) cancel the transposes: at tracking sizes (2048 particles) it is the faster.
+    At 1e5-1e6 particles its strided reads of the states and its written-out standard
+    deviations cost more than the update's transposes: the elementwise form makes the PHD
+    recursion 1.1-1.2x faster there (README, "Where the PHD step's time goes", session
+    54). XLA may contract a multiply and an add of the two forms differently (a fused
+    multiply-add), so they can differ by an ulp.
+    """
+    return num_particles <= ROWS_MAX_PARTICLES

@@ -9,9 +9,9 @@ import pytest
 
 from jaxtrack.boxes import cxcywh_to_xywh
 from jaxtrack.filters.base import run
-from jaxtrack.filters.phd import PHDParams, phd_filter
+from jaxtrack.filters.phd import PHDParams, join_particles, phd_filter
 from jaxtrack.filters.phd_defaults import default_phd_params
-from jaxtrack.models import SurvivalMap, constant_std
+from jaxtrack.models import SurvivalMap, constant_std, dynamics
 from tests.filters.phd_reference import reference_of_state
 from tests.filters.phd_scenes import padded_detections, walking_scene
 
@@ -240,3 +240,17 @@ def test_single_linear_gaussian_target_tracks_the_kalman_filter():
     assert np.all(np.abs(np.mean(particle_errors, axis=0)) < 0.4)
     assert np.mean(np.abs(errors)) < 0.1
     assert np.max(np.abs(errors)) < 0.6  # no run strays far
+
+
+@pytest.mark.parametrize("num_survivors", [100, 9000])
+def test_join_particles_equals_concatenate_in_either_layout(num_survivors):
+    """Survivors up to ``ROWS_MAX_PARTICLES`` are joined as rows, more as ``[n, 6]`` rows
+    of the states' own layout (``dynamics.rows_layout``): the same array either way, under
+    ``jit`` too."""
+    assert dynamics.rows_layout(100) and not dynamics.rows_layout(9000)
+    rng = np.random.default_rng(7)
+    survivors = jnp.asarray(rng.normal(size=(num_survivors, 6)), jnp.float32)
+    born = jnp.asarray(rng.normal(size=(37, 6)), jnp.float32)
+    expected = np.concatenate([np.asarray(survivors), np.asarray(born)])
+    np.testing.assert_array_equal(join_particles(survivors, born), expected)
+    np.testing.assert_array_equal(jax.jit(join_particles)(survivors, born), expected)
