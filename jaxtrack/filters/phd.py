@@ -392,6 +392,26 @@ PAIRS_PER_BLOCK = 65536
 MIN_BLOCK = 128
 
 
+#: Blocks of :func:`phd_update` wider than this many particles form the likelihood's
+#: log-normaliser by elementwise additions (:func:`elementwise_log_norm`).
+YNN_FUSED_BLOCK = 4096
+
+
+def elementwise_log_norm(block: int) -> bool:
+    """Whether :func:`phd_update` asks :func:`~jaxtrack.models.likelihood.log_likelihood`
+    for the elementwise log-normaliser on blocks of ``block`` particles.
+
+    Above :data:`YNN_FUSED_BLOCK` particles per block (fewer than 16 detection slots at the
+    default block of 64k pairs, with more than 4,096 particles) XLA:CPU fused the
+    normaliser's reduction with the block's particle x detection arithmetic into one YNNPACK
+    kernel, 1.2-1.4x slower per recursion than XLA's own loops (at 5e3-1e6 particles x 4-12
+    detections; README, "Where the PHD step's time goes", session 54). At or below, the
+    reduction is kept, so the tracker's runs with its 16 or more slots, and any run of at
+    most 4,096 particles, round as before.
+    """
+    return block > YNN_FUSED_BLOCK
+
+
 def default_block_size(num_particles: int, max_detections: int) -> int:
     """Particles per block of :func:`phd_update`: at most about :data:`PAIRS_PER_BLOCK` pairs.
 
@@ -460,9 +480,11 @@ def phd_update(
     log_detection = jnp.log(params.detection_prob)
     log_missed = jnp.log1p(-params.detection_prob)
 
+    elementwise = elementwise_log_norm(block)
+
     def log_psi_of(block_particles):
         return log_detection + log_likelihood(
-            measurements, block_particles, params.measurement_noise_std, noise_model
+            measurements, block_particles, params.measurement_noise_std, noise_model, elementwise
         )
 
     def block_log_psi(index):
@@ -543,8 +565,12 @@ def target_log_clutter(
     num_particles, num_slots = particles.shape[0], measurements.shape[0]
     block = min(num_particles, block_size or default_block_size(num_particles, num_slots))
 
+    elementwise = elementwise_log_norm(block)
+
     def log_q_of(block_particles):
-        return log_likelihood(measurements, block_particles, target_clutter.noise_std, noise_model)
+        return log_likelihood(
+            measurements, block_particles, target_clutter.noise_std, noise_model, elementwise
+        )
 
     def spread():
         log_sum = _blocked_log_sum(log_q_of, particles, log_weights, block, num_slots)

@@ -14,8 +14,10 @@ from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import Intensity, log_intensity
 from jaxtrack.filters.births import LOG_ZERO
 from jaxtrack.filters.phd import (
+    YNN_FUSED_BLOCK,
     Posterior,
     TargetClutter,
+    elementwise_log_norm,
     gmm_estimates,
     partition_estimates,
     phd_births,
@@ -151,6 +153,29 @@ def test_blocked_update_matches_the_full_array_oracle(block_size):
 
 
 TARGET_CLUTTER = TargetClutter(jnp.asarray(0.3), jnp.asarray([0.3, 0.16, 0.5, 0.3]))
+
+
+@pytest.mark.parametrize("target_clutter", [False, True])
+@pytest.mark.parametrize("block_size", [4500, 5000])
+def test_wide_blocks_match_the_full_array_oracle(block_size, target_clutter):
+    """Blocks wider than ``YNN_FUSED_BLOCK`` particles form the log-normaliser by
+    elementwise additions (``elementwise_log_norm``): 9,000 particles in two blocks (5,000:
+    the last overlaps), with and without the target clutter's pass, against the float64
+    oracle."""
+    assert not elementwise_log_norm(YNN_FUSED_BLOCK) and elementwise_log_norm(block_size)
+    params = PARAMS._replace(target_clutter=TARGET_CLUTTER) if target_clutter else PARAMS
+    particles, log_weights = _particles(9000, seed=2)
+    update = _jit_update(params, particles, log_weights, block_size)
+    expected = _update_oracle(params, MEASUREMENTS, SCORES, MASK, particles, log_weights)
+    np.testing.assert_allclose(update.log_weights, expected["log_weights"], rtol=1e-5)
+    np.testing.assert_allclose(update.log_likelihood, expected["log_likelihood"], rtol=1e-5)
+    np.testing.assert_allclose(
+        update.detection_log_masses, expected["detection_log_masses"], rtol=1e-5, atol=1e-5
+    )
+    np.testing.assert_allclose(
+        update.detection_states, expected["detection_states"], rtol=1e-5, atol=1e-4
+    )
+    np.testing.assert_allclose(update.particle_scores, expected["particle_scores"], rtol=1e-5)
 
 
 @pytest.mark.parametrize("block_size", [None, 77])

@@ -141,13 +141,18 @@ def test_dynamics_equal_the_written_out_float32_sums(noise_model, rows, monkeypa
 @pytest.mark.parametrize(
     ("noise_model", "sdv"), [(state_dependent_std, True), (constant_std, False)]
 )
-def test_likelihood_matches_scipy(noise_model, sdv):
+@pytest.mark.parametrize("elementwise_log_norm", [False, True])
+def test_likelihood_matches_scipy(noise_model, sdv, elementwise_log_norm):
     rng = np.random.default_rng(0)
     states = STATE + rng.normal(0, [5, 1, 5, 1, 3, 6], (7, 6))
     measurements = states[:3, [0, 2, 4, 5]] + rng.normal(0, 4, (3, 4))
     noise_std = np.array([0.1, 0.05, 0.2, 0.1]) if sdv else np.array([3.0, 4.0, 5.0, 6.0])
     got = log_likelihood(
-        jnp.asarray(measurements), jnp.asarray(states), jnp.asarray(noise_std), noise_model
+        jnp.asarray(measurements),
+        jnp.asarray(states),
+        jnp.asarray(noise_std),
+        noise_model,
+        elementwise_log_norm,
     )
     for j, z in enumerate(measurements):
         for i, x in enumerate(states):
