@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from jaxtrack.models.dynamics import MEASURED, SIZE
-from jaxtrack.models.noise import NoiseModel, state_dependent_std
+from jaxtrack.models.noise import NoiseModel, state_dependent_std, std_columns
 
 MEAS_DIM = 4
 
@@ -44,15 +44,26 @@ def log_likelihood(
             the ``[max_detections, num_particles]`` arithmetic that reads it to one YNNPACK
             fusion, 1.2-1.4x slower than XLA's own loops (the PHD update asks for the
             additions for such blocks, :func:`~jaxtrack.filters.phd.phd_update`). The two
-            can round differently.
+            can round differently. The standard deviations are then formed as four vectors
+            (:func:`~jaxtrack.models.noise.std_columns`), not as a stacked array.
 
     Returns:
         The log-likelihoods, ``[max_detections, num_particles]``.
     """
-    std = noise_model(states[:, SIZE], noise_std)
     predicted = states[:, MEASURED].T
-    inverse_std = (1.0 / std).T
-    log_sum = sum_of_logs_in_order(std) if elementwise_log_norm else sum_of_logs(std)
+    if elementwise_log_norm:
+        # The standard deviations as four vectors (noise.std_columns): the stacked
+        # [n, 4] array, which XLA:CPU wrote out per block, is never formed. The same
+        # values, and the log-normaliser the same additions as sum_of_logs_in_order.
+        sizes = states[:, SIZE[0] : SIZE[1] + 1]
+        std_rows = [column[:, 0] for column in std_columns(noise_model, sizes, noise_std)]
+        inverse_std = [1.0 / std for std in std_rows]
+        logs = [jnp.log(std) for std in std_rows]
+        log_sum = ((logs[0] + logs[1]) + logs[2]) + logs[3]
+    else:
+        std = noise_model(states[:, SIZE], noise_std)
+        inverse_std = (1.0 / std).T
+        log_sum = sum_of_logs(std)
     log_norm = log_sum + 0.5 * MEAS_DIM * jnp.log(2 * jnp.pi)
     squared_distance = sum(
         ((measurements[:, dim, None] - predicted[dim]) * inverse_std[dim]) ** 2
