@@ -397,19 +397,25 @@ MIN_BLOCK = 128
 YNN_FUSED_BLOCK = 4096
 
 
-def elementwise_log_norm(block: int) -> bool:
+def elementwise_log_norm(num_particles: int, block: int) -> bool:
     """Whether :func:`phd_update` asks :func:`~jaxtrack.models.likelihood.log_likelihood`
-    for the elementwise log-normaliser on blocks of ``block`` particles.
+    for the elementwise log-normaliser (standard deviations as four vectors, three
+    additions of their logs) on ``num_particles`` particles in blocks of ``block``.
 
-    Above :data:`YNN_FUSED_BLOCK` particles per block (fewer than 16 detection slots at the
-    default block of 64k pairs, with more than 4,096 particles) XLA:CPU fused the
-    normaliser's reduction with the block's particle x detection arithmetic into one YNNPACK
-    kernel, 1.2-1.4x slower per recursion than XLA's own loops (at 5e3-1e6 particles x 4-12
-    detections; README, "Where the PHD step's time goes", session 54). At or below, the
-    reduction is kept, so the tracker's runs with its 16 or more slots, and any run of at
-    most 4,096 particles, round as before.
+    * Blocks wider than :data:`YNN_FUSED_BLOCK` particles (fewer than 16 detection slots at
+      the default 64k pairs per block): XLA:CPU fused the reduction ``sum(log(std))`` with
+      the block's particle x detection arithmetic into one YNNPACK kernel, 1.2-1.4x slower
+      per recursion than XLA's own loops (5e3-1e6 particles x 4-12 detections).
+    * More than :data:`~jaxtrack.models.dynamics.ROWS_MAX_PARTICLES` particles: the
+      reduction's input, the stacked ``[block, 4]`` standard deviations, was written out per
+      block; without it the recursion ran 1.07-1.15x faster at 1e4-1e6 particles x 18-128
+      detections (README, "Where the PHD step's time goes", session 54).
+
+    Otherwise (the tracker at tracking sizes: at most 8,192 particles, 16 or more slots)
+    the reduction is kept, and the tracker's outputs round as before. The two forms can
+    differ by float32 rounding.
     """
-    return block > YNN_FUSED_BLOCK
+    return block > YNN_FUSED_BLOCK or not rows_layout(num_particles)
 
 
 def default_block_size(num_particles: int, max_detections: int) -> int:
@@ -480,7 +486,7 @@ def phd_update(
     log_detection = jnp.log(params.detection_prob)
     log_missed = jnp.log1p(-params.detection_prob)
 
-    elementwise = elementwise_log_norm(block)
+    elementwise = elementwise_log_norm(num_particles, block)
 
     def log_psi_of(block_particles):
         return log_detection + log_likelihood(
@@ -565,7 +571,7 @@ def target_log_clutter(
     num_particles, num_slots = particles.shape[0], measurements.shape[0]
     block = min(num_particles, block_size or default_block_size(num_particles, num_slots))
 
-    elementwise = elementwise_log_norm(block)
+    elementwise = elementwise_log_norm(num_particles, block)
 
     def log_q_of(block_particles):
         return log_likelihood(

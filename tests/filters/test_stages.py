@@ -156,13 +156,15 @@ TARGET_CLUTTER = TargetClutter(jnp.asarray(0.3), jnp.asarray([0.3, 0.16, 0.5, 0.
 
 
 @pytest.mark.parametrize("target_clutter", [False, True])
-@pytest.mark.parametrize("block_size", [4500, 5000])
-def test_wide_blocks_match_the_full_array_oracle(block_size, target_clutter):
-    """Blocks wider than ``YNN_FUSED_BLOCK`` particles form the log-normaliser by
-    elementwise additions (``elementwise_log_norm``): 9,000 particles in two blocks (5,000:
-    the last overlaps), with and without the target clutter's pass, against the float64
-    oracle."""
-    assert not elementwise_log_norm(YNN_FUSED_BLOCK) and elementwise_log_norm(block_size)
+@pytest.mark.parametrize("block_size", [3000, 4500, 5000])
+def test_elementwise_log_norm_matches_the_full_array_oracle(block_size, target_clutter):
+    """More than ``ROWS_MAX_PARTICLES`` particles, or blocks wider than ``YNN_FUSED_BLOCK``,
+    form the log-normaliser by elementwise additions (``elementwise_log_norm``): 9,000
+    particles in three or two blocks (5,000: the last overlaps), with and without the
+    target clutter's pass, against the float64 oracle."""
+    assert not elementwise_log_norm(8192, YNN_FUSED_BLOCK)  # the tracker's sizes: kept
+    assert elementwise_log_norm(8192, YNN_FUSED_BLOCK + 1)
+    assert elementwise_log_norm(9000, block_size)
     params = PARAMS._replace(target_clutter=TARGET_CLUTTER) if target_clutter else PARAMS
     particles, log_weights = _particles(9000, seed=2)
     update = _jit_update(params, particles, log_weights, block_size)
