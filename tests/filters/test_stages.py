@@ -134,12 +134,8 @@ def _jit_update(params, particles, log_weights, block_size):
     )
 
 
-@pytest.mark.parametrize("block_size", [None, 50, 64, 77, 300])
-def test_blocked_update_matches_the_full_array_oracle(block_size):
-    """Blocks of 50 and 64 divide 300 particles or not (77: the last block overlaps)."""
-    particles, log_weights = _particles(300)
-    update = _jit_update(PARAMS, particles, log_weights, block_size)
-    expected = _update_oracle(PARAMS, MEASUREMENTS, SCORES, MASK, particles, log_weights)
+def _assert_matches_oracle(update, expected):
+    """Every output of the update against the float64 oracle's."""
     np.testing.assert_allclose(update.log_weights, expected["log_weights"], rtol=1e-5)
     np.testing.assert_allclose(update.log_likelihood, expected["log_likelihood"], rtol=1e-5)
     np.testing.assert_allclose(
@@ -149,6 +145,15 @@ def test_blocked_update_matches_the_full_array_oracle(block_size):
         update.detection_states, expected["detection_states"], rtol=1e-5, atol=1e-4
     )
     np.testing.assert_allclose(update.particle_scores, expected["particle_scores"], rtol=1e-5)
+
+
+@pytest.mark.parametrize("block_size", [None, 50, 64, 77, 300])
+def test_blocked_update_matches_the_full_array_oracle(block_size):
+    """Blocks of 50 and 64 divide 300 particles or not (77: the last block overlaps)."""
+    particles, log_weights = _particles(300)
+    update = _jit_update(PARAMS, particles, log_weights, block_size)
+    expected = _update_oracle(PARAMS, MEASUREMENTS, SCORES, MASK, particles, log_weights)
+    _assert_matches_oracle(update, expected)
     assert np.exp(expected["detection_log_masses"][MASK]).min() > 0.01  # parts with mass
 
 
@@ -169,15 +174,7 @@ def test_elementwise_log_norm_matches_the_full_array_oracle(block_size, target_c
     particles, log_weights = _particles(9000, seed=2)
     update = _jit_update(params, particles, log_weights, block_size)
     expected = _update_oracle(params, MEASUREMENTS, SCORES, MASK, particles, log_weights)
-    np.testing.assert_allclose(update.log_weights, expected["log_weights"], rtol=1e-5)
-    np.testing.assert_allclose(update.log_likelihood, expected["log_likelihood"], rtol=1e-5)
-    np.testing.assert_allclose(
-        update.detection_log_masses, expected["detection_log_masses"], rtol=1e-5, atol=1e-5
-    )
-    np.testing.assert_allclose(
-        update.detection_states, expected["detection_states"], rtol=1e-5, atol=1e-4
-    )
-    np.testing.assert_allclose(update.particle_scores, expected["particle_scores"], rtol=1e-5)
+    _assert_matches_oracle(update, expected)
 
 
 @pytest.mark.parametrize("block_size", [None, 77])
