@@ -54,12 +54,11 @@ def log_likelihood(
     if elementwise_log_norm:
         # The standard deviations as four vectors (noise.std_columns): the stacked
         # [n, 4] array, which XLA:CPU wrote out per block, is never formed. The same
-        # values, and the log-normaliser the same additions as sum_of_logs_in_order.
+        # values, and the log-normaliser the same additions as sum_of_logs_in_order's.
         sizes = states[:, SIZE[0] : SIZE[1] + 1]
         std_rows = [column[:, 0] for column in std_columns(noise_model, sizes, noise_std)]
         inverse_std = [1.0 / std for std in std_rows]
-        logs = [jnp.log(std) for std in std_rows]
-        log_sum = ((logs[0] + logs[1]) + logs[2]) + logs[3]
+        log_sum = _added_in_order([jnp.log(std) for std in std_rows])
     else:
         std = noise_model(states[:, SIZE], noise_std)
         inverse_std = (1.0 / std).T
@@ -104,9 +103,14 @@ def sum_of_logs_in_order(values: Float[Array, "n dim"]) -> Float[Array, " n"]:
     """``sum(log(values), axis=-1)`` as ``dim - 1`` elementwise additions of the logs, in
     order (the batched form of :func:`sum_of_logs`; XLA fuses it into its own loops)."""
     logs = jnp.log(values)
-    total = logs[..., 0]
-    for dim in range(1, values.shape[-1]):
-        total = total + logs[..., dim]
+    return _added_in_order([logs[..., dim] for dim in range(values.shape[-1])])
+
+
+def _added_in_order(terms: list[Array]) -> Array:
+    """``((terms[0] + terms[1]) + terms[2]) + ...``: left to right, elementwise."""
+    total = terms[0]
+    for term in terms[1:]:
+        total = total + term
     return total
 
 
