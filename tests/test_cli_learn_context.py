@@ -10,7 +10,7 @@ import pytest
 
 from jaxtrack import cli
 from jaxtrack.context.clutter_labels import ClutterLabels, save_clutter_labels
-from jaxtrack.context.io import load_context
+from jaxtrack.context.io import load_context, load_context_parts
 from jaxtrack.datasets import SceneConfig, generate_scene
 from jaxtrack.datasets.synthetic import write_scene
 
@@ -63,6 +63,19 @@ def test_learns_from_ground_truth_and_writes_figures(run_cli, scene_dir, tmp_pat
     assert "left out" in printed and "coverage" in printed
     assert float(clutter.magnitude) == pytest.approx(lam_r / meta["clutter"]["volume_mass"])
     assert lam_r == pytest.approx(SceneConfig().total_clutter_rate, rel=0.2)
+    # the first frame's intensity: the gt boxes in view, every 10th of each trajectory
+    *_, initial = load_context_parts(out)
+    gt = np.loadtxt(scene_dir / "gt" / "gt.txt", delimiter=",", ndmin=2)
+    in_span = gt[(gt[:, 0] <= FRAMES) & (gt[:, 6] != 0)]
+    first = meta["initial"]
+    assert first["source"] == "gt" and first["stride"] == 10
+    assert first["magnitude"] == pytest.approx(len(in_span) / FRAMES)
+    assert first["num_events"] >= len(in_span) / 10
+    assert initial.dim == 6
+    assert float(initial.magnitude) == pytest.approx(first["magnitude"] / first["volume_mass"])
+    # where the targets are is learned: better than uniform on held-out frames
+    assert first["heldout"]["heldout_gain"] > 1.0
+    assert f"first frame: {first['num_events']} states from gt" in printed
     calibration = meta["score_calibration"]
     assert calibration["learned"] and calibration["source"] == "gt"
     assert f"score calibration from gt on {calibration['detections']} detections" in printed
@@ -106,6 +119,7 @@ def test_learns_from_a_tracker_run(run_cli, scene_dir, tmp_path):
     _, _, meta = load_context(out)
     assert meta["birth"]["source"] == "tracks" and meta["clutter"]["source"] == "tracks"
     assert meta["birth"]["num_events"] > 0 and meta["seed"] == 1
+    assert meta["initial"]["source"] == "tracks" and load_context_parts(out)[3] is not None
     # the tracker keeps true detections: its clutter rate is near the true one, not the
     # detection rate (about 10 targets per frame)
     assert meta["clutter"]["magnitude"] < 2 * SceneConfig().total_clutter_rate

@@ -77,6 +77,12 @@ Event sources:
   "target clutter" (none when they are no more than the scene's clutter landing on objects
   by chance); the variants with learned clutter (GM, A2, A5, A6) add it to the clutter
   intensity, so a second box on a tracked target is not taken for a new target.
+First frame: the states of the trajectories of the birth source (every 10th box of each,
+velocity fitted to the boxes around it) give a third density, where the targets are, with
+the mean number in view per frame as its magnitude. The variants with a learned birth
+density (GM, A1, A4, A6) start a run from it instead of UM's uniform first-frame intensity
+(magnitude initial_rate, 0.2 targets spread over every size and velocity), so the targets
+already in view when a run starts are picked up as fast as those entering.
 --frames A:B is the training span (default: all frames).
 A video (or image folder) instead of SEQ_DIR: give its detections with --detections
 (`jaxtrack detect VIDEO --out DET.txt`) and, for the gt sources, its ground truth with --gt;
@@ -229,8 +235,9 @@ def run(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     # steps: loading, (score calibration,) (tracking,) collecting events, (birth check,)
-    # birth density, (clutter check,) clutter density, (plots)
-    steps = (5 if "tracks" in (args.birth_from, clutter_from) else 4) + 2 * args.heldout
+    # birth density, (clutter check,) clutter density, (first-frame check,) first-frame
+    # density, (plots)
+    steps = (6 if "tracks" in (args.birth_from, clutter_from) else 5) + 3 * args.heldout
     steps += "gt" in (args.birth_from, clutter_from)
     total = steps + (1 if args.plot else 0)
     with tqdm(total=total, desc="learn-context", unit="step", disable=args.quiet) as bar:
@@ -251,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
             progress=progress,
         )
         bar.update(1)
-        save_context(args.out, learned.birth, learned.clutter, learned.metadata)
+        save_context(args.out, learned.birth, learned.clutter, learned.metadata, learned.initial)
         if args.plot:
             bar.set_description_str("plotting")
             paths = _plot(args, learned)
@@ -265,13 +272,21 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
         return 0
     print(f"wrote {args.out} (frames {meta['frames'][0]}:{meta['frames'][1]}, {elapsed:.1f} s)")
-    for kind in ("birth", "clutter"):
+    for kind in ("birth", "clutter", "initial"):
         info = meta[kind]
-        print(
-            f"  {kind}: {info['num_events']} events from {info['source']} over "
-            f"{info['num_frames']} frames -> magnitude {info['magnitude']:.4g}/frame, "
-            f"{info['components_alive']} Gaussians alive, pi_u {info['uniform_weight']:.3g}"
-        )
+        if kind == "initial":
+            print(
+                f"  first frame: {info['num_events']} states from {info['source']} (every "
+                f"{info['stride']}th box of each trajectory) -> {info['magnitude']:.4g} "
+                f"targets in view per frame, {info['components_alive']} Gaussians alive, "
+                f"pi_u {info['uniform_weight']:.3g} (GM's first frame; UM's is uniform)"
+            )
+        else:
+            print(
+                f"  {kind}: {info['num_events']} events from {info['source']} over "
+                f"{info['num_frames']} frames -> magnitude {info['magnitude']:.4g}/frame, "
+                f"{info['components_alive']} Gaussians alive, pi_u {info['uniform_weight']:.3g}"
+            )
         if info.get("object_overlaps"):
             print(
                 f"    {info['object_overlaps']} unmatched detections overlapping an object "

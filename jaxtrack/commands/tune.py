@@ -223,7 +223,7 @@ def run(args) -> int:
     config_path = out
     if context is not None:
         tuned = tuning.context
-        save_context(out, tuned.birth, tuned.clutter, tuned.metadata)
+        save_context(out, tuned.birth, tuned.clutter, tuned.metadata, tuned.initial)
         config_path = Path(outputs[2].path)
     config_path.write_text(json.dumps(tuning.config.overrides(), indent=2) + "\n")
     report_path = Path(outputs[1].path)

@@ -11,7 +11,7 @@ from jaxtrack.context.intensity import (
     log_intensity,
     uniform_intensity,
 )
-from jaxtrack.context.io import load_context, save_context
+from jaxtrack.context.io import load_context, load_context_parts, save_context
 from jaxtrack.context.map_em import (
     MapEMLearner,
     MixtureState,
@@ -37,6 +37,7 @@ __all__ = [
     "grid_init_clutter",
     "init_state",
     "load_context",
+    "load_context_parts",
     "log_density",
     "log_intensity",
     "map_em_learner",

@@ -9,7 +9,9 @@ Layout (NumPy ``.npz``, no pickled objects), the same field naming as
 source sequence, training frames, sample counts, magnitudes) plus ``format_version``. A
 context learned with ground truth also records the detector's score calibration there
 (``score_calibration``: ``scores`` and ``probabilities`` at the knots, and a summary;
-:mod:`jaxtrack.context.scores`), checked on loading.
+:mod:`jaxtrack.context.scores`), checked on loading. A context may also hold the first
+frame's intensity (the targets in view, :mod:`jaxtrack.context.learn`) as ``initial_<field>``;
+files without it (written before it was learned) still load, with no first-frame intensity.
 """
 
 from __future__ import annotations
@@ -39,10 +41,16 @@ MAGNITUDE = Rule("events per frame", float, 0.0, MAX_CONTEXT_MAGNITUDE)
 FORMAT_VERSION = 1
 
 PREFIXES = ("birth", "clutter")
+#: The optional part: the first frame's intensity.
+INITIAL = "initial"
 
 
 def save_context(
-    path: str | Path, birth: Intensity, clutter: Intensity, metadata: dict[str, Any] | None = None
+    path: str | Path,
+    birth: Intensity,
+    clutter: Intensity,
+    metadata: dict[str, Any] | None = None,
+    initial: Intensity | None = None,
 ) -> None:
     """Writes a learned context to an ``.npz`` file (see the module docstring for the layout).
 
@@ -52,6 +60,7 @@ def save_context(
         clutter: the clutter intensity ``kappa(z)`` (4-D measurement space).
         metadata: JSON-serialisable values (NumPy scalars and arrays are converted);
             ``format_version`` is added.
+        initial: the first frame's intensity (6-D state space), or None.
 
     Raises:
         TypeError: the metadata is not JSON-serialisable.
@@ -60,7 +69,10 @@ def save_context(
     info["format_version"] = FORMAT_VERSION
     text = json.dumps(info, default=_to_json, sort_keys=True)
     arrays = {"metadata_json": np.asarray(text)}
-    for prefix, intensity in zip(PREFIXES, (birth, clutter), strict=True):
+    parts = [*zip(PREFIXES, (birth, clutter), strict=True)]
+    if initial is not None:
+        parts.append((INITIAL, initial))
+    for prefix, intensity in parts:
         for field, value in intensity._asdict().items():
             arrays[f"{prefix}_{field}"] = np.asarray(value)
     path = Path(path)
@@ -70,20 +82,31 @@ def save_context(
 
 
 def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]]:
+    """Reads a context written by :func:`save_context`: ``(birth, clutter, metadata)``
+    (:func:`load_context_parts` without the first frame's intensity)."""
+    birth, clutter, metadata, _ = load_context_parts(path)
+    return birth, clutter, metadata
+
+
+def load_context_parts(
+    path: str | Path,
+) -> tuple[Intensity, Intensity, dict[str, Any], Intensity | None]:
     """Reads a context written by :func:`save_context`, checking it on the way.
 
     Args:
         path: the ``.npz`` file.
 
     Returns:
-        ``(birth, clutter, metadata)``: the intensities with float32 JAX arrays and the
-        metadata dict (with ``format_version``).
+        ``(birth, clutter, metadata, initial)``: the intensities with float32 JAX arrays, the
+        metadata dict (with ``format_version``) and the first frame's intensity (None when
+        the file has no ``initial_*`` field).
 
     Raises:
         FileFormatError: naming the file and the field, when the file is missing, not an
             ``.npz`` archive, lacks a field, holds invalid metadata, a newer format version, or
-            an invalid intensity. The rules: a magnitude recorded in the metadata (``birth`` or
-            ``clutter`` ``magnitude``) in ``[0, 1e4]``; arrays of real numbers with consistent
+            an invalid intensity (an ``initial_*`` field without the others counts as missing
+            them). The rules: a magnitude recorded in the metadata (``birth``, ``clutter`` or
+            ``initial`` ``magnitude``) in ``[0, 1e4]``; arrays of real numbers with consistent
             shapes, finite and within float32; magnitude in ``[0, 1e4]`` events per frame (0 or a
             normal float32); ``pi_u`` in ``[0, 1]``; ``lower``, ``upper`` and ``means`` within
             ``+-2^20``; ``upper > lower`` on every axis in float32; weights ``>= 0`` with the
@@ -111,7 +134,10 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
         raise FileFormatError(
             path, None, f"unsupported format_version {version!r} (this reader: {FORMAT_VERSION})"
         )
-    for prefix in PREFIXES:
+    prefixes = [*PREFIXES]
+    if any(name.startswith(f"{INITIAL}_") for name in arrays):
+        prefixes.append(INITIAL)
+    for prefix in (*PREFIXES, INITIAL):
         recorded = metadata.get(prefix)
         if isinstance(recorded, dict) and "magnitude" in recorded:
             try:
@@ -127,7 +153,7 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
         if reason is not None:
             raise FileFormatError(path, None, f"metadata_json: {reason}")
     intensities = []
-    for prefix in PREFIXES:
+    for prefix in prefixes:
         fields = {}
         for field in Intensity._fields:
             name = f"{prefix}_{field}"
@@ -140,8 +166,16 @@ def load_context(path: str | Path) -> tuple[Intensity, Intensity, dict[str, Any]
         intensities.append(
             Intensity(**{key: jnp.asarray(value, jnp.float32) for key, value in fields.items()})
         )
-    birth, clutter = intensities
-    return birth, clutter, metadata
+    birth, clutter, *initial = intensities
+    if initial and initial[0].lower.shape != birth.lower.shape:
+        raise FileFormatError(
+            path,
+            None,
+            f"initial_lower has shape {tuple(initial[0].lower.shape)}, expected "
+            f"{tuple(birth.lower.shape)} (the first frame's intensity lives in the birth "
+            "state space)",
+        )
+    return birth, clutter, metadata, initial[0] if initial else None
 
 
 def _invalid_intensity(prefix: str, fields: dict[str, np.ndarray]) -> str | None:

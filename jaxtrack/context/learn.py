@@ -19,6 +19,16 @@ files, is :func:`jaxtrack.pipelines.context.learn_context`):
 4. **Intensities** ``gamma(x) = lambda_s p(x | b)``, ``kappa(z) = lambda_r p(z | c)``
    (PHD-context eq. 12-13) with the magnitudes estimated as events per frame, keeping only
    the live mixture components (:func:`live_components`).
+5. **The first frame's intensity** ``gamma_0(x) = lambda_0 p(x | o)`` (not in the paper):
+   where the targets *are*, learned like the births (same grid, background and held-out
+   check) from occupancy events (the states of the trajectories in view, every
+   :data:`~jaxtrack.context.samples.OCCUPANCY_STRIDE`-th box), with ``lambda_0`` the mean
+   number of targets in view per training frame. The tracker's first frame meets the
+   targets already in the scene; the birth density says where targets *enter*, and the
+   uniform first-frame intensity of UM (magnitude ``initial_rate``, 0.2) spreads its mass
+   over every size and velocity. A run that starts mid-scene (a test span, a stream picked
+   up late) then starts the targets in view as fast as the birth density starts those
+   entering.
 
 **Magnitude and the volume.** Events happen inside the volume (the image), but the learned
 Gaussians are not truncated to it: a component near the border, or a broad one, puts some
@@ -119,6 +129,9 @@ class LearnedContext(NamedTuple):
         clutter_samples: the clutter events learned from.
         birth_snapshots: evolution of the birth mixture (see :data:`SNAPSHOT_FRACTIONS`).
         clutter_snapshots: evolution of the clutter mixture.
+        initial: the learned first-frame intensity (6-D state space; the targets in view),
+            None when not learned.
+        initial_samples: the occupancy events it was learned from.
     """
 
     birth: Intensity
@@ -128,6 +141,8 @@ class LearnedContext(NamedTuple):
     clutter_samples: EventSamples
     birth_snapshots: tuple[Snapshot, ...]
     clutter_snapshots: tuple[Snapshot, ...]
+    initial: Intensity | None = None
+    initial_samples: EventSamples | None = None
 
 
 def uniform_volumes(

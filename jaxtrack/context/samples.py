@@ -19,6 +19,11 @@ The learned intensities ``gamma(x) = lambda_s p(x | b)`` and ``kappa(z) = lambda
   clutter), detections whose best IoU with the same frame's tracker output is below 0.5
   (never associated with a confirmed track), or detections a user labelled as clutter
   (:mod:`jaxtrack.context.clutter_labels`).
+* **Occupancy events** are the states of the targets in view (every
+  :data:`OCCUPANCY_STRIDE`-th box of each trajectory, from the same source as the births):
+  what the first frame of a run meets, when targets are already in the scene
+  (:func:`occupancy_samples`; not in the paper, which starts every run from the birth
+  intensity).
 * **Badly placed detections of objects are not clutter.** A detection left unmatched that
   still overlaps an object of its frame (a gt box, or a tracker box, by IoU >=
   :data:`OBJECT_OVERLAP`) is that object's detection, placed or sized badly (a part of a
@@ -63,6 +68,8 @@ VELOCITY_FRAMES = 5
 WARMUP_FRAMES = 5
 #: Default minimum number of boxes of a trajectory that yields a birth event.
 MIN_LENGTH = 2
+#: Default spacing, in boxes of a trajectory, of the occupancy events (the targets in view).
+OCCUPANCY_STRIDE = 10
 #: IoU at which a detection belongs to a ground-truth object or a track.
 IOU_THRESHOLD = 0.5
 #: IoU with an object from which an unmatched detection is the object's badly placed
@@ -86,7 +93,8 @@ class EventSamples(NamedTuple):
             knows no objects.
         coverage: the share of the scene's events that the source could count: 1, or for
             clutter with objects left out, ``1 - p`` with ``p`` the chance that a clutter
-            box overlaps an object (:func:`chance_overlap`).
+            box overlaps an object (:func:`chance_overlap`), or for occupancy events the
+            share of the boxes taken as events (:func:`occupancy_samples`).
     """
 
     values: np.ndarray
@@ -245,6 +253,110 @@ def birth_samples_from_tracks(rows: MotTable, span: tuple[int, int], **options) 
         The events, source ``"tracks"``.
     """
     return birth_samples(rows.frames, rows.ids, rows.boxes, span, "tracks", **options)
+
+
+def occupancy_samples(
+    frames: np.ndarray,
+    ids: np.ndarray,
+    boxes: np.ndarray,
+    span: tuple[int, int],
+    source: str,
+    *,
+    stride: int = OCCUPANCY_STRIDE,
+    velocity_frames: int = VELOCITY_FRAMES,
+) -> EventSamples:
+    """Occupancy events: the states of the targets in view, every ``stride``-th box of each
+    trajectory (the learned first-frame intensity's events, :mod:`jaxtrack.context.learn`).
+
+    A trajectory's boxes are taken in frame order, its 1st, ``(stride + 1)``-th, ... box
+    gives the state ``(y1, vy1, y2, vy2, w, h)``: the box's centre and size, and the centre
+    velocity fitted by least squares (as :func:`first_states`) to the ``velocity_frames``
+    boxes around it (centred, cut at the trajectory's ends; frame gaps allowed). A
+    trajectory of one box gives velocity 0. Taking every box would give the learner hundreds
+    of near-copies of each trajectory; ``stride`` boxes apart they are about as many as the
+    birth and clutter events.
+
+    Every box counts towards the magnitude: ``coverage`` is the share of the boxes taken as
+    events, so that :attr:`EventSamples.magnitude` is the mean number of targets in view per
+    frame, ``num_boxes / num_frames``.
+
+    Args:
+        frames: ``[num_rows]`` 1-based frame of each box (all inside ``span``).
+        ids: ``[num_rows]`` trajectory identity of each box (unique within a frame).
+        boxes: ``[num_rows, 4]`` top-left ``(x, y, w, h)``.
+        span: ``(first, last)`` training frames, 1-based inclusive.
+        source: recorded in the result.
+        stride: every ``stride``-th box of a trajectory is an event (>= 1).
+        velocity_frames: boxes the velocity is fitted to (>= 2).
+
+    Returns:
+        The events in frame order (ties by identity), ``num_frames = last - first + 1``.
+
+    Raises:
+        ValueError: ``stride < 1`` or ``velocity_frames < 2``.
+    """
+    if stride < 1:
+        raise ValueError(f"stride must be >= 1, got {stride}")
+    if velocity_frames < 2:
+        raise ValueError(f"velocity_frames must be >= 2, got {velocity_frames}")
+    frames = np.asarray(frames, np.int64).reshape(-1)
+    ids = np.asarray(ids, np.int64).reshape(-1)
+    centres = xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4))
+    order = np.lexsort((frames, ids))
+    _, starts, lengths = np.unique(ids[order], return_index=True, return_counts=True)
+    before = (velocity_frames - 1) // 2
+    states, event_frames, event_ids = [], [], []
+    for start, length in zip(starts, lengths, strict=True):
+        rows = order[start : start + length]
+        for k in range(0, length, stride):
+            low = min(max(k - before, 0), max(length - velocity_frames, 0))
+            window = rows[low : low + velocity_frames]
+            velocity = (
+                _slope(frames[window], centres[window, :2]) if window.size > 1 else np.zeros(2)
+            )
+            cx, cy, w, h = centres[rows[k]]
+            states.append([cx, velocity[0], cy, velocity[1], w, h])
+            event_frames.append(frames[rows[k]])
+            event_ids.append(ids[rows[k]])
+    states = np.asarray(states, np.float64).reshape(-1, 6)
+    event_frames = np.asarray(event_frames, np.int64)
+    chronological = np.lexsort((np.asarray(event_ids, np.int64), event_frames))
+    return EventSamples(
+        values=states[chronological],
+        frames=event_frames[chronological],
+        num_frames=span[1] - span[0] + 1,
+        source=source,
+        coverage=len(states) / len(frames) if len(frames) else 1.0,
+    )
+
+
+def occupancy_samples_from_gt(gt_table: MotTable, span: tuple[int, int], **options) -> EventSamples:
+    """Occupancy events from ground-truth trajectories (rows with ``conf == 0`` ignored).
+
+    Args:
+        gt_table: ground truth of the span.
+        span: ``(first, last)`` training frames.
+        **options: ``stride`` and ``velocity_frames`` of :func:`occupancy_samples`.
+
+    Returns:
+        The events, source ``"gt"``.
+    """
+    kept = gt_table.select(~gt_table.ignored)
+    return occupancy_samples(kept.frames, kept.ids, kept.boxes, span, "gt", **options)
+
+
+def occupancy_samples_from_tracks(rows: MotTable, span: tuple[int, int], **options) -> EventSamples:
+    """Occupancy events from a tracker's output trajectories.
+
+    Args:
+        rows: tracker output of the span.
+        span: ``(first, last)`` training frames.
+        **options: ``stride`` and ``velocity_frames`` of :func:`occupancy_samples`.
+
+    Returns:
+        The events, source ``"tracks"``.
+    """
+    return occupancy_samples(rows.frames, rows.ids, rows.boxes, span, "tracks", **options)
 
 
 def clutter_samples_from_gt(

@@ -152,6 +152,10 @@ CONTEXT_COLUMNS = (
     "clutter_magnitude",
     "clutter_components",
     "clutter_uniform_weight",
+    "initial_events",
+    "initial_magnitude",
+    "initial_components",
+    "initial_uniform_weight",
     "target_clutter_events",
     "target_clutter_rate",
 )
@@ -505,7 +509,8 @@ def gain_table(summary: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def context_row(scene: str, source: str, context: Context, seed: int = 0) -> dict[str, Any]:
-    """A row of ``contexts.csv``: the densities' events, magnitudes, components, uniform share.
+    """A row of ``contexts.csv``: the densities' events, magnitudes, components, uniform share
+    (birth, clutter and the first frame's; NaN for a part the context does not record).
 
     ``source`` names the context: ``"tracks"`` (births from a UM run: GM, A1-A5), ``"gt"``
     (A6) or ``TUNED``; ``seed`` the run's seed (a real sequence is learned once per seed).
@@ -513,7 +518,7 @@ def context_row(scene: str, source: str, context: Context, seed: int = 0) -> dic
     found beside objects and the rate learned from them (0: not learned).
     """
     row: dict[str, Any] = {"scene": scene, "seed": seed, "context": source}
-    for part in ("birth", "clutter"):
+    for part in ("birth", "clutter", "initial"):
         meta = context.metadata.get(part, {})
         row[f"{part}_events"] = meta.get("num_events", math.nan)
         row[f"{part}_magnitude"] = round(float(meta.get("magnitude", math.nan)), 4)

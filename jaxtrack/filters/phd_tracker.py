@@ -19,7 +19,10 @@
 The first frame uses ``PHDParams.initial_intensity``, uniform with magnitude
 ``initial_rate``: a learned birth intensity says where targets *enter*, not where the
 targets already in view when a span starts are. Configuration, sweep and tuner all mean this
-(``birth_rate`` never changes ``initial_rate``).
+(``birth_rate`` never changes ``initial_rate``). A context that records a learned
+first-frame intensity (``Context.initial``: where the targets of the training span were,
+with the mean number in view as magnitude; :mod:`jaxtrack.context.learn`) gives it to the
+variants with a learned birth density (GM, A1, A4, A6) instead.
 """
 
 from __future__ import annotations
@@ -197,7 +200,8 @@ class Variant(NamedTuple):
     """Which parts of a learned context a tracker uses.
 
     Attributes:
-        learned_birth: birth density from the context (else uniform).
+        learned_birth: birth density from the context (else uniform), and its first-frame
+            intensity when it has one (else uniform with ``initial_rate``).
         learned_clutter: clutter density from the context (else uniform).
         birth_magnitude_from_context: ``lambda_s`` measured on the training span (else the
             configuration's ``birth_rate``).
@@ -226,16 +230,25 @@ VARIANTS: dict[str, Variant] = {
 
 
 class Context(NamedTuple):
-    """A learned context as read by :func:`jaxtrack.context.io.load_context`."""
+    """A learned context as read by :func:`jaxtrack.context.io.load_context_parts`.
+
+    Attributes:
+        birth: the birth intensity ``gamma``.
+        clutter: the clutter intensity ``kappa``.
+        metadata: what the learner recorded.
+        initial: the first frame's intensity (the targets in view), None in a context that
+            has none (learned before it existed, or written by hand).
+    """
 
     birth: Intensity
     clutter: Intensity
     metadata: dict[str, Any]
+    initial: Intensity | None = None
 
     @classmethod
     def from_learned(cls, learned: Any) -> Context:
         """The context of a :class:`~jaxtrack.context.learn.LearnedContext`."""
-        return cls(learned.birth, learned.clutter, learned.metadata)
+        return cls(learned.birth, learned.clutter, learned.metadata, learned.initial)
 
 
 def phd_params(
@@ -289,6 +302,8 @@ def phd_params(
         params = with_score_calibration(params, calibration_from_metadata(context.metadata))
     if use.learned_birth:
         params = params._replace(birth_intensity=context.birth)
+        if context.initial is not None:
+            params = params._replace(initial_intensity=context.initial)
     if use.learned_clutter:
         params = params._replace(clutter_intensity=context.clutter)
         target_clutter = target_clutter_from_metadata(context.metadata)
@@ -548,7 +563,7 @@ def tuned_context(
             "uniform_weight": float(intensity.uniform_weight),
         }
     metadata["tuning"] = [*metadata.get("tuning", []), record]
-    return Context(parts["birth"], parts["clutter"], metadata)
+    return Context(parts["birth"], parts["clutter"], metadata, context.initial)
 
 
 def _volume_mass(context: Context, part: str, uniform_weight: float) -> float:

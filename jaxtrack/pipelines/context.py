@@ -36,6 +36,7 @@ from jaxtrack.context.learn import (
 )
 from jaxtrack.context.map_em import MixtureState, to_intensity
 from jaxtrack.context.samples import (
+    OCCUPANCY_STRIDE,
     WARMUP_FRAMES,
     EventSamples,
     birth_samples_from_gt,
@@ -44,6 +45,8 @@ from jaxtrack.context.samples import (
     clutter_samples_from_labels,
     clutter_samples_from_tracks,
     matched_detections,
+    occupancy_samples_from_gt,
+    occupancy_samples_from_tracks,
 )
 from jaxtrack.context.scores import ScoreCalibration, learn_score_calibration
 from jaxtrack.context.target_clutter import (
@@ -56,6 +59,10 @@ from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import PHDConfig, phd_params, with_score_calibration
 from jaxtrack.io.motchallenge import MotSequence, load_sequence
 from jaxtrack.pipelines.tracking import track_sequences
+
+#: ``fold_in`` data of the first-frame intensity's key (the birth and clutter keys are the
+#: two halves of ``PRNGKey(seed)``, as before that intensity was learned).
+INITIAL_KEY = 3
 
 
 def uniform_tracker_rows(
@@ -198,8 +205,10 @@ def learn_context(
     notify("collecting events")
     if birth_from == "gt":
         births = birth_samples_from_gt(sequence.gt_table, span, warmup_frames=warmup_frames)
+        occupancy = occupancy_samples_from_gt(sequence.gt_table, span)
     else:
         births = birth_samples_from_tracks(rows, span, warmup_frames=warmup_frames)
+        occupancy = occupancy_samples_from_tracks(rows, span)
     if str(clutter_from) == "gt":
         clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
     elif str(clutter_from) == "tracks":
@@ -249,6 +258,23 @@ def learn_context(
     clutter_intensity = live_components(
         to_intensity(clutter_state, clutter.magnitude / clutter_mass)
     )
+    # the first frame's intensity: its own key, so that the birth and clutter densities are
+    # those learned before it existed
+    key_initial, key_initial_mass = jax.random.split(
+        jax.random.fold_in(jax.random.PRNGKey(seed), INITIAL_KEY)
+    )
+    initial_state, _, initial_check = _learn(
+        "first-frame",
+        birth_grid(uniform_birth, _mean_size(occupancy.values[:, 4:6])),
+        birth_grid(uniform_birth, _mean_size(occupancy.values[:, 4:6]), BIRTH_BACKGROUND_GRID),
+        occupancy,
+        birth_epochs,
+        BIRTH_CANDIDATES if heldout else None,
+        key_initial,
+        notify,
+    )
+    initial_mass = volume_mass(to_intensity(initial_state, 1.0), key_initial_mass)
+    initial = live_components(to_intensity(initial_state, occupancy.magnitude / initial_mass))
     metadata = {
         "sequence": str(sequence.path),
         "sequence_name": sequence.info.name,
@@ -256,6 +282,8 @@ def learn_context(
         "seed": seed,
         "birth": _summary(births, birth_state, birth_check, birth_mass),
         "clutter": _summary(clutter, clutter_state, clutter_check, clutter_mass),
+        "initial": _summary(occupancy, initial_state, initial_check, initial_mass)
+        | {"stride": OCCUPANCY_STRIDE},
         "warmup_frames": warmup_frames,
         METADATA_KEY: target_clutter.as_dict(),
         "score_calibration": calibration_summary
@@ -276,6 +304,8 @@ def learn_context(
         clutter_samples=clutter,
         birth_snapshots=birth_snapshots,
         clutter_snapshots=clutter_snapshots,
+        initial=initial,
+        initial_samples=occupancy,
     )
 
 

@@ -31,7 +31,7 @@ from jaxtrack.association.offline import finalise_tracks, track_rows
 from jaxtrack.association.retrodiction import detection_rows, retrodict
 from jaxtrack.association.smoothing import smooth_tracks
 from jaxtrack.configs import TrackerConfig
-from jaxtrack.context.io import load_context
+from jaxtrack.context.io import load_context_parts
 from jaxtrack.errors import InputError, InputWarning
 from jaxtrack.filters.base import Filter, fit_detections, plan_chunks, run
 from jaxtrack.filters.kalman_tracker import KalmanConfig, kalman_description
@@ -263,7 +263,7 @@ def load_tracker_context(path: str | None) -> Context | None:
     Raises:
         FileFormatError: a missing or malformed context file.
     """
-    return None if path is None else Context(*load_context(path))
+    return None if path is None else Context(*load_context_parts(path))
 
 
 def output_rows(

@@ -158,6 +158,7 @@ def tune_sequence(
     if trainable is None:
         trainable = CONFIG_TRAINABLE if context is None else context_trainable(start, variant)
     _check_uniform_shares(start, trainable, context, variant)
+    _check_initial_rate(trainable, context, variant)
     space = parameter_space(start, trainable)
     filt = tuning_filter(num_particles, births_per_detection, estimator)
     began = time.perf_counter()
@@ -258,6 +259,19 @@ def _check_uniform_shares(
             f"{float(getattr(context, part).uniform_weight):g}, no live Gaussians below 1): "
             "there is no learned part to share with"
         )
+
+
+def _check_initial_rate(names: Sequence[str], context: Context | None, variant: str) -> None:
+    """Refuses to tune ``initial_rate`` where the run starts from the context's learned
+    first-frame intensity (the tuned value would be written to a configuration key that
+    such a run ignores)."""
+    if "initial_rate" in names and context is not None and context.initial is not None:
+        if VARIANTS[variant].learned_birth:
+            raise InputError(
+                f"initial_rate: variant {variant} starts from the context's learned first-frame "
+                "intensity, not from the uniform one whose magnitude initial_rate is; tune "
+                "without it, or with a variant whose births are uniform (A2, A3, A5)"
+            )
 
 
 def _span(sequence: MotSequence) -> str:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from jaxtrack.context.intensity import log_intensity, uniform_intensity
-from jaxtrack.context.io import FORMAT_VERSION, load_context, save_context
+from jaxtrack.context.io import FORMAT_VERSION, load_context, load_context_parts, save_context
 from jaxtrack.context.map_em import (
     fit,
     grid_init_birth,
@@ -59,6 +59,60 @@ def test_round_trip(tmp_path, learned):
     # the file holds no pickled objects
     with np.load(path, allow_pickle=False) as data:
         assert "metadata_json" in data.files and "clutter_covs" in data.files
+
+
+def test_the_first_frame_intensity_round_trips_and_is_optional(tmp_path, learned):
+    birth, clutter = learned
+    initial = to_intensity(grid_init_birth(768, 576, (30.0, 60.0)), 6.5)._replace(
+        uniform_weight=jnp.asarray(0.03, jnp.float32)
+    )
+    path = tmp_path / "with.npz"
+    save_context(path, birth, clutter, {"initial": {"magnitude": 6.5}}, initial)
+    *_, loaded = load_context_parts(path)
+    for field, value in initial._asdict().items():
+        np.testing.assert_array_equal(np.asarray(getattr(loaded, field)), np.asarray(value))
+    assert len(load_context(path)) == 3  # the three-part reader is unchanged
+    older = tmp_path / "without.npz"
+    save_context(older, birth, clutter)
+    assert load_context_parts(older)[3] is None
+    with np.load(older, allow_pickle=False) as data:
+        assert not any(name.startswith("initial_") for name in data.files)
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda a: a.pop("initial_covs"), "missing field 'initial_covs'"),
+        (lambda a: a.update(initial_uniform_weight=np.asarray(-0.5)), "initial_uniform_weight"),
+        (
+            lambda a: a.update(
+                metadata_json=np.asarray('{"format_version": 1, "initial": {"magnitude": -2}}')
+            ),
+            "initial.magnitude",
+        ),
+    ],
+)
+def test_a_bad_first_frame_intensity_is_refused(tmp_path, learned, mutate, message):
+    arrays = valid_arrays(learned)
+    for field, value in learned[0]._asdict().items():
+        arrays[f"initial_{field}"] = np.asarray(value)
+    path = tmp_path / "bad.npz"
+    write_raw(path, arrays)
+    assert load_context_parts(path)[3] is not None  # the unmutated file is valid
+    mutate(arrays)
+    write_raw(path, arrays)
+    with pytest.raises(FileFormatError, match=message):
+        load_context_parts(path)
+
+
+def test_a_first_frame_intensity_outside_the_birth_space_is_refused(tmp_path, learned):
+    arrays = valid_arrays(learned)
+    for field, value in learned[1]._asdict().items():  # the 4-D clutter intensity
+        arrays[f"initial_{field}"] = np.asarray(value)
+    path = tmp_path / "bad.npz"
+    write_raw(path, arrays)
+    with pytest.raises(FileFormatError, match=r"initial_lower has shape \(4,\)"):
+        load_context_parts(path)
 
 
 def test_unserialisable_metadata_is_rejected(tmp_path, learned):

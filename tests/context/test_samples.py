@@ -16,6 +16,9 @@ from jaxtrack.context.samples import (
     clutter_samples_from_labels,
     clutter_samples_from_tracks,
     first_states,
+    occupancy_samples,
+    occupancy_samples_from_gt,
+    occupancy_samples_from_tracks,
 )
 from jaxtrack.datasets.scene_bank import generate_family_scene
 from jaxtrack.io import MotTable
@@ -105,6 +108,60 @@ def test_birth_samples_from_tracks():
     events = birth_samples_from_tracks(rows, (1, 10), warmup_frames=2)
     assert events.source == "tracks" and events.num_frames == 8
     np.testing.assert_allclose(events.values, [[23.0, -1.0, 36.0, 0.5, 6.0, 12.0]])
+
+
+def test_occupancy_samples_every_stride_th_box_with_its_local_velocity():
+    # a: 7 boxes, constant velocity; b: starts at frame 5, a frame skipped after its 2nd box
+    frames_a, boxes_a = _track(1, (10.0, 20.0, 4.0, 8.0), (2.0, -1.0), 7)
+    frames_b, boxes_b = _track(5, (100.0, 50.0, 10.0, 20.0), (-0.5, 3.0), 4, gap_after=1)
+    frames = np.concatenate([frames_b, frames_a])
+    ids = np.concatenate([np.full(frames_b.size, 9), np.full(frames_a.size, 4)])
+    boxes = np.concatenate([boxes_b, boxes_a])
+    events = occupancy_samples(frames, ids, boxes, (1, 20), "test", stride=3, velocity_frames=3)
+    # a's boxes 1, 4, 7 (frames 1, 4, 7); b's boxes 1, 4 (frames 5, 9: the gap moves it)
+    np.testing.assert_array_equal(events.frames, [1, 4, 5, 7, 9])
+    expected_a = [[12.0 + 2 * k, 2.0, 24.0 - k, -1.0, 4.0, 8.0] for k in (0, 3, 6)]
+    expected_b = [[105.0 - 0.5 * k, -0.5, 60.0 + 3 * k, 3.0, 10.0, 20.0] for k in (0, 4)]
+    np.testing.assert_allclose(
+        events.values,
+        [expected_a[0], expected_a[1], expected_b[0], expected_a[2], expected_b[1]],
+    )
+    # every box counts towards the magnitude: 11 boxes of targets in view over 20 frames
+    assert events.count == 5 and events.num_frames == 20 and events.source == "test"
+    assert events.coverage == pytest.approx(5 / 11)
+    assert events.magnitude == pytest.approx(11 / 20)
+
+
+def test_occupancy_samples_velocity_window_and_short_trajectories():
+    # a curved track: the velocity is the slope of the boxes around each event only
+    frames = np.arange(1, 9)
+    x = np.array([0.0, 1.0, 2.0, 3.0, 10.0, 20.0, 30.0, 40.0])
+    boxes = np.stack([x, np.zeros(8), np.full(8, 2.0), np.full(8, 2.0)], axis=1)
+    events = occupancy_samples(frames, np.ones(8), boxes, (1, 8), "t", stride=7, velocity_frames=3)
+    # box 1: window boxes 1-3 (cut at the start), box 8: boxes 6-8 (cut at the end)
+    np.testing.assert_allclose(events.values[:, 1], [1.0, 10.0])
+    # one box: velocity 0
+    single = occupancy_samples([4], [3], [[5.0, 5.0, 2.0, 4.0]], (1, 10), "t")
+    np.testing.assert_allclose(single.values, [[6.0, 0.0, 7.0, 0.0, 2.0, 4.0]])
+    assert single.magnitude == pytest.approx(0.1)
+    for bad in ({"stride": 0}, {"velocity_frames": 1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            occupancy_samples(frames, np.ones(8), boxes, (1, 8), "t", **bad)
+
+
+def test_occupancy_samples_from_gt_and_tracks():
+    frames, boxes = _track(10, (0.0, 0.0, 4.0, 4.0), (3.0, 0.0), 4)
+    confs = np.array([0.0, 1.0, 1.0, 1.0])  # the first row is marked "ignore"
+    table = MotTable.from_arrays(frames, np.full(4, 7), boxes, confs)
+    events = occupancy_samples_from_gt(table, (1, 30), stride=2)
+    assert events.source == "gt" and events.num_frames == 30
+    np.testing.assert_array_equal(events.frames, [11, 13])
+    assert events.magnitude == pytest.approx(3 / 30)
+    rows = MotTable.from_arrays(frames, np.full(4, 7), boxes, np.ones(4))
+    events = occupancy_samples_from_tracks(rows, (1, 30), stride=2)
+    assert events.source == "tracks" and events.magnitude == pytest.approx(4 / 30)
+    np.testing.assert_array_equal(events.frames, [10, 12])
+    np.testing.assert_allclose(events.values[:, 1], [3.0, 3.0])
 
 
 def _clutter_scene():

@@ -44,6 +44,22 @@ def test_variants_take_the_parts_they_name(campus, variant):
     assert float(params.clutter_intensity.magnitude) == pytest.approx(expected_clutter)
 
 
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_the_first_frame_intensity_goes_with_the_learned_births(campus, variant):
+    uniform = phd_params(PHDConfig(initial_rate=0.7), campus.info)
+    initial = uniform.birth_intensity._replace(magnitude=jnp.asarray(5.5))
+    context = _context(uniform)._replace(initial=initial)
+    params = phd_params(PHDConfig(initial_rate=0.7), campus.info, context, variant)
+    if VARIANTS[variant].learned_birth:
+        assert params.initial_intensity is initial
+    else:
+        assert float(params.initial_intensity.magnitude) == pytest.approx(0.7)
+        assert float(params.initial_intensity.uniform_weight) == 1.0
+    # a context without one (learned before it existed): uniform with initial_rate
+    older = phd_params(PHDConfig(initial_rate=0.7), campus.info, _context(uniform), variant)
+    assert float(older.initial_intensity.magnitude) == pytest.approx(0.7)
+
+
 def test_unknown_variant_and_wrong_image_size(campus):
     context = _context(phd_params(PHDConfig(), campus.info))
     with pytest.raises(InputError, match="unknown variant"):

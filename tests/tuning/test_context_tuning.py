@@ -169,6 +169,21 @@ def test_uniform_shares_without_a_learned_density_are_refused(sequence):
         tune_sequence(sequence, context=CONTEXT, variant="UM")
 
 
+def test_initial_rate_is_refused_where_the_context_starts_the_run(sequence):
+    with_initial = CONTEXT._replace(initial=CONTEXT.birth._replace(magnitude=jnp.asarray(4.0)))
+    for variant in ("GM", "A1", "A4", "A6"):
+        with pytest.raises(InputError, match=f"initial_rate: variant {variant} starts from"):
+            tune_sequence(
+                sequence, trainable=["initial_rate"], context=with_initial, variant=variant
+            )
+    # allowed where it is read: births uniform, or a context without a first-frame intensity
+    allowed = dict(
+        trainable=["initial_rate"], num_steps=1, num_keys=1, num_particles=64, average_steps=1
+    )
+    assert tune_sequence(sequence, context=with_initial, variant="A3", **allowed).context
+    assert tune_sequence(sequence, context=CONTEXT, variant="GM", **allowed).context
+
+
 def test_gradients_in_the_context_leaves_match_finite_differences():
     """Gradient of the likelihood objective in the magnitudes and the uniform shares against
     central differences (float64, step 1e-6, naive estimator, common random numbers; the
