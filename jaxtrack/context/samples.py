@@ -156,19 +156,12 @@ def first_states(
         raise ValueError(f"velocity_frames must be >= 2, got {velocity_frames}")
     if min_length < 1:
         raise ValueError(f"min_length must be >= 1, got {min_length}")
-    frames = np.asarray(frames, np.int64).reshape(-1)
-    ids = np.asarray(ids, np.int64).reshape(-1)
-    centres = xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4))
+    frames, ids, centres = _trajectory_arrays(frames, ids, boxes)
     states, first_frames, track_ids = [], [], []
-    order = np.lexsort((frames, ids))
-    unique_ids, starts, lengths = np.unique(ids[order], return_index=True, return_counts=True)
-    for identity, start, length in zip(unique_ids, starts, lengths, strict=True):
-        if length < min_length:
+    for identity, rows in _trajectories(frames, ids):
+        if rows.size < min_length:
             continue
-        rows = order[start : start + min(length, velocity_frames)]
-        velocity = _slope(frames[rows], centres[rows, :2]) if rows.size > 1 else np.zeros(2)
-        cx, cy, w, h = centres[rows[0]]
-        states.append([cx, velocity[0], cy, velocity[1], w, h])
+        states.append(_state(frames, centres, rows[0], rows[:velocity_frames]))
         first_frames.append(frames[rows[0]])
         track_ids.append(identity)
     states = np.asarray(states, np.float64).reshape(-1, 6)
@@ -299,25 +292,15 @@ def occupancy_samples(
         raise ValueError(f"stride must be >= 1, got {stride}")
     if velocity_frames < 2:
         raise ValueError(f"velocity_frames must be >= 2, got {velocity_frames}")
-    frames = np.asarray(frames, np.int64).reshape(-1)
-    ids = np.asarray(ids, np.int64).reshape(-1)
-    centres = xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4))
-    order = np.lexsort((frames, ids))
-    _, starts, lengths = np.unique(ids[order], return_index=True, return_counts=True)
+    frames, ids, centres = _trajectory_arrays(frames, ids, boxes)
     before = (velocity_frames - 1) // 2
     states, event_frames, event_ids = [], [], []
-    for start, length in zip(starts, lengths, strict=True):
-        rows = order[start : start + length]
-        for k in range(0, length, stride):
-            low = min(max(k - before, 0), max(length - velocity_frames, 0))
-            window = rows[low : low + velocity_frames]
-            velocity = (
-                _slope(frames[window], centres[window, :2]) if window.size > 1 else np.zeros(2)
-            )
-            cx, cy, w, h = centres[rows[k]]
-            states.append([cx, velocity[0], cy, velocity[1], w, h])
+    for identity, rows in _trajectories(frames, ids):
+        for k in range(0, rows.size, stride):
+            low = min(max(k - before, 0), max(rows.size - velocity_frames, 0))
+            states.append(_state(frames, centres, rows[k], rows[low : low + velocity_frames]))
             event_frames.append(frames[rows[k]])
-            event_ids.append(ids[rows[k]])
+            event_ids.append(identity)
     states = np.asarray(states, np.float64).reshape(-1, 6)
     event_frames = np.asarray(event_frames, np.int64)
     chronological = np.lexsort((np.asarray(event_ids, np.int64), event_frames))
@@ -330,33 +313,23 @@ def occupancy_samples(
     )
 
 
-def occupancy_samples_from_gt(gt_table: MotTable, span: tuple[int, int], **options) -> EventSamples:
-    """Occupancy events from ground-truth trajectories (rows with ``conf == 0`` ignored).
+def occupancy_samples_from(
+    table: MotTable, span: tuple[int, int], source: str, **options
+) -> EventSamples:
+    """Occupancy events from the trajectories the births come from.
 
     Args:
-        gt_table: ground truth of the span.
+        table: the ground truth of the span (``source="gt"``: rows with ``conf == 0``
+            ignored) or a tracker's output (``"tracks"``).
         span: ``(first, last)`` training frames.
+        source: ``"gt"`` or ``"tracks"``.
         **options: ``stride`` and ``velocity_frames`` of :func:`occupancy_samples`.
 
     Returns:
-        The events, source ``"gt"``.
+        The events, with ``source``.
     """
-    kept = gt_table.select(~gt_table.ignored)
-    return occupancy_samples(kept.frames, kept.ids, kept.boxes, span, "gt", **options)
-
-
-def occupancy_samples_from_tracks(rows: MotTable, span: tuple[int, int], **options) -> EventSamples:
-    """Occupancy events from a tracker's output trajectories.
-
-    Args:
-        rows: tracker output of the span.
-        span: ``(first, last)`` training frames.
-        **options: ``stride`` and ``velocity_frames`` of :func:`occupancy_samples`.
-
-    Returns:
-        The events, source ``"tracks"``.
-    """
-    return occupancy_samples(rows.frames, rows.ids, rows.boxes, span, "tracks", **options)
+    kept = table.select(~table.ignored) if source == "gt" else table
+    return occupancy_samples(kept.frames, kept.ids, kept.boxes, span, source, **options)
 
 
 def clutter_samples_from_gt(
@@ -592,6 +565,33 @@ def _detection_events(
         left_out=left_out,
         coverage=coverage,
     )
+
+
+def _trajectory_arrays(frames, ids, boxes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(frames, ids, centres)``: int64 frames and identities, ``(cx, cy, w, h)`` boxes."""
+    return (
+        np.asarray(frames, np.int64).reshape(-1),
+        np.asarray(ids, np.int64).reshape(-1),
+        xywh_to_cxcywh(np.asarray(boxes, np.float64).reshape(-1, 4)),
+    )
+
+
+def _trajectories(frames: np.ndarray, ids: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    """``(identity, rows)`` of each trajectory, identities increasing, rows in frame order."""
+    order = np.lexsort((frames, ids))
+    unique_ids, starts, lengths = np.unique(ids[order], return_index=True, return_counts=True)
+    return [
+        (int(identity), order[start : start + length])
+        for identity, start, length in zip(unique_ids, starts, lengths, strict=True)
+    ]
+
+
+def _state(frames: np.ndarray, centres: np.ndarray, row: int, window: np.ndarray) -> list:
+    """The state ``(y1, vy1, y2, vy2, w, h)`` of box ``row``, its velocity the centres' slope
+    over the boxes ``window`` (0 for a single box)."""
+    velocity = _slope(frames[window], centres[window, :2]) if window.size > 1 else np.zeros(2)
+    cx, cy, w, h = centres[row]
+    return [cx, velocity[0], cy, velocity[1], w, h]
 
 
 def _slope(frames: np.ndarray, centres: np.ndarray) -> np.ndarray:

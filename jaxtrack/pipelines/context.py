@@ -45,8 +45,7 @@ from jaxtrack.context.samples import (
     clutter_samples_from_labels,
     clutter_samples_from_tracks,
     matched_detections,
-    occupancy_samples_from_gt,
-    occupancy_samples_from_tracks,
+    occupancy_samples_from,
 )
 from jaxtrack.context.scores import ScoreCalibration, learn_score_calibration
 from jaxtrack.context.target_clutter import (
@@ -205,10 +204,10 @@ def learn_context(
     notify("collecting events")
     if birth_from == "gt":
         births = birth_samples_from_gt(sequence.gt_table, span, warmup_frames=warmup_frames)
-        occupancy = occupancy_samples_from_gt(sequence.gt_table, span)
     else:
         births = birth_samples_from_tracks(rows, span, warmup_frames=warmup_frames)
-        occupancy = occupancy_samples_from_tracks(rows, span)
+    trajectories = sequence.gt_table if birth_from == "gt" else rows
+    occupancy = occupancy_samples_from(trajectories, span, birth_from)
     if str(clutter_from) == "gt":
         clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
     elif str(clutter_from) == "tracks":

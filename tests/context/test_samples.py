@@ -17,8 +17,7 @@ from jaxtrack.context.samples import (
     clutter_samples_from_tracks,
     first_states,
     occupancy_samples,
-    occupancy_samples_from_gt,
-    occupancy_samples_from_tracks,
+    occupancy_samples_from,
 )
 from jaxtrack.datasets.scene_bank import generate_family_scene
 from jaxtrack.io import MotTable
@@ -153,12 +152,12 @@ def test_occupancy_samples_from_gt_and_tracks():
     frames, boxes = _track(10, (0.0, 0.0, 4.0, 4.0), (3.0, 0.0), 4)
     confs = np.array([0.0, 1.0, 1.0, 1.0])  # the first row is marked "ignore"
     table = MotTable.from_arrays(frames, np.full(4, 7), boxes, confs)
-    events = occupancy_samples_from_gt(table, (1, 30), stride=2)
+    events = occupancy_samples_from(table, (1, 30), "gt", stride=2)
     assert events.source == "gt" and events.num_frames == 30
     np.testing.assert_array_equal(events.frames, [11, 13])
     assert events.magnitude == pytest.approx(3 / 30)
     rows = MotTable.from_arrays(frames, np.full(4, 7), boxes, np.ones(4))
-    events = occupancy_samples_from_tracks(rows, (1, 30), stride=2)
+    events = occupancy_samples_from(rows, (1, 30), "tracks", stride=2)
     assert events.source == "tracks" and events.magnitude == pytest.approx(4 / 30)
     np.testing.assert_array_equal(events.frames, [10, 12])
     np.testing.assert_allclose(events.values[:, 1], [3.0, 3.0])
