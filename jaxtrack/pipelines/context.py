@@ -2,7 +2,9 @@
 
 :func:`learn_context` collects birth and clutter events from a training span (a UM tracker
 run, the ground truth or a labels file; :mod:`jaxtrack.context.samples`) and learns their
-intensities by recursive MAP-EM (:mod:`jaxtrack.context.learn`, PHD-context Sec. IV).
+intensities by recursive MAP-EM (:mod:`jaxtrack.context.learn`, PHD-context Sec. IV), and
+the first frame's intensity from the states of the birth source's trajectories (where the
+targets are; not in the paper).
 """
 
 from __future__ import annotations
@@ -153,7 +155,8 @@ def learn_context(
         progress: called with a short description before each long step.
 
     Returns:
-        The :class:`LearnedContext`.
+        The :class:`LearnedContext` (its ``initial``: the first frame's intensity, learned from
+        the birth source's trajectories with the births' learner, grid and held-out check).
 
     Raises:
         InputError: an unknown source, ground truth asked for but missing, a span too short
