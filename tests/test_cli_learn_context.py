@@ -39,7 +39,15 @@ def test_help_explains_the_sources(run_cli, capsys):
         run_cli("--help")
     assert exit_info.value.code == 0
     text = capsys.readouterr().out
-    for option in ("--frames", "--out", "--birth-from", "--clutter-from", "--plot", "--seed"):
+    for option in (
+        "--frames",
+        "--out",
+        "--birth-from",
+        "--clutter-from",
+        "--plot",
+        "--seed",
+        "--first-frame",
+    ):
         assert option in text
     assert "labelled" in text and "UM tracker" in text
 
@@ -48,7 +56,16 @@ def test_learns_from_ground_truth_and_writes_figures(run_cli, scene_dir, tmp_pat
     out = tmp_path / "ctx.npz"
     plots = tmp_path / "plots"
     code = run_cli(
-        scene_dir, "--frames", f"1:{FRAMES}", "--birth-from", "gt", "--out", out, "--plot", plots
+        scene_dir,
+        "--frames",
+        f"1:{FRAMES}",
+        "--birth-from",
+        "gt",
+        "--out",
+        out,
+        "--plot",
+        plots,
+        "--first-frame",
     )
     assert code == 0
     printed = capsys.readouterr().out
@@ -113,7 +130,16 @@ def test_learns_clutter_from_labels(run_cli, scene, scene_dir, tmp_path):
 def test_learns_from_a_tracker_run(run_cli, scene_dir, tmp_path):
     out = tmp_path / "ctx.npz"
     code = run_cli(
-        scene_dir, "--frames", "1:150", "--clutter-from", "tracks", "--out", out, "--seed", 1
+        scene_dir,
+        "--frames",
+        "1:150",
+        "--clutter-from",
+        "tracks",
+        "--out",
+        out,
+        "--seed",
+        1,
+        "--first-frame",
     )
     assert code == 0
     _, _, meta = load_context(out)
@@ -135,7 +161,11 @@ def test_learns_with_the_evidence_confirmation(run_cli, scene_dir, tmp_path, cap
     _, _, meta = load_context(out)
     assert meta["birth"]["source"] == "tracks" and meta["birth"]["num_events"] > 0
     assert meta["score_calibration"]["learned"]
-    assert "score calibration from gt" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "score calibration from gt" in printed
+    # no first-frame intensity unless asked for (--first-frame)
+    assert "initial" not in meta and load_context_parts(out)[3] is None
+    assert "first frame" not in printed
 
 
 @pytest.mark.parametrize(

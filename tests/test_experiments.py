@@ -511,6 +511,10 @@ def test_generalisation_confirmation_reaches_the_experiment(tmp_path, monkeypatc
     assert seen["birth_velocity"] == "detections"
     assert _experiment("context-generalisation", *argv, "--birth-velocity", "random") == 2
     assert "invalid choice: 'random'" in capsys.readouterr().err
+    assert seen["first_frame"] is False
+    with pytest.raises(SystemExit):
+        _experiment("context-generalisation", *argv, "--first-frame")
+    assert seen["first_frame"] is True
 
 
 def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
@@ -518,10 +522,11 @@ def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
     ``birth_velocity`` (the scene's runs are stubbed after the first scene is written)."""
     from jaxtrack.experiments import context_generalisation as experiment
 
-    seen = []
+    seen, options = [], {}
 
     def stub(split, config, *args, **kwargs):
         seen.append(config)
+        options.update(kwargs)
         raise SystemExit(0)
 
     monkeypatch.setattr(experiment, "scene_rows", stub)
@@ -535,7 +540,9 @@ def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):
             retrodiction=50,
             smoothing="rts",
             birth_velocity="detections",
+            first_frame=True,
         )
+    assert options["first_frame"] is True  # the contexts learn the first frame's intensity
     assert seen[0].retrodiction == 50
     assert seen[0].smoothing == "rts"
     assert seen[0].birth_velocity == "detections"

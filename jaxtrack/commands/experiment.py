@@ -253,6 +253,13 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
         f"{PHDConfig.birth_velocity}): 'detections' draws most births' velocities at the "
         "displacements from the previous frame's detections, 'uniform' over the velocity range",
     )
+    parser.add_argument(
+        "--first-frame",
+        action="store_true",
+        help="every context also learns the first frame's intensity (where the targets are; "
+        "learn-context --first-frame): GM, A1, A4 and A6 start their runs from it instead "
+        "of the uniform one",
+    )
 
 
 def _context_generalisation(args: argparse.Namespace) -> int:
@@ -294,6 +301,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
         retrodiction=args.retrodiction,
         smoothing=args.smoothing,
         birth_velocity=args.birth_velocity,
+        first_frame=args.first_frame,
         progress=not args.quiet,
     )
     print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))

@@ -77,12 +77,13 @@ Event sources:
   "target clutter" (none when they are no more than the scene's clutter landing on objects
   by chance); the variants with learned clutter (GM, A2, A5, A6) add it to the clutter
   intensity, so a second box on a tracked target is not taken for a new target.
-First frame: the states of the trajectories of the birth source (every 10th box of each,
-velocity fitted to the boxes around it) give a third density, where the targets are, with
-the mean number in view per frame as its magnitude. The variants with a learned birth
-density (GM, A1, A4, A6) start a run from it instead of UM's uniform first-frame intensity
-(magnitude initial_rate, 0.2 targets spread over every size and velocity), so the targets
-already in view when a run starts are picked up as fast as those entering.
+First frame (--first-frame; not in the paper): the states of the trajectories of the birth
+source (every 10th box of each, velocity fitted to the boxes around it) give a third
+density, where the targets are, with the mean number in view per frame as its magnitude.
+The variants with a learned birth density (GM, A1, A4, A6) then start a run from it instead
+of UM's uniform first-frame intensity (magnitude initial_rate, 0.2 targets spread over every
+size and velocity). Off by default: on held-out scenes it changed GM's MOTA by +0.01 point
+on average, and PETS09-S2L1's by -0.9 (README, "The targets in view at the first frame").
 --frames A:B is the training span (default: all frames).
 A video (or image folder) instead of SEQ_DIR: give its detections with --detections
 (`jaxtrack detect VIDEO --out DET.txt`) and, for the gt sources, its ground truth with --gt;
@@ -191,6 +192,12 @@ def register(subparsers) -> None:
         metavar="N",
         help=f"frames at the start of the span without births (default {WARMUP_FRAMES})",
     )
+    parser.add_argument(
+        "--first-frame",
+        action="store_true",
+        help="also learn the first frame's intensity (where the targets are; see above): "
+        "GM, A1, A4 and A6 then start a run from it",
+    )
     add_config(parser)
     add_quiet(parser)
     add_json(parser)
@@ -237,7 +244,8 @@ def run(args: argparse.Namespace) -> int:
     # steps: loading, (score calibration,) (tracking,) collecting events, (birth check,)
     # birth density, (clutter check,) clutter density, (first-frame check,) first-frame
     # density, (plots)
-    steps = (6 if "tracks" in (args.birth_from, clutter_from) else 5) + 3 * args.heldout
+    steps = (5 if "tracks" in (args.birth_from, clutter_from) else 4) + 2 * args.heldout
+    steps += args.first_frame * (1 + args.heldout)
     steps += "gt" in (args.birth_from, clutter_from)
     total = steps + (1 if args.plot else 0)
     with tqdm(total=total, desc="learn-context", unit="step", disable=args.quiet) as bar:
@@ -253,6 +261,7 @@ def run(args: argparse.Namespace) -> int:
             birth_epochs=args.birth_epochs or BIRTH_EPOCHS,
             clutter_epochs=args.clutter_epochs or CLUTTER_EPOCHS,
             heldout=args.heldout,
+            first_frame=args.first_frame,
             warmup_frames=args.warmup,
             tracker_config=load_config(args.config),
             progress=progress,
@@ -272,7 +281,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
         return 0
     print(f"wrote {args.out} (frames {meta['frames'][0]}:{meta['frames'][1]}, {elapsed:.1f} s)")
-    for kind in ("birth", "clutter", "initial"):
+    for kind in ("birth", "clutter", "initial")[: 2 + ("initial" in meta)]:
         info = meta[kind]
         if kind == "initial":
             print(

@@ -117,6 +117,7 @@ def ablation_contexts(
     config: PHDConfig,
     seed: int = 0,
     progress: Callable[[str], None] | None = None,
+    first_frame: bool = False,
 ) -> dict[str, Context]:
     """The two contexts of the ablation, learned on ``split.train``, keyed by birth source.
 
@@ -125,6 +126,8 @@ def ablation_contexts(
         config: the tracker configuration (also that of the UM run that yields births).
         seed: seeds the learning (tracker run, sample order).
         progress: called with a short description before each long step.
+        first_frame: also learn each context's first-frame intensity
+            (:func:`~jaxtrack.pipelines.context.learn_context`).
 
     Returns:
         ``{"tracks": ..., "gt": ...}``: births from a UM tracker run (UM, GM, A1-A5) and from
@@ -137,7 +140,9 @@ def ablation_contexts(
     contexts = {}
     for source in ("tracks", "gt"):
         notify(f"learning context (births from {source})")
-        contexts[source] = Context.from_learned(learn_split(split, config, seed, source))
+        contexts[source] = Context.from_learned(
+            learn_split(split, config, seed, source, first_frame=first_frame)
+        )
     return contexts
 
 

@@ -145,6 +145,7 @@ def learn_split(
     seed: int = 0,
     birth_from: str = "tracks",
     progress: Callable[[str], None] | None = None,
+    first_frame: bool = False,
 ):
     """Learns context on ``split.train`` as the experiments do: clutter from the ground truth.
 
@@ -155,6 +156,8 @@ def learn_split(
         seed: seeds the tracker run and the order in which samples are learned.
         birth_from: ``"tracks"`` (a UM tracker run, the paper's source) or ``"gt"``.
         progress: called with a short description before each long step.
+        first_frame: also learn the first frame's intensity (GM, A1, A4 and A6 then start
+            from it).
 
     Returns:
         The :class:`~jaxtrack.context.learn.LearnedContext`.
@@ -169,6 +172,7 @@ def learn_split(
         clutter_from="gt",
         seed=seed,
         tracker_config=config,
+        first_frame=first_frame,
         progress=progress,
     )
 

@@ -190,7 +190,7 @@ class GeneralisationResult(NamedTuple):
         rows: one row per scene and variant (:data:`ROW_COLUMNS`).
         summary: one row per group and variant (:data:`SUMMARY_COLUMNS`).
         goals: the :class:`Goal` checks.
-        notes: what was skipped and why.
+        notes: what was skipped and why, and settings that change the variants.
         files: the files written.
     """
 
@@ -255,6 +255,7 @@ def scene_rows(
     tuned: bool,
     quick: bool = False,
     timings: dict[str, float] | None = None,
+    first_frame: bool = False,
 ) -> tuple[list[dict[str, Any]], dict[str, Context]]:
     """Learns, (tunes,) tracks every variant on one scene's test span and scores them.
 
@@ -266,6 +267,8 @@ def scene_rows(
         quick: the short :data:`QUICK_TUNING` (with the configuration's particles).
         timings: seconds spent per stage (``learning``, ``tuning``, ``tracking``,
             ``scoring``), added to.
+        first_frame: the contexts also learn the first frame's intensity (GM, A1, A4, A6
+            and GM+tuned start from it).
 
     Returns:
         One row per variant (``variant``, the scores, ``MOTA_gain_pct``) and the learned
@@ -276,7 +279,7 @@ def scene_rows(
     """
     timings = {} if timings is None else timings
     with _timed(timings, "learning"):
-        contexts = ablation_contexts(split, config, seed)
+        contexts = ablation_contexts(split, config, seed, first_frame=first_frame)
     info = split.test.info
     params = variant_params(config, info, contexts)
     names = list(VARIANTS)
@@ -572,6 +575,7 @@ def run_context_generalisation(
     retrodiction: int = 0,
     smoothing: str = "none",
     birth_velocity: str = PHDConfig.birth_velocity,
+    first_frame: bool = False,
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -605,6 +609,8 @@ def run_context_generalisation(
         smoothing: ``PHDConfig.smoothing`` of every run (``"none"`` or ``"rts"``).
         birth_velocity: ``PHDConfig.birth_velocity`` of every run (``"uniform"`` or
             ``"detections"``).
+        first_frame: every context also learns the first frame's intensity
+            (:func:`~jaxtrack.pipelines.context.learn_context`).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -627,6 +633,12 @@ def run_context_generalisation(
         birth_velocity=birth_velocity,
     )
     notes = []
+    if first_frame:
+        notes.append(
+            "First frame: every context also learned where the targets are (its first-frame "
+            "intensity); GM, A1, A4, A6 and GM+tuned start their runs from it, UM, A2, A3 and "
+            "A5 from the uniform one"
+        )
     if tuned and not tuning_takes_context():
         tuned = False
         notes.append(
@@ -647,7 +659,9 @@ def run_context_generalisation(
     for name, family, scene_seed in bar:
         bar.set_postfix_str(name)
         split = _load_scene(out, name, family, scene_seed, data, timings)
-        scene, contexts = scene_rows(split, config, scene_seed, tuned, quick, timings)
+        scene, contexts = scene_rows(
+            split, config, scene_seed, tuned, quick, timings, first_frame=first_frame
+        )
         rows += [{"scene": name, "family": family, "seed": scene_seed, **row} for row in scene]
         context_rows += [
             context_row(name, key, value, scene_seed) for key, value in contexts.items()

@@ -3,8 +3,8 @@
 :func:`learn_context` collects birth and clutter events from a training span (a UM tracker
 run, the ground truth or a labels file; :mod:`jaxtrack.context.samples`) and learns their
 intensities by recursive MAP-EM (:mod:`jaxtrack.context.learn`, PHD-context Sec. IV), and
-the first frame's intensity from the states of the birth source's trajectories (where the
-targets are; not in the paper).
+on request the first frame's intensity from the states of the birth source's trajectories
+(where the targets are; not in the paper).
 """
 
 from __future__ import annotations
@@ -130,6 +130,7 @@ def learn_context(
     warmup_frames: int = WARMUP_FRAMES,
     tracker_config: PHDConfig | None = None,
     heldout: bool = True,
+    first_frame: bool = False,
     progress: Callable[[str], None] | None = None,
 ) -> LearnedContext:
     """Learns the birth and clutter intensities of a sequence's training span.
@@ -152,11 +153,15 @@ def learn_context(
             ignored) and its uniform share by held-out likelihood
             (:mod:`jaxtrack.context.heldout`); False: the paper's recursion alone, with the
             given passes (its ``pi_u`` ends near the floor).
+        first_frame: also learn the first frame's intensity (``LearnedContext.initial``,
+            where the targets are: from the birth source's trajectories, with the births'
+            learner, grid and held-out check; README "The targets in view at the first
+            frame": on held-out scenes it changed nothing on average, so it is not learned
+            by default).
         progress: called with a short description before each long step.
 
     Returns:
-        The :class:`LearnedContext` (its ``initial``: the first frame's intensity, learned from
-        the birth source's trajectories with the births' learner, grid and held-out check).
+        The :class:`LearnedContext`.
 
     Raises:
         InputError: an unknown source, ground truth asked for but missing, a span too short
@@ -209,8 +214,6 @@ def learn_context(
         births = birth_samples_from_gt(sequence.gt_table, span, warmup_frames=warmup_frames)
     else:
         births = birth_samples_from_tracks(rows, span, warmup_frames=warmup_frames)
-    trajectories = sequence.gt_table if birth_from == "gt" else rows
-    occupancy = occupancy_samples_from(trajectories, span, birth_from)
     if str(clutter_from) == "gt":
         clutter = clutter_samples_from_gt(sequence.det_table, sequence.gt_table, span)
     elif str(clutter_from) == "tracks":
@@ -260,23 +263,6 @@ def learn_context(
     clutter_intensity = live_components(
         to_intensity(clutter_state, clutter.magnitude / clutter_mass)
     )
-    # the first frame's intensity: its own key, so that the birth and clutter densities are
-    # those learned before it existed
-    key_initial, key_initial_mass = jax.random.split(
-        jax.random.fold_in(jax.random.PRNGKey(seed), INITIAL_KEY)
-    )
-    initial_state, _, initial_check = _learn(
-        "first-frame",
-        birth_grid(uniform_birth, _mean_size(occupancy.values[:, 4:6])),
-        birth_grid(uniform_birth, _mean_size(occupancy.values[:, 4:6]), BIRTH_BACKGROUND_GRID),
-        occupancy,
-        birth_epochs,
-        BIRTH_CANDIDATES if heldout else None,
-        key_initial,
-        notify,
-    )
-    initial_mass = volume_mass(to_intensity(initial_state, 1.0), key_initial_mass)
-    initial = live_components(to_intensity(initial_state, occupancy.magnitude / initial_mass))
     metadata = {
         "sequence": str(sequence.path),
         "sequence_name": sequence.info.name,
@@ -284,8 +270,6 @@ def learn_context(
         "seed": seed,
         "birth": _summary(births, birth_state, birth_check, birth_mass),
         "clutter": _summary(clutter, clutter_state, clutter_check, clutter_mass),
-        "initial": _summary(occupancy, initial_state, initial_check, initial_mass)
-        | {"stride": OCCUPANCY_STRIDE},
         "warmup_frames": warmup_frames,
         METADATA_KEY: target_clutter.as_dict(),
         "score_calibration": calibration_summary
@@ -298,6 +282,13 @@ def learn_context(
             }
         ),
     }
+    initial, occupancy = None, None
+    if first_frame:
+        trajectories = sequence.gt_table if birth_from == "gt" else rows
+        occupancy = occupancy_samples_from(trajectories, span, birth_from)
+        initial, metadata["initial"] = _learn_first_frame(
+            occupancy, uniform_birth, birth_epochs, heldout, seed, notify
+        )
     return LearnedContext(
         birth=birth,
         clutter=clutter_intensity,
@@ -309,6 +300,27 @@ def learn_context(
         initial=initial,
         initial_samples=occupancy,
     )
+
+
+def _learn_first_frame(occupancy, uniform_birth, epochs, heldout, seed, notify):
+    """The first frame's intensity and its metadata, learned like the births from the
+    occupancy events, with its own key (``fold_in(PRNGKey(seed), INITIAL_KEY)``) so that the
+    birth and clutter densities are those learned without it."""
+    key, key_mass = jax.random.split(jax.random.fold_in(jax.random.PRNGKey(seed), INITIAL_KEY))
+    size = _mean_size(occupancy.values[:, 4:6])
+    state, _, check = _learn(
+        "first-frame",
+        birth_grid(uniform_birth, size),
+        birth_grid(uniform_birth, size, BIRTH_BACKGROUND_GRID),
+        occupancy,
+        epochs,
+        BIRTH_CANDIDATES if heldout else None,
+        key,
+        notify,
+    )
+    mass = volume_mass(to_intensity(state, 1.0), key_mass)
+    intensity = live_components(to_intensity(state, occupancy.magnitude / mass))
+    return intensity, _summary(occupancy, state, check, mass) | {"stride": OCCUPANCY_STRIDE}
 
 
 def _target_clutter(sequence: MotSequence, rows, clutter_from: str, clutter: EventSamples):
