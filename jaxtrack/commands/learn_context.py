@@ -82,8 +82,9 @@ source (every 10th box of each, velocity fitted to the boxes around it) give a t
 density, where the targets are, with the mean number in view per frame as its magnitude.
 The variants with a learned birth density (GM, A1, A4, A6) then start a run from it instead
 of UM's uniform first-frame intensity (magnitude initial_rate, 0.2 targets spread over every
-size and velocity). Off by default: on held-out scenes it changed GM's MOTA by +0.01 point
-on average, and PETS09-S2L1's by -0.9 (README, "The targets in view at the first frame").
+size and velocity). Off by default: on held-out scenes it changed GM's MOTA by +0.14 point
+on average (standard error 0.12), and PETS09-S2L1's by -0.9 (README, "The targets in view at
+the first frame").
 --frames A:B is the training span (default: all frames).
 A video (or image folder) instead of SEQ_DIR: give its detections with --detections
 (`jaxtrack detect VIDEO --out DET.txt`) and, for the gt sources, its ground truth with --gt;
