@@ -282,7 +282,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
         return 0
     print(f"wrote {args.out} (frames {meta['frames'][0]}:{meta['frames'][1]}, {elapsed:.1f} s)")
-    for kind in ("birth", "clutter", "initial")[: 2 + ("initial" in meta)]:
+    for kind in [kind for kind in ("birth", "clutter", "initial") if kind in meta]:
         info = meta[kind]
         if kind == "initial":
             print(

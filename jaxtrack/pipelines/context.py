@@ -235,16 +235,9 @@ def learn_context(
         sequence.info.im_width, sequence.info.im_height, sequence.info.frame_rate
     )
     key_birth, key_clutter = jax.random.split(jax.random.PRNGKey(seed))
-    birth_size, clutter_size = _mean_size(births.values[:, 4:6]), _mean_size(clutter.values[:, 2:4])
-    birth_state, birth_snapshots, birth_check = _learn(
-        "birth",
-        birth_grid(uniform_birth, birth_size),
-        birth_grid(uniform_birth, birth_size, BIRTH_BACKGROUND_GRID),
-        births,
-        birth_epochs,
-        BIRTH_CANDIDATES if heldout else None,
-        key_birth,
-        notify,
+    clutter_size = _mean_size(clutter.values[:, 2:4])
+    birth_state, birth_snapshots, birth_check = _learn_in_birth_space(
+        "birth", births, uniform_birth, birth_epochs, heldout, key_birth, notify
     )
     clutter_state, clutter_snapshots, clutter_check = _learn(
         "clutter",
@@ -307,16 +300,8 @@ def _learn_first_frame(occupancy, uniform_birth, epochs, heldout, seed, notify):
     occupancy events, with its own key (``fold_in(PRNGKey(seed), INITIAL_KEY)``) so that the
     birth and clutter densities are those learned without it."""
     key, key_mass = jax.random.split(jax.random.fold_in(jax.random.PRNGKey(seed), INITIAL_KEY))
-    size = _mean_size(occupancy.values[:, 4:6])
-    state, _, check = _learn(
-        "first-frame",
-        birth_grid(uniform_birth, size),
-        birth_grid(uniform_birth, size, BIRTH_BACKGROUND_GRID),
-        occupancy,
-        epochs,
-        BIRTH_CANDIDATES if heldout else None,
-        key,
-        notify,
+    state, _, check = _learn_in_birth_space(
+        "first-frame", occupancy, uniform_birth, epochs, heldout, key, notify
     )
     mass = volume_mass(to_intensity(state, 1.0), key_mass)
     intensity = live_components(to_intensity(state, occupancy.magnitude / mass))
@@ -343,6 +328,23 @@ def _mean_size(sizes: np.ndarray) -> tuple[float, float]:
     """Mean ``(w, h)`` of the events' boxes."""
     mean = np.mean(sizes, axis=0)
     return float(mean[0]), float(mean[1])
+
+
+def _learn_in_birth_space(name, events, uniform_birth, epochs, heldout, key, notify):
+    """:func:`_learn` of a density over the birth state space (births, the first frame): the
+    paper's birth grid and the background grid at the events' mean box size, the birth
+    candidates when ``heldout``."""
+    size = _mean_size(events.values[:, 4:6])
+    return _learn(
+        name,
+        birth_grid(uniform_birth, size),
+        birth_grid(uniform_birth, size, BIRTH_BACKGROUND_GRID),
+        events,
+        epochs,
+        BIRTH_CANDIDATES if heldout else None,
+        key,
+        notify,
+    )
 
 
 def _learn(name, grid, background, events, epochs, candidates, key, notify):
