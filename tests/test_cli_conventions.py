@@ -34,6 +34,7 @@ WITH_PROGRESS = (
     "experiment context-generalisation",
     "experiment sweep-magnitudes",
     "experiment compare-trackers",
+    "experiment cmt-crossings",
     "experiment cmt-ablation",
     "experiment hierarchical",
     "experiment hierarchical-noise",

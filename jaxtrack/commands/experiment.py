@@ -15,7 +15,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from jaxtrack.commands import cmt_ablation, fusion_experiment, hierarchical_experiment
+from jaxtrack.commands import (
+    cmt_ablation,
+    cmt_crossings,
+    fusion_experiment,
+    hierarchical_experiment,
+)
 from jaxtrack.commands.arguments import (
     PARTICLES,
     RETRODICTION,
@@ -542,6 +547,16 @@ examples:
         add_extras=cmt_ablation.add_arguments,
         run=cmt_ablation.run,
         files=cmt_ablation.ABLATION_FILES,
+        scene="scenes",
+    ),
+    "cmt-crossings": Experiment(
+        help=cmt_crossings.HELP,
+        description=cmt_crossings.DESCRIPTION,
+        quick_help=cmt_crossings.QUICK_HELP,
+        sequence=False,
+        add_extras=cmt_crossings.add_arguments,
+        run=cmt_crossings.run,
+        files=cmt_crossings.FILES,
         scene="scenes",
     ),
     "hierarchical": Experiment(

@@ -43,6 +43,8 @@ Pair = tuple[float, float]
 MAX_ZONES = 20
 #: Most background walkers per zone (people are drawn one by one: a crowd is no test video).
 MAX_WALKERS_PER_ZONE = 100
+#: Values of :attr:`VideoSceneConfig.crossing_alike`: the clothes the crossing's pair share.
+CROSSING_ALIKE = ("both", "top", "bottom")
 #: A person's own height is drawn within this many ``height_spread`` of the nominal one.
 HEIGHT_SPREAD_CLIP = 2.0
 
@@ -154,6 +156,11 @@ class VideoSceneConfig:
         clutter_rate: expected false detections per frame, uniform over the ground.
         vegetation_clutter_rate: expected false detections per frame in the vegetation
             while a gust moves it.
+        crossing_alike: which clothes the scripted crossing's pair share (the same palette
+            colour within +-4 levels): ``"both"`` (top and bottom: a near-identical pair, whose
+            halves no colour feature separates), ``"top"`` or ``"bottom"`` (that half alike, the
+            other half of the second person another palette colour: similarly dressed, with one
+            separating feature, CMT paper's Fig. 9 case).
     """
 
     name: str | None = None
@@ -178,9 +185,15 @@ class VideoSceneConfig:
     measurement_noise: Pair = (0.04, 0.03)
     clutter_rate: float = 0.2
     vegetation_clutter_rate: float = 1.5
+    crossing_alike: str = "both"
 
     def __post_init__(self) -> None:
         apply_rules(self, VIDEO_RULES, "")
+        if self.crossing_alike not in CROSSING_ALIKE:
+            raise InputError(
+                f"crossing_alike must be one of {', '.join(CROSSING_ALIKE)}, "
+                f"got {self.crossing_alike!r}"
+            )
         if self.name is not None:
             check_video_name(self.name)
         for field in ("occluder", "vegetation", "bright_patch"):

@@ -17,10 +17,11 @@ per-channel change of up to +-15 levels). Nobody enters before frame ``FIRST_ENT
 **Scripted hard cases** (placed by the seed; the events of
 :attr:`~jaxtrack.datasets.video_scene.VideoScene.events`):
 
-* ``crossing``: two similarly dressed people (the same palette colours, within +-4 levels)
-  from different zones to different zones pass the same point in the same frame, one
-  ``CROSSING_OFFSET`` body heights nearer the camera; the event's frames are the first and
-  last in which their boxes overlap;
+* ``crossing``: two similarly dressed people (the same palette colours, within +-4 levels;
+  with ``crossing_alike`` ``"top"`` or ``"bottom"`` only that half alike, the other half of
+  the second person another palette colour) from different zones to different zones pass
+  the same point in the same frame, one ``CROSSING_OFFSET`` body heights nearer the camera;
+  the event's frames are the first and last in which their boxes overlap;
 * ``group``: ``GROUP_SIZE`` people enter together side by side (``GROUP_SPACING`` body heights
   apart, across the walking direction), walk to a split point and leave through different
   zones; frames: entry to split;
@@ -253,7 +254,8 @@ class _Script:
     # -- scripted hard cases ------------------------------------------------------------------
 
     def _crossing(self) -> list[Person]:
-        """Two similarly dressed people from different zones reach one point in one frame."""
+        """Two similarly dressed people from different zones reach one point in one frame
+        (their clothes alike as ``crossing_alike`` says)."""
         config = self.config
         zone_a = int(self.rng.integers(len(self.zones)))
         zone_b = self._other_zone(zone_a)
@@ -276,9 +278,16 @@ class _Script:
         meet = max(arrivals[1] for _, arrivals in walks) + FIRST_ENTRY
         meet += int(self.rng.integers(0, 80))
         top, bottom = self.rng.choice(len(CLOTHING), 2, replace=False)
+        clothes = [(top, bottom), (top, bottom)]
+        if config.crossing_alike != "both":
+            # The second person's other half: a palette colour neither of the pair wears.
+            other = int(
+                self.rng.choice([c for c in range(len(CLOTHING)) if c not in (top, bottom)])
+            )
+            clothes[1] = (top, other) if config.crossing_alike == "top" else (other, bottom)
         people = []
-        for (feet, arrivals), entry, exit_ in zip(
-            walks, (zone_a, zone_b), (exit_a, exit_b), strict=True
+        for (feet, arrivals), entry, exit_, (top_, bottom_) in zip(
+            walks, (zone_a, zone_b), (exit_a, exit_b), clothes, strict=True
         ):
             person = Person(
                 int(meet - arrivals[1]),
@@ -286,8 +295,8 @@ class _Script:
                 "crossing",
                 entry,
                 exit_,
-                self._jitter(CLOTHING[top], SIMILAR_JITTER),
-                self._jitter(CLOTHING[bottom], SIMILAR_JITTER),
+                self._jitter(CLOTHING[top_], SIMILAR_JITTER),
+                self._jitter(CLOTHING[bottom_], SIMILAR_JITTER),
             )
             person.marks = {"needed": meet + EVENT_MARGIN}
             people.append(person)

@@ -5,6 +5,10 @@
   proposal (the contextual proposal against the Gaussian prior), one panel per comparison.
 * :func:`discrimination_figure`: the likelihood difference per frame between two nearby
   similar targets under COM and EWOM, with the zero line (below it: A's model prefers B).
+* :func:`crossing_families_figure`: per family of crossing scenes (how alike the pair dress),
+  the variants' SE on the crossings and the pair's switched identities, and Fig. 9's mean
+  likelihood gap under COM and EWOM
+  (:mod:`jaxtrack.experiments.cmt_crossings`).
 
 Each ``save_<name>`` writes the PNG of the Figure built by ``<name>``. Matplotlib's
 object-oriented API with the Agg canvas: no display, no pyplot global state.
@@ -12,7 +16,7 @@ object-oriented API with the Agg canvas: no display, no pyplot global state.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -69,4 +73,64 @@ def save_discrimination_figure(path: str | Path, *args) -> Path:
     """Writes :func:`discrimination_figure` as a PNG."""
     path = Path(path)
     discrimination_figure(*args).savefig(path, dpi=100)
+    return path
+
+
+def crossing_families_figure(
+    rows: Sequence[Mapping], gaps: Mapping[str, Mapping[str, float]]
+) -> Figure:
+    """Three panels over the families (``rows``: one per family and tracker with
+    ``SE_crossings``, ``crossing_swap_frames``, ``switched``, ``kept``, ``lost``; ``gaps``:
+    family -> ``{"COM", "EWOM"}`` mean likelihood gaps): grouped bars per tracker."""
+    families = list(dict.fromkeys(row["family"] for row in rows))
+    trackers = list(dict.fromkeys(row["tracker"] for row in rows))
+    by = {(row["family"], row["tracker"]): row for row in rows}
+    figure = Figure(figsize=(12, 3.8), layout="constrained")
+    FigureCanvasAgg(figure)
+    figure.suptitle("Crossings of similarly dressed people: EWOM (MTb+CPD) vs COM (CMT)")
+    left, middle, right = figure.subplots(1, 3)
+    x = np.arange(len(families))
+    width = 0.8 / len(trackers)
+
+    def bars(axes, values, labels, offset, name):
+        drawn = axes.bar(x + offset, values, width, label=name)
+        axes.bar_label(drawn, labels=labels, fontsize=8)
+
+    for i, name in enumerate(trackers):
+        offset = (i - (len(trackers) - 1) / 2) * width
+        chosen = [by[family, name] for family in families]
+        bars(
+            left,
+            [row["SE_crossings"] for row in chosen],
+            [str(row["crossing_swap_frames"]) for row in chosen],
+            offset,
+            name,
+        )
+        scored = [row["kept"] + row["switched"] + row["lost"] for row in chosen]
+        bars(
+            middle,
+            [100 * row["switched"] / max(1, n) for row, n in zip(chosen, scored, strict=True)],
+            [f"{row['switched']}/{n}" for row, n in zip(chosen, scored, strict=True)],
+            offset,
+            name,
+        )
+    for i, model in enumerate(("EWOM", "COM")):
+        right.bar(x + (i - 0.5) * 0.4, [gaps[f][model] for f in families], 0.4, label=model)
+    titles = (
+        ("SE on the crossings (%; labels: swap frames)", left),
+        ("pair's identity switched across the crossing (%)", middle),
+        ("Fig. 9 mean likelihood gap A - B", right),
+    )
+    for title, axes in titles:
+        axes.set_xticks(x, [f"alike: {family}" for family in families])
+        axes.set_title(title, fontsize=10)
+        axes.grid(alpha=0.3, axis="y")
+        axes.legend(fontsize=8)
+    return figure
+
+
+def save_crossing_families_figure(path: str | Path, *args) -> Path:
+    """Writes :func:`crossing_families_figure` as a PNG."""
+    path = Path(path)
+    crossing_families_figure(*args).savefig(path, dpi=100)
     return path

@@ -7,7 +7,7 @@ import pytest
 
 from jaxtrack.datasets import VideoSceneConfig, generate_video_scene
 from jaxtrack.datasets.video_paths import nominal_height
-from jaxtrack.datasets.video_script import FIRST_ENTRY, SIMILAR_JITTER
+from jaxtrack.datasets.video_script import CLOTHING, FIRST_ENTRY, SIMILAR_JITTER
 from jaxtrack.errors import InputError
 
 
@@ -82,6 +82,39 @@ def test_crossing_of_similarly_dressed_people(video_scene):
     assert distance.min() <= 0.13 * height  # one CROSSING_OFFSET apart, nearer the camera
     assert crossing.frames[0] < meet < crossing.frames[1]
     assert distance[0] > 2 * height and distance[-1] > height  # from and to different places
+
+
+def palette_index(colour):
+    """The clothing palette colour a person's (jittered) colour was drawn from."""
+    return int(np.argmin(np.abs(CLOTHING - colour.astype(int)).max(axis=1)))
+
+
+@pytest.mark.parametrize("alike", ["top", "bottom"])
+def test_crossing_pair_alike_in_one_half_only(video_scene, alike):
+    scene = generate_video_scene(3, VideoSceneConfig(crossing_alike=alike))
+    a, b = event(scene, "crossing").ids
+    look = scene.appearance
+    same, other = (look.top, look.bottom) if alike == "top" else (look.bottom, look.top)
+    assert np.abs(same[a - 1].astype(int) - same[b - 1]).max() <= 2 * SIMILAR_JITTER
+    assert palette_index(same[a - 1]) == palette_index(same[b - 1])
+    # The other half: two palette colours, neither of them the alike half's.
+    others = {palette_index(other[a - 1]), palette_index(other[b - 1])}
+    assert len(others) == 2 and palette_index(same[a - 1]) not in others
+    assert np.abs(other[a - 1].astype(int) - other[b - 1]).max() > 30
+    # The same pair walks the same routes as under the default "both" (ids follow the later
+    # draws), the alike half in the same palette colour.
+    both = video_scene
+    pair = sorted(event(scene, "crossing").ids, key=lambda i: feet_of(scene, i)[0][0])
+    pair_both = sorted(event(both, "crossing").ids, key=lambda i: feet_of(both, i)[0][0])
+    for i, j in zip(pair, pair_both, strict=True):
+        np.testing.assert_allclose(feet_of(scene, i)[1], feet_of(both, j)[1], atol=0.01)
+    both_same = both.appearance.top if alike == "top" else both.appearance.bottom
+    assert palette_index(same[a - 1]) == palette_index(both_same[pair_both[0] - 1])
+
+
+def test_unknown_crossing_alike_is_refused():
+    with pytest.raises(InputError, match="crossing_alike must be one of both, top, bottom"):
+        VideoSceneConfig(crossing_alike="shoes")
 
 
 def test_group_walks_together_then_splits(video_scene):
