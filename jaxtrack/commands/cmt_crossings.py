@@ -5,8 +5,14 @@ from __future__ import annotations
 
 import argparse
 
-from jaxtrack.commands.arguments import SEED_COUNT_TYPE, SEED_TYPE, consecutive_seeds
-from jaxtrack.commands.paths import check_outputs, output_folder
+from jaxtrack.commands.arguments import (
+    SEED_COUNT_TYPE,
+    SEED_TYPE,
+    add_config,
+    consecutive_seeds,
+    load_config,
+)
+from jaxtrack.commands.paths import check_outputs, file_input, output_folder
 from jaxtrack.datasets.video_files import TRUTH_FILE
 from jaxtrack.experiments.cmt_ablation import TRACKER_SEEDS
 from jaxtrack.experiments.cmt_crossings import (
@@ -41,7 +47,11 @@ across the crossing, the scenes' pooled IDSW, IDF1 and MOTA, and Fig. 9's likeli
 between the pair under COM and EWOM (no tracker). The goal per family: SE on the crossings
 falls with COM.
 
-Writes into --out: table.md, results.json (with every scene's counts) and crossings.png.
+--config FILE.json changes both variants alike (for instance {{"support": "box",
+"appearance_weight": 3}}: a stronger appearance term); it may not set the variant.
+
+Writes into --out: table.md, results.json (with every scene's counts), crossings.png and
+sequences/FAMILY-SEED/TRACKER.txt (the first tracker seed's results, MOTChallenge format).
 Logic: jaxtrack.experiments.cmt_crossings. About 3 minutes per family and tracker seed with
 12 scenes on 2 cores.
 
@@ -52,7 +62,7 @@ examples:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--seeds``, ``--families`` and ``--tracker-seeds``."""
+    """``--seeds``, ``--families``, ``--tracker-seeds`` and ``--config``."""
     parser.add_argument(
         "--seeds",
         nargs="+",
@@ -74,6 +84,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"runs of each variant on each scene, seeds --seed .. --seed + K - 1 (default "
         f"{TRACKER_SEEDS}; with --quick 1)",
     )
+    add_config(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -89,7 +100,11 @@ def run(args: argparse.Namespace) -> int:
         for seed in (seeds[:1] if args.quick else seeds)
         for name in ("seqinfo.ini", "det/det.txt", "gt/gt.txt", TRUTH_FILE, f"video-{seed}.mp4")
     ]
-    check_outputs(output_folder("--out", args.out, files), [])
+    config = load_config(args.config, "cmt")
+    check_outputs(
+        output_folder("--out", args.out, files),
+        file_input(args.config, f"the tracker configuration --config {args.config}"),
+    )
     result = run_crossing_families(
         args.out,
         seeds,
@@ -98,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
         tracker_seeds=count,
         quick=args.quick,
         progress=not args.quiet,
+        config=config,
     )
     print(markdown_table(result.rows, COLUMNS))
     for line in goal_lines(result.goals):

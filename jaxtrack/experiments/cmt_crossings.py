@@ -62,6 +62,7 @@ from jaxtrack.experiments.common import (
     markdown_table,
     output_folder,
 )
+from jaxtrack.filters.cmt_tracker import CMTConfig
 from jaxtrack.io import load_sequence
 from jaxtrack.metrics.reassociation import identity_cases
 from jaxtrack.plot.cmt_analysis import save_crossing_families_figure
@@ -159,6 +160,7 @@ def run_crossing_families(
     tracker_seeds: int = 3,
     quick: bool = False,
     progress: bool = True,
+    config: CMTConfig | None = None,
 ) -> CrossingFamilies:
     """The whole experiment (module docstring); writes :data:`FILES` into ``out_dir``.
 
@@ -170,9 +172,12 @@ def run_crossing_families(
         tracker_seeds: runs per scene and variant, seeds ``seed ..`` (>= 1).
         quick: a smoke run (one short scene per family, few particles; numbers mean nothing).
         progress: print each step and show a progress bar over the runs.
+        config: the CMT configuration both variants start from (:func:`variant_configs`);
+            None: the defaults.
 
     Raises:
-        InputError: no seeds or families, an unknown family, or ``tracker_seeds`` < 1.
+        InputError: no seeds or families, an unknown family, ``tracker_seeds`` < 1, or a
+            ``config`` that sets the variant.
     """
     if not seeds or not families:
         raise InputError("at least one scene seed and one family are needed")
@@ -181,10 +186,10 @@ def run_crossing_families(
         raise InputError(f"unknown families {unknown}: each one of {', '.join(FAMILIES)}")
     if tracker_seeds < 1:
         raise InputError(f"tracker_seeds must be at least 1, got {tracker_seeds}")
+    trackers = variant_configs(config, quick)
     start = time.perf_counter()
     out = output_folder(out_dir)
     steps: Callable[[str], None] | None = print if progress else None
-    trackers = {k: v for k, v in experiment_trackers(quick).items() if k in VARIANTS}
     seeds = list(seeds[:1] if quick else seeds)
     run_seeds = list(range(seed, seed + tracker_seeds))
     rows, goals, gaps, scenes_record = [], [], {}, {}
@@ -252,6 +257,7 @@ def run_crossing_families(
         "scene_seeds": seeds,
         "tracker_seeds": run_seeds,
         "families": list(families),
+        "config": variant_configs(config, quick)["CMT"].overrides(),
         "rows": rows,
         "goals": goals,
         "fig9_gap": gaps,
@@ -264,6 +270,29 @@ def run_crossing_families(
     table_path = out / "table.md"
     table_path.write_text(table_markdown(record))
     return CrossingFamilies(rows, goals, gaps, [table_path, json_path, figure, *files])
+
+
+def variant_configs(config: CMTConfig | None = None, quick: bool = False) -> dict[str, CMTConfig]:
+    """:data:`VARIANTS` -> configuration: ``config`` (default: CMT's defaults) with the
+    variant set (quick: fewer slots and particles, as in ``cmt-ablation --quick``).
+
+    Raises:
+        InputError: ``config`` sets the variant (this experiment compares two).
+    """
+    base = CMTConfig() if config is None else config
+    if "variant" in base.overrides():
+        raise InputError(
+            f"the configuration sets variant {base.variant!r}; cmt-crossings runs both "
+            f"{' and '.join(VARIANTS)}: leave the variant out"
+        )
+    defaults = experiment_trackers(quick)
+    sizes = ("max_components", "particles_per_component") if quick else ()
+    return {
+        name: base.replace(
+            variant=defaults[name].variant, **{key: getattr(defaults[name], key) for key in sizes}
+        )
+        for name in VARIANTS
+    }
 
 
 def family_goal(
@@ -308,7 +337,9 @@ def table_markdown(record: dict[str, Any]) -> str:
         f"seeds {', '.join(map(str, record['tracker_seeds']))}. Swap frames, crossing frames "
         "and the pair's identity outcomes (kept / switched / lost across the crossing) are "
         "summed over scenes and tracker seeds; IDSW, IDF1 and MOTA are the whole scenes', "
-        "pooled, means over the tracker seeds.",
+        "pooled, means over the tracker seeds. Configuration (both variants): "
+        + (json.dumps(record["config"]) if record["config"] else "the defaults")
+        + ".",
         "",
         markdown_table(record["rows"], COLUMNS),
         "",

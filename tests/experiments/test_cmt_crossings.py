@@ -22,7 +22,9 @@ from jaxtrack.experiments.cmt_crossings import (
     QUICK_SCENE,
     family_goal,
     run_crossing_families,
+    variant_configs,
 )
+from jaxtrack.filters.cmt_tracker import CMTConfig
 from jaxtrack.io import load_sequence
 from jaxtrack.io.motchallenge import read_mot_file
 from jaxtrack.metrics.evaluate import evaluate_sequence
@@ -84,6 +86,25 @@ def test_script_runs_the_command(tmp_path):
     argv = ["--out", str(tmp_path / "out"), "--families", "socks"]
     done = subprocess.run([sys.executable, script, *argv], env=env, capture_output=True, text=True)
     assert done.returncode == 2 and "--families" in done.stderr
+
+
+def test_a_config_setting_the_variant_exits_2(tmp_path, capsys):
+    config = tmp_path / "cmt.json"
+    config.write_text(json.dumps({"variant": "mtb", "support": "box"}))
+    argv = ["experiment", "cmt-crossings", "--out", str(tmp_path / "out"), "--quiet"]
+    assert main([*argv, "--config", str(config)]) == 2
+    assert "leave the variant out" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_config_changes_both_variants_alike():
+    configs = variant_configs(CMTConfig(support="box", appearance_weight=3.0))
+    assert [c.variant for c in configs.values()] == ["cpd", "cmt"]
+    for config in configs.values():
+        assert (config.support, config.appearance_weight) == ("box", 3.0)
+        assert config.max_components == CMTConfig().max_components
+    quick = variant_configs(quick=True)
+    assert quick["CMT"].overrides() == {"max_components": 8, "particles_per_component": 16}
 
 
 @pytest.mark.slow
