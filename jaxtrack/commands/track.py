@@ -58,16 +58,18 @@ mixture tracker; + contextual proposal; + contextual observation model, the defa
 are learned on the fly from the PHD tracker's trajectories on the tracked span (the run says
 which, and ``.config.json`` records it). Its configuration (``CMTConfig``) takes
 ``variant``, ``max_components``, ``particles_per_component``,
-``max_misses``, ``appearance_weight``, ``group_area_ratio`` (group blobs, off by default),
+``max_misses``, ``appearance_weight`` (3 since session 56; 1 before), ``group_area_ratio``
+(group blobs, off by default),
 ``velocity_rate`` (0.1: a component keeps its long-run velocity while one blob covers it
 and another; 0 gives the paper's tracker), ``reidentify_seconds`` (1; 0: off, the paper's
 tracker; a new component takes back the identity of a confirmed one deleted that recently,
 nearby and alike in colour), ``free_blob_frames`` (2; 0: off, the paper's tracker; a blob no
 component owns that many frames in a row starts one whatever explains it),
 ``confirm_quantile`` (0.75; 1: off; a component is output once a blob scoring 0.97, or at
-least this quantile of the scores seen so far, explains it), ``support`` (``likelihood``,
-the paper's; ``box``: a component's support from the blobs' box likelihood alone, so
-``appearance_weight`` above 1 no longer deletes followed targets), ``information_correction``
+least this quantile of the scores seen so far, explains it), ``support`` (``box`` since
+session 56: a component's support from the blobs' box likelihood alone, so
+``appearance_weight`` above 1 does not delete followed targets; ``likelihood``, the paper's,
+before), ``information_correction``
 (0, the paper's; COM's mutual information lowered by this multiple of its chance level),
 ``output``, ``max_gap``.
 

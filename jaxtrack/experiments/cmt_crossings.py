@@ -327,7 +327,7 @@ def table_markdown(record: dict[str, Any]) -> str:
     """``table.md``: the table, Fig. 9's gaps, the goals."""
     seeds = record["scene_seeds"]
     gap_rows = [
-        {"family": family, **{k: round(v, 3) for k, v in gap.items()}}
+        {"family": family, **{k: f"{v:.2f}" for k, v in gap.items()}}
         for family, gap in record["fig9_gap"].items()
     ]
     lines = [

@@ -101,7 +101,13 @@ class CMTConfig(TrackerConfig):
         3, Rule("frames a component survives without a blob supporting it", int, 0, 1000)
     )
     appearance_weight: float = setting(
-        1.0, Rule("exponent of the appearance likelihood (0: box only)", float, 0.0, 100.0)
+        3.0,
+        Rule(
+            "exponent of the appearance likelihood (0: box only; 3 since session 56, was 1)",
+            float,
+            0.0,
+            100.0,
+        ),
     )
     group_area_ratio: float = setting(
         0.0,
@@ -158,12 +164,12 @@ class CMTConfig(TrackerConfig):
         ),
     )
     support: str = setting(
-        "likelihood",
+        "box",
         Rule(
             "what a component's support (deleted after max_misses frames below the "
-            "threshold) is computed from: 'likelihood' (box times appearance^"
-            "appearance_weight, the paper's) or 'box' (the blobs' evidence alone, which "
-            "appearance_weight then leaves alone)",
+            "threshold) is computed from: 'box' (the blobs' evidence alone, which "
+            "appearance_weight then leaves alone; the default since session 56) or "
+            "'likelihood' (box times appearance^appearance_weight, the paper's)",
             str,
             choices=SUPPORTS,
         ),

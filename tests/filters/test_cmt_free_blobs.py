@@ -141,4 +141,10 @@ def test_an_unconfirmed_component_takes_over_the_identity_of_the_one_it_replaced
         shown[frames] = [sorted(ids[t][mask[t]].tolist()) for t in range(mask.shape[0])]
     assert shown[0][:10] == shown[2][:10] == [[]] + [[0]] * 9
     assert shown[0][10:] == [[]] * 30  # the paper's tracker: the target is lost for good
-    assert shown[2][25:] == [[0]] * 15  # handed over: the first identity again
+    # Handed over: the first identity again, from some frame on (frame 16 under the default
+    # appearance term for mtb, 32 for cmt; 24 for both under the pre-session-56 a = 1), and
+    # kept to the end.
+    after = shown[2][10:]
+    first = after.index([0])
+    assert after[:first] == [[]] * first and after[first:] == [[0]] * (len(after) - first)
+    assert len(after) - first >= 8
