@@ -112,11 +112,12 @@ def main() -> None:
     print(json.dumps(result))
 
 
-def sweep_grid() -> tuple[np.ndarray, np.ndarray]:
-    """The 8 motion-noise scales (``2^(k/3)``, 0.5-2.5) and 8 appearance weights (0-1.75 in
-    steps of 0.25) of the sweep: both contain the defaults (scale 1, weight 1)."""
+def sweep_grid(default_weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """The 8 motion-noise scales (``2^(k/3)``, 0.5-2.5) and 8 appearance weights (0-1.75
+    times ``default_weight`` in steps of a quarter of it) of the sweep: both contain the
+    defaults (scale 1, the default weight)."""
     scales = 2.0 ** ((np.arange(SWEEP_SIZE[0]) - 3) / 3)
-    weights = np.arange(SWEEP_SIZE[1]) / 4
+    weights = default_weight * np.arange(SWEEP_SIZE[1]) / 4
     return scales, weights
 
 
@@ -124,7 +125,7 @@ def sweep_timing(args, config: CMTConfig, params, seq, track_s: float) -> dict:
     """64 configurations of CMT over the first ``--sweep-frames`` frames, scored."""
     count = seq.num_frames if args.sweep_frames == 0 else min(args.sweep_frames, seq.num_frames)
     span = load_sequence(args.sequence, (1, count))
-    scales, weights = sweep_grid()
+    scales, weights = sweep_grid(config.appearance_weight)
     grid_scale, grid_weight = (g.ravel() for g in np.meshgrid(scales, weights, indexing="ij"))
     updates = {
         "motion_noise_std": np.asarray(params.mixture.motion_noise_std)[None] * grid_scale[:, None],
@@ -144,6 +145,7 @@ def sweep_timing(args, config: CMTConfig, params, seq, track_s: float) -> dict:
         )
     idf1 = result.scores["IDF1"]
     best = int(np.argmax(idf1))
+    at_default = (grid_scale == 1) & (grid_weight == config.appearance_weight)
     return {
         "sweep_configurations": int(grid_scale.size),
         "sweep_frames": count,
@@ -160,9 +162,7 @@ def sweep_timing(args, config: CMTConfig, params, seq, track_s: float) -> dict:
             "motion_noise_scale": round(float(grid_scale[best]), 3),
             "appearance_weight": round(float(grid_weight[best]), 3),
         },
-        "sweep_default_idf1_pct": round(
-            100 * float(idf1[np.flatnonzero((grid_scale == 1) & (grid_weight == 1))[0]]), 1
-        ),
+        "sweep_default_idf1_pct": round(100 * float(idf1[np.flatnonzero(at_default)[0]]), 1),
     }
 
 
