@@ -52,8 +52,8 @@ falls with COM.
 
 Writes into --out: table.md, results.json (with every scene's counts), crossings.png and
 sequences/FAMILY-SEED/TRACKER.txt (the first tracker seed's results, MOTChallenge format).
-Logic: jaxtrack.experiments.cmt_crossings. About 3 minutes per family and tracker seed with
-12 scenes on 2 cores.
+Logic: jaxtrack.experiments.cmt_crossings. About 2 minutes per family and tracker seed with
+12 scenes on 2 cores (18 minutes for the defaults).
 
 examples:
   jaxtrack experiment cmt-crossings --out /tmp/crossings
