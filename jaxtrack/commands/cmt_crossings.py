@@ -14,13 +14,12 @@ from jaxtrack.commands.arguments import (
 )
 from jaxtrack.commands.paths import check_outputs, file_input, output_folder
 from jaxtrack.datasets.video_files import TRUTH_FILE
-from jaxtrack.experiments.cmt_ablation import TRACKER_SEEDS
+from jaxtrack.experiments.cmt_ablation import TRACKER_SEEDS, goal_lines
 from jaxtrack.experiments.cmt_crossings import (
     COLUMNS,
     DEFAULT_SEEDS,
     FAMILIES,
     FILES,
-    goal_lines,
     run_crossing_families,
 )
 from jaxtrack.experiments.common import markdown_table

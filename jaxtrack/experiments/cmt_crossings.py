@@ -53,6 +53,7 @@ from jaxtrack.experiments.cmt_ablation import (
     ExperimentSequence,
     ablation_table,
     experiment_trackers,
+    goal_lines,
     write_results,
 )
 from jaxtrack.experiments.cmt_analysis import discrimination_analysis
@@ -136,9 +137,9 @@ def family_sequences(
     return scenes
 
 
-def crossing_outcomes(folder: Path, rows, scripted) -> dict[str, int]:
-    """The crossing pair's identity outcomes (:data:`OUTCOMES` and ``unscored``) of one run."""
-    gt = load_sequence(folder).gt_table
+def crossing_outcomes(gt, rows, scripted) -> dict[str, int]:
+    """The crossing pair's identity outcomes (:data:`OUTCOMES` and ``unscored``) of one run
+    (``gt``: the scene's ground truth)."""
     cases = identity_cases(rows, gt, [e for e in scripted if e.kind == "crossing"])
     return {o: sum(c["outcome"] == o for c in cases) for o in (*OUTCOMES, "unscored")}
 
@@ -200,6 +201,7 @@ def run_crossing_families(
         written = family_sequences(out / "scenes", family, seeds, quick)
         sequences = [sequence for sequence, _ in written]
         scripted = {sequence.name: events for sequence, events in written}
+        truth = {s.name: load_sequence(s.folder).gt_table for s in sequences}
         analyses = [discrimination_analysis(s.folder, quick) for s in sequences]
         gaps[family] = {
             "COM": float(np.mean([a["mean"]["COM"] for a in analyses])),
@@ -223,7 +225,7 @@ def run_crossing_families(
                     total[key] += row[key]
                 for s in sequences:
                     outcome = crossing_outcomes(
-                        s.folder, result.results[s.name][name], scripted[s.name]
+                        truth[s.name], result.results[s.name][name], scripted[s.name]
                     )
                     scene = per_scene.setdefault(s.name, {}).setdefault(name, _empty_cases())
                     for key, count in outcome.items():
@@ -257,7 +259,7 @@ def run_crossing_families(
         "scene_seeds": seeds,
         "tracker_seeds": run_seeds,
         "families": list(families),
-        "config": variant_configs(config, quick)["CMT"].overrides(),
+        "config": trackers["CMT"].overrides(),
         "rows": rows,
         "goals": goals,
         "fig9_gap": gaps,
@@ -316,11 +318,6 @@ def _empty_cases() -> dict[str, int]:
 
 def _empty_totals() -> dict[str, Any]:
     return {"IDSW": 0.0, "IDF1": 0.0, "MOTA": 0.0, "crossing_frames": 0, **_empty_cases()}
-
-
-def goal_lines(goals: Sequence[dict[str, Any]]) -> list[str]:
-    """One line per goal: PASS/FAIL, the goal, the value."""
-    return [f"{'PASS' if g['met'] else 'FAIL'}  {g['goal']}: {g['value']}" for g in goals]
 
 
 def table_markdown(record: dict[str, Any]) -> str:
