@@ -92,3 +92,20 @@ def any_member(flag: Array) -> Array:
 @any_member.def_vmap
 def _any_member_batch(axis_size: int, in_batched: list[bool], flag: Array):
     return jnp.any(flag, axis=0), False
+
+
+@jax.custom_batching.custom_vmap
+def largest_member(value: Array) -> Array:
+    """``value`` itself; under ``vmap``, the largest member's ``value`` (unbatched).
+
+    A static size chosen from a batched count (a ``lax.switch`` over buckets) would run
+    every branch for every member; chosen from ``largest_member(count)`` it stays a
+    conditional that runs the one branch that fits the whole batch. Nested ``vmap`` levels
+    each take their maximum (the batching rule calls this function again).
+    """
+    return value
+
+
+@largest_member.def_vmap
+def _largest_member_batch(axis_size: int, in_batched: list[bool], value: Array):
+    return largest_member(jnp.max(value, axis=0)), False

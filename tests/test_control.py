@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.control import any_member, materialise, when
+from jaxtrack.control import any_member, largest_member, materialise, when
 
 BITS = np.random.default_rng(0).integers(0, 2**32, (3, 4, 50), dtype=np.uint32)
 
@@ -73,3 +73,23 @@ def test_any_member_keeps_a_conditional_for_the_batch():
     np.testing.assert_array_equal(batched(jnp.zeros(3, bool), xs), xs)
     jax.effects_barrier()
     assert len(calls) == 1  # no member needed the branch: not run
+
+
+def test_largest_member_is_one_value_for_the_batch_at_every_level():
+    """Unbatched it is the value; under vmap (nested too) the largest member's, unbatched,
+    so that a switch on it stays a conditional (no select over the branches)."""
+    values = jnp.array([[3, 9, 1], [4, 2, 0]], jnp.int32)
+    assert int(jax.jit(largest_member)(jnp.int32(5))) == 5
+    np.testing.assert_array_equal(jax.jit(jax.vmap(largest_member))(values[0]), [9, 9, 9])
+    np.testing.assert_array_equal(
+        jax.jit(jax.vmap(jax.vmap(largest_member)))(values), np.full((2, 3), 9)
+    )
+
+    def switched(value):
+        return jax.lax.switch(
+            jnp.minimum(largest_member(value), 2), [lambda: 0, lambda: 1, lambda: 2]
+        )
+
+    for mapped, batch in ((jax.vmap(switched), values[0]), (jax.vmap(jax.vmap(switched)), values)):
+        jaxpr = jax.make_jaxpr(mapped)(batch)
+        assert [e.primitive.name for e in jaxpr.jaxpr.eqns].count("cond") == 1

@@ -41,6 +41,7 @@ from jaxtrack.appearance.variance_ratio import (
     select_features,
     variance_ratio,
 )
+from jaxtrack.control import largest_member
 from jaxtrack.errors import InputError
 
 #: Collins' linear RGB features (49).
@@ -56,6 +57,10 @@ NUM_BINS = 64
 #: 0.6 ms; 32 x 16: 2.5 ms; 32 boxes: 4.6 ms) on 2 shared CPU cores, inside the 3 ms budget of
 #: a 25 frames/s tracker.
 PATCH_SHAPE = (24, 12)
+
+#: Smallest bucket of :func:`live_box_histograms`; the buckets double from it up to the
+#: number of slots.
+SMALLEST_BUCKET = 8
 
 
 class AppearanceParams(NamedTuple):
@@ -127,6 +132,68 @@ def box_histograms(
     """
     histograms = functools.partial(linear_combination_histograms, patch_shape=patch_shape)
     return jax.vmap(histograms, in_axes=(None, 0))(image, boxes)
+
+
+def bucket_sizes(num_slots: int) -> tuple[int, ...]:
+    """The static sizes :func:`live_box_histograms` compacts ``num_slots`` slots into:
+    :data:`SMALLEST_BUCKET`, doubling, below ``num_slots``, then ``num_slots`` itself."""
+    sizes = []
+    size = SMALLEST_BUCKET
+    while size < num_slots:
+        sizes.append(size)
+        size *= 2
+    return (*sizes, num_slots)
+
+
+def smallest_bucket(count: Int[Array, ""], sizes: tuple[int, ...]) -> Int[Array, ""]:
+    """The index of the smallest of the increasing ``sizes`` that holds ``count`` items (the
+    last one when none does)."""
+    return jnp.sum(count > jnp.asarray(sizes[:-1], jnp.int32))
+
+
+def live_box_histograms(
+    image: UInt8[Array, "height width 3"],
+    boxes: Float[Array, "num_boxes 4"],
+    alive: Bool[Array, " num_boxes"],
+    patch_shape: tuple[int, int] = PATCH_SHAPE,
+) -> Float[Array, "num_boxes 49 64"]:
+    """:func:`box_histograms` of the ``alive`` boxes; the other boxes' histograms are zero.
+
+    The live boxes are gathered (in slot order) into the smallest of :func:`bucket_sizes`
+    that holds them all, their histograms computed there and scattered back to their slots:
+    the cost follows the number of live boxes, not of slots (the Hierarchical tracker's
+    low-level slots are mostly free). Padding entries of a bucket point past the last slot:
+    their histograms are computed on a copy of the last box and dropped by the scatter.
+
+    The bucket is chosen by ``lax.switch`` on the live count; under ``vmap`` on the largest
+    member's count (:func:`~jaxtrack.control.largest_member`), so that the switch stays a
+    conditional running one bucket for the whole batch instead of every bucket for every
+    member.
+
+    Args:
+        image: RGB image, uint8.
+        boxes: ``(x, y, w, h)`` of each box, pixels.
+        alive: the boxes whose histograms are wanted.
+        patch_shape: ``(ph, pw)`` samples per box, static.
+
+    Returns:
+        ``[num_boxes, 49, 64]``: equal to :func:`box_histograms` on the alive boxes, zero
+        on the others (as for a box wholly outside the image).
+    """
+    num_boxes = boxes.shape[0]
+    if alive.shape != (num_boxes,):
+        raise InputError(f"alive must be [{num_boxes}] like the boxes, got {alive.shape}")
+    sizes = bucket_sizes(num_boxes)
+
+    def compacted(size: int, image, boxes, alive):
+        index = jnp.nonzero(alive, size=size, fill_value=num_boxes)[0]
+        picked = box_histograms(image, jnp.take(boxes, index, axis=0, mode="clip"), patch_shape)
+        empty = jnp.zeros((num_boxes, NUM_FEATURES, NUM_BINS), picked.dtype)
+        return empty.at[index].set(picked, mode="drop")
+
+    bucket = smallest_bucket(largest_member(jnp.sum(alive, dtype=jnp.int32)), sizes)
+    branches = [functools.partial(compacted, size) for size in sizes]
+    return jax.lax.switch(bucket, branches, image, boxes, alive)
 
 
 def init_table(num_slots: int, num_current: int = 3, num_longrun: int = 3) -> AppearanceTable:

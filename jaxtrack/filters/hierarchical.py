@@ -47,6 +47,12 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
    birth still counts it); entries and exits are labelled offline at learned zones
    (:func:`~jaxtrack.filters.hier_events.label_exits`).
 
+Steps 2b to 5 read the colour histograms of the low-level tracks' boxes on the frame and on
+the background image, and only those of live tracks (every read is of a track a tracker
+follows, or of a candidate, under masks that discard the others): they are computed for the
+live low-level slots only (:func:`~jaxtrack.filters.hier_appearance.live_box_histograms`,
+zero in the free slots), at a cost that follows the number of live tracks, not of slots.
+
 The output (:class:`HierarchicalInfo`) is that of the other trackers: ``tracks`` are the
 high-level trackers whose low-level track is confirmed and measured on the frame (posterior
 boxes), under the high-level identity; ``candidates`` are every measured low-level track,
@@ -78,8 +84,8 @@ from jaxtrack.filters.hier_appearance import (
     PATCH_SHAPE,
     AppearanceParams,
     AppearanceTable,
-    box_histograms,
     init_table,
+    live_box_histograms,
     reset_slots,
     update_appearance,
 )
@@ -589,8 +595,10 @@ def hierarchical_step(
 
     height, width = params.background.shape[:2]
     high = _follow(state.high, low, boxes, velocity, params.max_lost, (width, height))
-    histograms = box_histograms(inputs.frame, boxes, patch_shape)
-    background = box_histograms(params.background, boxes, patch_shape)
+    # Only live tracks' histograms are read (every read below is masked by slots that follow
+    # a live track, or by candidates, which are live): dead slots get zeros, at no cost.
+    histograms = live_box_histograms(inputs.frame, boxes, low.alive, patch_shape)
+    background = live_box_histograms(params.background, boxes, low.alive, patch_shape)
     high, low, released, released_pairs = _check_resumed(
         state, high, low, measured, histograms, params
     )

@@ -30,7 +30,7 @@ import numpy as np
 from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
 from jaxtrack.errors import InputError
 from jaxtrack.filters.base import Filter, frame_rate
-from jaxtrack.filters.hier_appearance import PATCH_SHAPE
+from jaxtrack.filters.hier_appearance import PATCH_SHAPE, bucket_sizes
 from jaxtrack.filters.hier_appearance import default_params as default_appearance_params
 from jaxtrack.filters.hier_events import default_event_params
 from jaxtrack.filters.hier_exchanges import DEFAULT_MARGIN, margin_parameter
@@ -347,15 +347,21 @@ def hierarchical_memory_estimate(
     """The tracker's memory for a detection capacity, from the sizes (frames left out).
 
     The state holds, per high-level slot, the 49 x 64 mean histograms and their statistics;
-    a step's temporaries are the histograms of every low-level box on the frame and on the
-    background (``2 x T x 49 x 64`` floats) and their patch samples; the per-frame outputs
-    are two track tables and the slots' events, pools and distances.
+    a step's temporaries are the histograms of every low-level slot on the frame and on the
+    background (``2 x T x 49 x 64`` floats, zero in free slots) and those of the live slots
+    compacted into a bucket, with their patch samples
+    (:func:`~jaxtrack.filters.hier_appearance.live_box_histograms`; counted for every bucket
+    of :func:`~jaxtrack.filters.hier_appearance.bucket_sizes`, fewer than ``2 T`` boxes,
+    whichever runs); the per-frame outputs are two track tables and the slots' events, pools
+    and distances.
     """
     if config.variant == "kalman":
         return kalman_memory_estimate(config, capacity, chunk_frames)
     tracks, trackers = config.max_tracks, config.max_trackers
     state = 4 * trackers * 49 * (64 + 8) + 4 * tracks * 64 + 64 * trackers
-    temporaries = 4 * tracks * (2 * 49 * 64 + 4 * 256 * 3) + 4 * tracks * capacity * 8
+    compacted = sum(bucket_sizes(tracks))
+    temporaries = 4 * tracks * 2 * 49 * 64 + 4 * compacted * (2 * 49 * 64 + 4 * 256 * 3)
+    temporaries += 4 * tracks * capacity * 8
     frame_output = 25 * (tracks + trackers) + 4 * trackers * (60 + 4 * 4) + 20 * tracks
     chunk = 2 * state + temporaries
     chunk += chunk_frames * (DETECTION_SLOT_BYTES * capacity + frame_output)
