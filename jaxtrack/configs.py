@@ -45,6 +45,32 @@ SMOOTHING = Rule(
     str,
     choices=SMOOTHINGS,
 )
+#: Largest ``retrodiction`` (frames).
+MAX_RETRODICTION = 1000
+#: The retrodiction rule of the trackers that offer it (``retrodiction``: the PHD and Fusion
+#: trackers; :mod:`jaxtrack.association.retrodiction`).
+RETRODICTION = Rule(
+    "offline output: the most frames each confirmed track is extended backwards onto "
+    "the detections before its first box (each taken detection overlaps the track's "
+    "constant-velocity box by IoU >= 0.5 and no output box; the walk stops at the "
+    "first frame without one); 0: off",
+    int,
+    0,
+    MAX_RETRODICTION,
+)
+
+
+def check_retrodiction(config: Any) -> None:
+    """Refuses a ``retrodiction`` with the online output (it would be ignored).
+
+    Raises:
+        InputError: ``config.retrodiction > 0`` and ``config.output != "offline"``.
+    """
+    if config.retrodiction and config.output != "offline":
+        raise InputError(
+            f"retrodiction {config.retrodiction} extends the offline output; with output "
+            f"{config.output!r} it would be ignored (set it to 0 or use the offline output)"
+        )
 
 
 def setting(default: Any, rule: Rule) -> Any:

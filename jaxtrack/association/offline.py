@@ -14,7 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from jaxtrack.boxes import iou_matrix
 from jaxtrack.types import MotTable, Tracks
+
+#: Rows (after the first) over which :func:`chain_candidates` measures a velocity.
+CHAIN_VELOCITY_ROWS = 5
 
 
 def track_rows(tracks: Tracks, first_frame: int = 1) -> MotTable:
@@ -39,7 +43,12 @@ def track_rows(tracks: Tracks, first_frame: int = 1) -> MotTable:
 
 
 def finalise_tracks(
-    tracks: Tracks, candidates: Tracks, max_gap: int = 0, first_frame: int = 1, trim: bool = False
+    tracks: Tracks,
+    candidates: Tracks,
+    max_gap: int = 0,
+    first_frame: int = 1,
+    trim: bool = False,
+    chain_iou: float = 0.0,
 ) -> MotTable:
     """Offline output: confirmed tracks over their whole life, short gaps interpolated.
 
@@ -50,6 +59,9 @@ def finalise_tracks(
         first_frame: frame number of index 0.
         trim: drop the rows of score 0 before an identity's first row of positive score and
             after its last one (an identity without any is dropped whole).
+        chain_iou: when positive, each confirmed identity first takes over the candidates
+            that were never confirmed and ended just before it began
+            (:func:`chain_candidates`, within ``max_gap`` frames, at this IoU); 0: off.
 
     Returns:
         The rows of every identity that appears in ``tracks``, taken from ``candidates``,
@@ -58,6 +70,8 @@ def finalise_tracks(
     """
     online = track_rows(tracks, first_frame)
     rows = track_rows(candidates, first_frame)
+    if chain_iou > 0:
+        rows = chain_candidates(rows, np.unique(online.ids), max_gap, chain_iou)
     kept = rows.select(np.isin(rows.ids, online.ids))
     if trim:
         kept = kept.select(_within_evidence(kept))
@@ -98,3 +112,68 @@ def _within_evidence(rows: MotTable) -> np.ndarray:
     np.minimum.at(first, index[positive], rows.frames[positive])
     np.maximum.at(last, index[positive], rows.frames[positive])
     return (rows.frames >= first[index]) & (rows.frames <= last[index])
+
+
+def _first_rows(rows: MotTable, own: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """An identity's first frame, first box and the velocity of its top-left corner over its
+    first :data:`CHAIN_VELOCITY_ROWS` + 1 rows (``own``: its rows in frame order)."""
+    box = rows.boxes[own[0]]
+    last = own[min(CHAIN_VELOCITY_ROWS, own.size - 1)]
+    steps = max(int(rows.frames[last] - rows.frames[own[0]]), 1)
+    return int(rows.frames[own[0]]), box, (rows.boxes[last, :2] - box[:2]) / steps
+
+
+def chain_candidates(
+    rows: MotTable, confirmed: np.ndarray, max_gap: int, min_iou: float
+) -> MotTable:
+    """Candidates that were never confirmed, relabelled as the confirmed identity they led to.
+
+    A tracker that votes targets in (the Fusion tracker) drops a hypothesis on its first
+    frame without support, and a new hypothesis on the same person starts on the next
+    detection. Only the one that is voted in keeps its rows in the offline output. Here each
+    confirmed identity (in the order of its first row) walks backwards: its first box is
+    moved back at the velocity of its first rows
+    to the last frame ``f`` of every unconfirmed, unclaimed identity that ended at most
+    ``max_gap + 1`` frames before the confirmed identity's first frame. The identity whose
+    last box the moved box overlaps most, by IoU ``min_iou`` or more, is taken over: its rows
+    get the confirmed identity. The walk goes on from its first row and stops when no
+    identity qualifies. The gap between them is left to the gap interpolation.
+
+    Args:
+        rows: every candidate row (confirmed and unconfirmed identities).
+        confirmed: the identities that were confirmed.
+        max_gap: the most frames between a taken identity's last row and the next row.
+        min_iou: smallest overlap of the moved box with the taken identity's last box.
+
+    Returns:
+        ``rows`` with the taken identities relabelled (same rows, same order).
+    """
+    ids = np.asarray(rows.ids).copy()
+    order = np.lexsort((rows.frames, ids))
+    unique, starts = np.unique(ids[order], return_index=True)
+    groups = dict(zip(unique.tolist(), np.split(order, starts[1:]), strict=True))
+    open_ids = [i for i in groups if i not in set(np.asarray(confirmed).tolist())]
+    ends = {i: int(rows.frames[groups[i][-1]]) for i in open_ids}
+    heads = sorted(
+        (int(rows.frames[groups[i][0]]), i) for i in np.asarray(confirmed).tolist() if i in groups
+    )
+    for _, identity in heads:
+        frame, box, velocity = _first_rows(rows, groups[identity])
+        while True:
+            near = [i for i in open_ids if frame - max_gap - 1 <= ends[i] < frame]
+            if not near:
+                break
+            last_boxes = np.stack([rows.boxes[groups[i][-1]] for i in near])
+            moved = np.stack([box] * len(near))
+            moved[:, :2] -= velocity * (frame - np.asarray([ends[i] for i in near]))[:, None]
+            overlap = np.diag(iou_matrix(moved, last_boxes, xp=np))
+            best = int(np.argmax(overlap))
+            if overlap[best] < min_iou:
+                break
+            taken = near[best]
+            open_ids.remove(taken)
+            ids[groups[taken]] = identity
+            frame, box, taken_velocity = _first_rows(rows, groups[taken])
+            if groups[taken].size > 1:
+                velocity = taken_velocity
+    return MotTable.from_arrays(rows.frames, ids, rows.boxes, rows.confs, rows.extra)

@@ -15,14 +15,13 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable, Iterable
 
-from jaxtrack.configs import TrackerConfig, load_config_file
+from jaxtrack.configs import MAX_RETRODICTION, TrackerConfig, load_config_file
 from jaxtrack.errors import InputError
 from jaxtrack.filters.fusion import FUSIONS, MEMBERS
 from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.filters.phd_tracker import (
     MAX_BIRTHS_PER_DETECTION,
     MAX_PARTICLES,
-    MAX_RETRODICTION,
     VARIANTS,
 )
 from jaxtrack.filters.registry import TRACKERS, tracker_entry

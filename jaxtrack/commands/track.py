@@ -124,7 +124,12 @@ and how the context was learned (``training``). Its configuration (``FusionConfi
 training span), ``learning_rate``, ``appearance_weight`` (the detection member's signature
 term, 60; 0: motion alone), ``exchange_margin`` (two targets that met swap identities once
 apart when each one's signature is nearer the other's detection by this much, 0.2;
-negative: never), ``max_targets``, ``output``, ``max_gap``, ``smoothing``;
+negative: never), ``max_targets``, ``output``, ``max_gap``, ``retrodiction`` (the offline
+output extends each target backwards onto the detections before its first box, at the
+detection member's support gate IoU 0.3; 0, off, by default), ``hypothesis_rows``
+(``"chained"``, default: the hypotheses dropped just before a target's voted-in one, at its
+walked-back place, are its rows too; ``"voted"``: its rows start with the one voted in),
+``smoothing``;
 ``--pool`` and ``--fusion`` override the file's.
 
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance

@@ -24,7 +24,16 @@ from typing import Any, ClassVar, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
+from jaxtrack.configs import (
+    MAX_GAP,
+    OUTPUT,
+    RETRODICTION,
+    SMOOTHING,
+    Rule,
+    TrackerConfig,
+    check_retrodiction,
+    setting,
+)
 from jaxtrack.context.activity import ACTIVITY_CELL, grid_shape
 from jaxtrack.context.motion_models import MotionModels, Tracklets, fit_motion_models
 from jaxtrack.context.zones import SceneZones
@@ -82,6 +91,8 @@ REID_RADIUS, REID_GATE = 2.0, 0.35
 #: rose from 30 to 150 alike on the scenes, 60 was best on PETS), then confirmed on the
 #: same data's blobs.
 APPEARANCE_WEIGHT = 60.0
+#: The offline output's hypothesis rules (``FusionConfig.hypothesis_rows``).
+HYPOTHESIS_ROWS = ("voted", "chained")
 #: Margin of the exchange check (``FusionConfig.exchange_margin``; session 53). Chosen among
 #: 0.1, 0.2 and 0.3 on development data only (PETS09-S2L1 1:397 and synthetic video seeds
 #: 0-2, 4-6, their detections and blobs): 0.1 made one wrong swap on PETS09-S2L1's
@@ -95,6 +106,10 @@ class FusionConfig(TrackerConfig):
 
     tracker: ClassVar[str] = "fusion"
     trims_tails: ClassVar[bool] = True
+    #: Overlap of a retrodicted detection with the walked box: the detection member's own
+    #: support gate (the MOT15 detector's boxes change size from frame to frame too much
+    #: for IoU 0.5 between consecutive ones).
+    retrodiction_iou: ClassVar[float] = GATE
 
     pool: str = setting(
         "detection,classifier,predictor",
@@ -165,7 +180,29 @@ class FusionConfig(TrackerConfig):
     max_targets: int = setting(32, Rule("slots for targets and hypotheses", int, 1, 1024))
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(25, MAX_GAP)
+    retrodiction: int = setting(0, RETRODICTION)
+    hypothesis_rows: str = setting(
+        "chained",
+        Rule(
+            "offline output: 'chained', the hypotheses dropped just before a target's "
+            "voted-in one at its walked-back place (within max_gap frames, IoU >= 0.3) are "
+            "its rows too; 'voted', its rows start with the hypothesis voted in",
+            str,
+            choices=HYPOTHESIS_ROWS,
+        ),
+    )
     smoothing: str = setting("none", SMOOTHING)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_retrodiction(self)
+
+    @property
+    def chain_iou(self) -> float:
+        """The IoU of :func:`~jaxtrack.association.offline.chain_candidates` (0: off). Like
+        ``max_gap``, a rule of the offline output (the online output has no rows before a
+        target's vote)."""
+        return GATE if self.hypothesis_rows == "chained" else 0.0
 
 
 class FusionContext(NamedTuple):

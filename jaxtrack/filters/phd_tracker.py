@@ -36,7 +36,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxtrack.configs import MAX_GAP, OUTPUT, SMOOTHING, Rule, TrackerConfig, setting
+from jaxtrack.configs import (
+    MAX_GAP,
+    OUTPUT,
+    RETRODICTION,
+    SMOOTHING,
+    Rule,
+    TrackerConfig,
+    check_retrodiction,
+    setting,
+)
 from jaxtrack.context.intensity import Intensity, birth_speed_limit, uniform_birth_intensity
 from jaxtrack.context.learn import volume_mass
 from jaxtrack.context.scores import ScoreCalibration, calibration_from_metadata
@@ -61,8 +70,6 @@ from jaxtrack.types import SequenceInfo
 MAX_PARTICLES = 1 << 20
 #: Largest ``births_per_detection``.
 MAX_BIRTHS_PER_DETECTION = 1024
-#: Largest ``retrodiction`` (frames).
-MAX_RETRODICTION = 1000
 #: Largest birth, initial or clutter rate (per frame).
 MAX_RATE = 1e4
 #: Estimate slots of the ``"gmm"`` extraction (mixture components) and track-table slots.
@@ -151,18 +158,7 @@ class PHDConfig(TrackerConfig):
     )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
-    retrodiction: int = setting(
-        0,
-        Rule(
-            "offline output: the most frames each confirmed track is extended backwards onto "
-            "the detections before its first box (each taken detection overlaps the track's "
-            "constant-velocity box by IoU >= 0.5 and no output box; the walk stops at the "
-            "first frame without one); 0: off",
-            int,
-            0,
-            MAX_RETRODICTION,
-        ),
-    )
+    retrodiction: int = setting(0, RETRODICTION)
     smoothing: str = setting("none", SMOOTHING)
     birth_velocity: str = setting(
         "uniform",
@@ -189,11 +185,7 @@ class PHDConfig(TrackerConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.retrodiction and self.output != "offline":
-            raise InputError(
-                f"retrodiction {self.retrodiction} extends the offline output; with output "
-                f"{self.output!r} it would be ignored (set it to 0 or use the offline output)"
-            )
+        check_retrodiction(self)
 
 
 class Variant(NamedTuple):

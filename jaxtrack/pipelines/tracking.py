@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from jaxtrack.association.estimates import Estimates
 from jaxtrack.association.offline import finalise_tracks, track_rows
-from jaxtrack.association.retrodiction import detection_rows, retrodict
+from jaxtrack.association.retrodiction import RETRODICTION_IOU, detection_rows, retrodict
 from jaxtrack.association.smoothing import smooth_tracks
 from jaxtrack.configs import TrackerConfig
 from jaxtrack.context.io import load_context_parts
@@ -280,11 +280,19 @@ def output_rows(
     if config.output == "online":
         return track_rows(info.tracks, first_frame)
     rows = finalise_tracks(
-        info.tracks, info.candidates, config.max_gap, first_frame, trim=config.trims_tails
+        info.tracks,
+        info.candidates,
+        config.max_gap,
+        first_frame,
+        trim=config.trims_tails,
+        chain_iou=getattr(config, "chain_iou", 0.0),
     )
     frames = getattr(config, "retrodiction", 0)
     if frames and detections is not None:
-        rows = retrodict(rows, detection_rows(detections, first_frame), first_frame, frames)
+        min_iou = getattr(config, "retrodiction_iou", RETRODICTION_IOU)
+        rows = retrodict(
+            rows, detection_rows(detections, first_frame), first_frame, frames, min_iou
+        )
     if getattr(config, "smoothing", "none") == "rts":
         rows = smooth_tracks(rows, *smoothing_noise(config))
     return rows

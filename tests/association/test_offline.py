@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxtrack.association.offline import finalise_tracks, track_rows
-from jaxtrack.types import PAD_BOX, Tracks
+from jaxtrack.association.offline import chain_candidates, finalise_tracks, track_rows
+from jaxtrack.types import PAD_BOX, MotTable, Tracks
 
 
 def _tracks(rows, num_frames=8, capacity=3):
@@ -46,3 +46,70 @@ def test_finalise_backfills_confirmed_tracks_and_interpolates_short_gaps():
     assert np.all(np.diff(rows.frames) >= 0)
     no_gap = finalise_tracks(_tracks(online), _tracks(candidates))
     assert np.sum(no_gap.ids == 1) == 6
+
+
+def _table(rows):
+    """A table from ``(frame, id, x)`` rows, boxes ``(x, 10, 20, 40)``, scores 1."""
+    frames, ids, xs = (np.asarray(column) for column in zip(*rows, strict=True))
+    boxes = np.stack(
+        [xs, np.full(xs.shape, 10.0), np.full(xs.shape, 20.0), np.full(xs.shape, 40.0)], 1
+    )
+    return MotTable.from_arrays(frames, ids, boxes)
+
+
+def test_chain_candidates_walks_back_through_dropped_hypotheses():
+    # Confirmed id 9 starts at frame 20 at x = 100, moving +2 px a frame (rows 20-25).
+    # Hypothesis 3 (frames 12-17, x = 84 .. 94) ends 3 frames before it, where 9 walked back
+    # lies (x = 94 at frame 17). Hypothesis 2 (frames 5-9, x = 76 .. 84) ends 3 frames before
+    # 3 began, near 3 walked back at its own velocity (x = 78: IoU 14 / 26). Hypothesis 4
+    # ends at frame 19 far away
+    # (x = 400); hypothesis 5 ends at frame 1, 11 frames before 2 began.
+    confirmed = [(f, 9, 100.0 + 2 * (f - 20)) for f in range(20, 26)]
+    three = [(f, 3, 94.0 - 2 * (17 - f)) for f in range(12, 18)]
+    two = [(f, 2, 84.0 - 2 * (9 - f)) for f in range(5, 10)]
+    four = [(19, 4, 400.0)]
+    five = [(1, 5, 70.0)]
+    rows = _table(confirmed + three + two + four + five)
+    chained = chain_candidates(rows, np.array([9]), max_gap=2, min_iou=0.3)
+    np.testing.assert_array_equal(chained.frames, rows.frames)
+    np.testing.assert_array_equal(chained.boxes, rows.boxes)
+    assert np.all(chained.ids[rows.ids == 3] == 9) and np.all(chained.ids[rows.ids == 2] == 9)
+    assert np.all(chained.ids[rows.ids == 4] == 4) and np.all(chained.ids[rows.ids == 5] == 5)
+    assert np.all(chained.ids[rows.ids == 9] == 9)
+    # A gap longer than max_gap + 1 stops the walk before hypothesis 3.
+    short = chain_candidates(rows, np.array([9]), max_gap=1, min_iou=0.3)
+    assert np.all(short.ids[rows.ids == 3] == 3)
+    # An overlap below min_iou too: 3's last box 10 px off the walked box (IoU 10 / 30).
+    off = _table(confirmed + [(f, 3, 104.0) for f in range(12, 18)])
+    np.testing.assert_array_equal(chain_candidates(off, np.array([9]), 2, 0.34).ids, off.ids)
+    np.testing.assert_array_equal(chain_candidates(off, np.array([9]), 2, 0.33).ids, [9] * 12)
+
+
+def test_chain_candidates_gives_each_hypothesis_to_one_target_and_feeds_the_gaps():
+    # Two confirmed identities on one path (7 from frame 10, 8 from frame 11): the earlier
+    # takes hypothesis 1 (frames 5-8); 8 finds nothing left.
+    rows = _table(
+        [(f, 7, 50.0) for f in range(10, 13)]
+        + [(f, 8, 50.0) for f in range(11, 13)]
+        + [(f, 1, 50.0) for f in range(5, 9)]
+    )
+    chained = chain_candidates(rows, np.array([7, 8]), max_gap=3, min_iou=0.3)
+    assert np.all(chained.ids[rows.ids == 1] == 7)
+    # In finalise_tracks (frame indices; rows numbered from 1): hypothesis 2 (indices 0-2)
+    # dropped, target 6's hypothesis from index 4, confirmed at 5; chained, 6's rows start at
+    # frame 1 and the gap (frame 4) is interpolated; without chaining they start at frame 5.
+    candidates = [(t, 1, 2, 20.0) for t in (0, 1, 2)] + [(t, 0, 6, 20.0) for t in (4, 5, 6, 7)]
+    online = [(t, 0, 6, 20.0) for t in (5, 6, 7)]
+    plain = finalise_tracks(_tracks(online), _tracks(candidates), max_gap=2)
+    linked = finalise_tracks(_tracks(online), _tracks(candidates), max_gap=2, chain_iou=0.3)
+    np.testing.assert_array_equal(plain.frames, [5, 6, 7, 8])
+    np.testing.assert_array_equal(linked.frames, np.arange(1, 9))
+    assert set(linked.ids.tolist()) == {6}
+
+
+def test_the_fusion_configuration_chains_at_its_support_gate():
+    from jaxtrack.filters.fusion_tracker import GATE, FusionConfig
+
+    assert FusionConfig().chain_iou == GATE
+    assert FusionConfig(hypothesis_rows="voted").chain_iou == 0.0
+    assert FusionConfig(output="online").output == "online"  # the default is no error there

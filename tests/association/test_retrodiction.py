@@ -110,6 +110,35 @@ def test_online_output_with_retrodiction_is_refused():
     assert PHDConfig.from_dict(config.to_dict()) == config
 
 
+def test_fusion_retrodiction_walks_at_its_support_gate():
+    """The Fusion tracker's retrodiction takes a detection that overlaps the walked box by
+    IoU 12/28 = 0.43 (its support gate is 0.3); the PHD tracker's (IoU 0.5) does not."""
+    from types import SimpleNamespace
+
+    from jaxtrack.filters.fusion_tracker import FusionConfig
+    from jaxtrack.pipelines.tracking import output_rows
+    from jaxtrack.types import Tracks
+
+    # one slot, identity 1, still at x = 100 on frames 4-6 (score 1); frames 1-3 empty
+    present = np.arange(6)[:, None] >= 3
+    boxes = np.where(present[..., None], np.array([100.0, 50.0, W, H]), np.array(PAD_BOX))
+    tracks = Tracks(boxes, np.where(present, 1, -1), present.astype(float), present)
+    info = SimpleNamespace(tracks=tracks, candidates=tracks)
+    # a detection on frame 3 shifted by 8 px (IoU (20 - 8) / (20 + 8) with the track's box)
+    det_boxes = np.tile(np.asarray(PAD_BOX, np.float32), (6, 1, 1))
+    det_boxes[2, 0] = (108.0, 50.0, W, H)
+    mask = np.zeros((6, 1), bool)
+    mask[2, 0] = True
+    detections = Detections(det_boxes, mask.astype(np.float32), mask)
+    fusion = output_rows(info, FusionConfig(retrodiction=5, max_gap=0), 1, detections)
+    phd = output_rows(info, PHDConfig(retrodiction=5, max_gap=0), 1, detections)
+    assert sorted(fusion.frames.tolist()) == [3, 4, 5, 6]
+    np.testing.assert_allclose(fusion.boxes[fusion.frames == 3], [[108.0, 50.0, W, H]])
+    assert sorted(phd.frames.tolist()) == [4, 5, 6]
+    with pytest.raises(InputError, match="offline"):
+        FusionConfig(output="online", retrodiction=5)
+
+
 def test_tracker_with_retrodiction_adds_rows_on_detections_and_fewer_misses(mot15_root):
     """TUD-Campus 1:40 (its own detections and ground truth): the retrodicted output is the
     plain output plus rows that are detections of the run, each before its track's first
