@@ -7,7 +7,9 @@ is an offline alternative to the online output: it keeps the whole history of ev
 that was confirmed at some point (the frames before its confirmation included) and fills
 gaps of at most ``max_gap`` frames by linear interpolation of the boxes, and, for a tracker
 whose rows of score 0 are predictions without evidence (the Fusion tracker's coasting
-targets), drops each identity's leading and trailing rows of score 0 (``trim``).
+targets), drops each identity's leading and trailing rows of score 0 (``trim``). For a
+tracker that votes targets in, :func:`chain_candidates` (``chain_iou``) first gives each
+confirmed identity the hypotheses that were dropped just before it at its place.
 """
 
 from __future__ import annotations
