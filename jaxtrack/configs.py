@@ -52,8 +52,9 @@ MAX_RETRODICTION = 1000
 RETRODICTION = Rule(
     "offline output: the most frames each confirmed track is extended backwards onto "
     "the detections before its first box (each taken detection overlaps the track's "
-    "constant-velocity box by IoU >= 0.5 and no output box; the walk stops at the "
-    "first frame without one); 0: off",
+    "constant-velocity box, by IoU >= 0.5 for the PHD tracker and >= 0.3, its support "
+    "gate, for the Fusion tracker, and no output box; the walk stops at the first frame "
+    "without one); 0: off",
     int,
     0,
     MAX_RETRODICTION,

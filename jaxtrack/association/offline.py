@@ -19,8 +19,9 @@ import numpy as np
 from jaxtrack.boxes import iou_matrix
 from jaxtrack.types import MotTable, Tracks
 
-#: Rows (after the first) over which :func:`chain_candidates` measures a velocity.
-CHAIN_VELOCITY_ROWS = 5
+#: Rows (after the first) over which a track's first velocity is measured
+#: (:func:`first_motion`: the chaining here and the retrodiction's walk).
+VELOCITY_ROWS = 5
 
 
 def track_rows(tracks: Tracks, first_frame: int = 1) -> MotTable:
@@ -116,11 +117,12 @@ def _within_evidence(rows: MotTable) -> np.ndarray:
     return (rows.frames >= first[index]) & (rows.frames <= last[index])
 
 
-def _first_rows(rows: MotTable, own: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+def first_motion(rows: MotTable, own: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """An identity's first frame, first box and the velocity of its top-left corner over its
-    first :data:`CHAIN_VELOCITY_ROWS` + 1 rows (``own``: its rows in frame order)."""
+    first :data:`VELOCITY_ROWS` + 1 rows (``own``: its rows in frame order; 0 for a single
+    row), pixels per frame."""
     box = rows.boxes[own[0]]
-    last = own[min(CHAIN_VELOCITY_ROWS, own.size - 1)]
+    last = own[min(VELOCITY_ROWS, own.size - 1)]
     steps = max(int(rows.frames[last] - rows.frames[own[0]]), 1)
     return int(rows.frames[own[0]]), box, (rows.boxes[last, :2] - box[:2]) / steps
 
@@ -154,13 +156,12 @@ def chain_candidates(
     order = np.lexsort((rows.frames, ids))
     unique, starts = np.unique(ids[order], return_index=True)
     groups = dict(zip(unique.tolist(), np.split(order, starts[1:]), strict=True))
-    open_ids = [i for i in groups if i not in set(np.asarray(confirmed).tolist())]
+    confirmed_ids = set(np.asarray(confirmed).tolist())
+    open_ids = [i for i in groups if i not in confirmed_ids]
     ends = {i: int(rows.frames[groups[i][-1]]) for i in open_ids}
-    heads = sorted(
-        (int(rows.frames[groups[i][0]]), i) for i in np.asarray(confirmed).tolist() if i in groups
-    )
+    heads = sorted((int(rows.frames[groups[i][0]]), i) for i in confirmed_ids if i in groups)
     for _, identity in heads:
-        frame, box, velocity = _first_rows(rows, groups[identity])
+        frame, box, velocity = first_motion(rows, groups[identity])
         while True:
             near = [i for i in open_ids if frame - max_gap - 1 <= ends[i] < frame]
             if not near:
@@ -175,7 +176,7 @@ def chain_candidates(
             taken = near[best]
             open_ids.remove(taken)
             ids[groups[taken]] = identity
-            frame, box, taken_velocity = _first_rows(rows, groups[taken])
+            frame, box, taken_velocity = first_motion(rows, groups[taken])
             if groups[taken].size > 1:
                 velocity = taken_velocity
     return MotTable.from_arrays(rows.frames, ids, rows.boxes, rows.confs, rows.extra)

@@ -23,15 +23,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxtrack.association.offline import track_rows
+from jaxtrack.association.offline import first_motion, track_rows
 from jaxtrack.boxes import iou_matrix
 from jaxtrack.types import Detections, MotTable, Tracks
 
 #: Overlap of the constant-velocity box with the detection it takes: the CLEAR MOT match
 #: threshold, so that a taken detection is one that would match the same object.
 RETRODICTION_IOU = 0.5
-#: Rows (after the first) the walk's velocity is measured over.
-VELOCITY_ROWS = 5
 
 
 def detection_rows(detections: Detections, first_frame: int = 1) -> MotTable:
@@ -53,7 +51,8 @@ def retrodict(
 
     Identities are taken in the order of their first frame (then identity). For each, with
     ``b`` its first box, ``f0`` its frame and ``v`` the velocity of its top-left corner over
-    its first :data:`VELOCITY_ROWS` + 1 rows (pixels per frame; 0 for a single row), frames
+    its first :data:`~jaxtrack.association.offline.VELOCITY_ROWS` + 1 rows (pixels per frame;
+    0 for a single row; :func:`~jaxtrack.association.offline.first_motion`), frames
     ``f0 - 1, f0 - 2, ...`` are visited: the box ``b`` moved by ``-v`` is compared with the
     frame's detections that no output box (``rows`` and the rows added so far) overlaps by
     ``min_iou``; the most overlapping one, if its IoU is at least ``min_iou``, becomes the
@@ -93,11 +92,8 @@ def retrodict(
     added: list[tuple[int, int, np.ndarray, float]] = []
     for identity in identities[np.argsort(starts, kind="stable")]:
         own = order[rows.ids[order] == identity]
-        box = rows.boxes[own[0]].copy()
-        frame0 = int(rows.frames[own[0]])
-        last = own[min(VELOCITY_ROWS, own.size - 1)]
-        steps = max(int(rows.frames[last]) - frame0, 1)
-        velocity = (rows.boxes[last, :2] - box[:2]) / steps
+        frame0, box, velocity = first_motion(rows, own)
+        box = box.copy()
         for frame in range(frame0 - 1, max(first_frame, frame0 - max_frames) - 1, -1):
             box[:2] -= velocity
             own_dets = by_frame.get(frame, _NONE)
