@@ -20,8 +20,9 @@ one batch and one compile.
   ``--loop-configs K`` times the first K of every variant's grid and extrapolates to 162
   (stated in the JSON).
 
-Prints one JSON line with both times, the ratio and both throughputs in tracker-frames per
-second. The context learning is not timed.
+Prints one JSON line with both times, the ratio, both throughputs in tracker-frames per
+second and where the sweep's time went (``sweep_phases_s``: tracing, compile, waiting for
+the devices, scoring; :class:`~jaxtrack.pipelines.sweep.SweepResult`'s ``seconds``). The context learning is not timed.
 ``--frame-capacity split`` runs both with :class:`~jaxtrack.filters.phd_tracker.PHDConfig`'s
 ``frame_capacity="split"`` (frames that fit in half the slots run on that half).
 Usage: ``python benchmarks/sweep_speed.py [--host-devices N] [--loop-configs 12]
@@ -176,6 +177,10 @@ def main() -> None:
                 "detection_slots": int(detections.mask.shape[1]),
                 "max_detections_per_frame": int(np.max(np.sum(test.detections.mask, axis=1))),
                 "sweep_s": sweep_s,
+                # SweepResult.seconds: tracing and lowering, XLA's compile, the host waiting
+                # for the devices, the host's post-processing and scoring (overlapped with
+                # the devices' next chunk, except the last).
+                "sweep_phases_s": result.seconds,
                 "sweep_tracker_frames_per_s": num_configs * num_frames / sweep_s,
                 "loop_tracker_frames_per_s": num_configs * num_frames / loop_s,
                 "loop_s": loop_s,

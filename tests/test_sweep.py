@@ -95,6 +95,12 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_r
     # The grid matters: the magnitudes change the output.
     assert len({len(rows.frames) for rows in result.rows}) > 1
     assert np.ptp(result.log_likelihood) > 1.0
+    # Where the wall time went: every phase measured, and the phases (which run one after
+    # another on the host) add up to no more than the total.
+    phases = ("trace", "compile", "wait", "score")
+    assert set(result.seconds) == {*phases, "total"}
+    assert all(result.seconds[name] > 0 for name in phases)
+    assert sum(result.seconds[name] for name in phases) <= result.seconds["total"]
 
 
 def test_sweep_online_output_and_per_configuration_keys(campus, small_filter, single_run):

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import time
 from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
@@ -86,6 +87,12 @@ class SweepResult(NamedTuple):
         events: for a tracker that writes events (:func:`sweep_frames` of the hierarchical
             tracker), each configuration's event rows, as ``RES.events.csv`` holds them;
             None otherwise.
+        seconds: where :func:`sweep`'s wall time went (None from :func:`sweep_frames`):
+            ``trace`` (JAX tracing and lowering the batched program), ``compile`` (XLA),
+            ``wait`` (the host waiting for the devices' results: the first call whole, the
+            others beyond what scoring the previous chunk overlapped), ``score`` (the host's
+            post-processing and scoring, which runs while the devices run the next chunk,
+            except for the last one) and ``total`` (from tracing to the last score).
     """
 
     updates: dict[str, np.ndarray]
@@ -93,6 +100,7 @@ class SweepResult(NamedTuple):
     log_likelihood: np.ndarray
     rows: list[MotTable]
     events: list[EventRows] | None = None
+    seconds: dict[str, float] | None = None
 
 
 def product_grid(axes: Mapping[str, ArrayLike]) -> dict[str, np.ndarray]:
@@ -365,7 +373,12 @@ def sweep(
         return _put(keys[window], sharded), chunk_params, device_detections
 
     first_arguments = arguments(0)
-    compiled = _sweep_function(filt, mesh, key_impl).lower(*first_arguments).compile()
+    seconds = dict.fromkeys(("trace", "compile", "wait", "score"), 0.0)
+    start = time.perf_counter()
+    lowered = _sweep_function(filt, mesh, key_impl).lower(*first_arguments)
+    seconds["trace"] = time.perf_counter() - start
+    compiled = lowered.compile()
+    seconds["compile"] = time.perf_counter() - start - seconds["trace"]
     _check_sweep_memory(compiled, per_device, devices[:num_devices])
 
     def dispatch(c):
@@ -383,9 +396,12 @@ def sweep(
         # Fetch this chunk, launch the next, then score this one while the next runs. (Two
         # executions in flight at once can deadlock XLA's CPU client with several forced
         # host devices, so the next chunk starts only once this one is done.)
+        waited = time.perf_counter()
         tracks, candidates, chunk_log_likelihood = _gather(pending)
+        seconds["wait"] += time.perf_counter() - waited
         if c + 1 < num_chunks:
             pending = dispatch(c + 1)
+        scoring = time.perf_counter()
         for b in range(min(chunk, batch - c * chunk)):
             config_tracks = jax.tree.map(lambda x, b=b: x[b], tracks)
             if output == "offline":
@@ -405,11 +421,14 @@ def sweep(
             log_likelihood.append(chunk_log_likelihood[b])
             if gt is not None:
                 scores.append(evaluate_sequence(gt, config_rows, span, eval_config).summary())
+        seconds["score"] += time.perf_counter() - scoring
+    seconds["total"] = time.perf_counter() - start
     return SweepResult(
         updates=swept,
         scores=_score_arrays(scores),
         log_likelihood=np.asarray(log_likelihood),
         rows=rows,
+        seconds=seconds,
     )
 
 
