@@ -44,7 +44,12 @@ the recursion's at every size, and ``pairs_per_s`` the throughputs per size. Usa
 ``python benchmarks/phd_step.py [--quick]`` (``--quick``: 1e4 particles, 8 and 32 detections,
 3 repeats; under a minute on 2 cores). XLA's CPU thread pool is sized as the ``jaxtrack``
 command sizes it (one thread, :func:`jaxtrack.use_cpu_threads`) unless ``--cpu-threads``
-says otherwise (0: XLA's default, one per core); ``cpu_threads`` reports the size.
+says otherwise (0: XLA's default, one per core); ``cpu_threads`` reports the size. Under
+glibc the script restarts itself with malloc on transparent huge pages
+(``GLIBC_TUNABLES=glibc.malloc.hugetlb=1``, ``timing.use_huge_pages``; ``--huge-pages off``
+runs as started): the JAX recursion, the NumPy reference and Stone Soup all run with it, and
+``glibc_tunables`` reports it. It matters at 1e6 particles (fresh buffers of tens of MB
+each call), not at tracking sizes.
 """
 
 from __future__ import annotations
@@ -63,7 +68,13 @@ from importlib import metadata
 import jax
 import jax.numpy as jnp
 import numpy as np
-from timing import add_cpu_threads_option, set_cpu_threads, set_cpu_vector_width
+from timing import (
+    add_cpu_threads_option,
+    add_huge_pages_option,
+    set_cpu_threads,
+    set_cpu_vector_width,
+    use_huge_pages,
+)
 
 from jaxtrack.boxes import xywh_to_cxcywh
 from jaxtrack.context.intensity import log_intensity
@@ -690,7 +701,9 @@ def main() -> None:
     )
     parser.add_argument("--quick", action="store_true", help="1e4 particles, 8 and 32 detections")
     add_cpu_threads_option(parser)
+    add_huge_pages_option(parser)
     args = parser.parse_args()
+    glibc_tunables = use_huge_pages(args.huge_pages)  # may restart the script
     cpu_threads = set_cpu_threads(args.cpu_threads)
     vector_width = set_cpu_vector_width(args.vector_width)
     if args.quick:
@@ -718,6 +731,7 @@ def main() -> None:
                 "device": str(jax.devices()[0]),
                 "cpu_count": os.cpu_count(),
                 "cpu_threads": cpu_threads,
+                "glibc_tunables": glibc_tunables,
                 "cpu_vector_width": vector_width,
                 "load_average_1_5_15_min_before_and_after": [load_before, os.getloadavg()],
                 "platform": platform.platform(),

@@ -22,7 +22,8 @@ one batch and one compile.
 
 Prints one JSON line with both times, the ratio, both throughputs in tracker-frames per
 second and where the sweep's time went (``sweep_phases_s``: tracing, compile, waiting for
-the devices, scoring; :class:`~jaxtrack.pipelines.sweep.SweepResult`'s ``seconds``). The context learning is not timed.
+the devices, scoring; :class:`~jaxtrack.pipelines.sweep.SweepResult`'s ``seconds``). The
+context learning is not timed.
 ``--frame-capacity split`` runs both with :class:`~jaxtrack.filters.phd_tracker.PHDConfig`'s
 ``frame_capacity="split"`` (frames that fit in half the slots run on that half).
 Usage: ``python benchmarks/sweep_speed.py [--host-devices N] [--loop-configs 12]
