@@ -358,12 +358,16 @@ def test_context_generalisation_quick(tmp_path, capsys):
     from jaxtrack.experiments.common import (
         ERROR_KEYS,
         QUICK_TRACKER_CONFIG,
+        Split,
+        evaluate_rows,
         learn_split,
+        score_summary,
         split_halves,
     )
     from jaxtrack.experiments.context_generalisation import (
         CONTEXT_COLUMNS,
         GAIN_COLUMNS,
+        ORACLE,
         ROW_COLUMNS,
         SUMMARY_COLUMNS,
     )
@@ -374,14 +378,17 @@ def test_context_generalisation_quick(tmp_path, capsys):
     out = tmp_path / "cg"
     argv = ("--out", out, "--quick", "--quiet", "--families", "sparse-door", "--seeds", 1)
     argv += ("--particles", 200)  # instead of the quick configuration's 256
+    argv += ("--oracle",)  # also GM with a context learned on the test half
     assert _experiment("context-generalisation", *argv, "--no-real", "--no-tuned") == 0
     printed = capsys.readouterr().out
     assert printed.startswith("| " + " | ".join(GAIN_COLUMNS) + " |")
     columns, rows = _read_csv(out / "context_generalisation.csv")
     assert columns == list(ROW_COLUMNS)
     assert [(row["scene"], row["family"], row["seed"], row["variant"]) for row in rows] == [
-        ("sparse-door-1", "sparse-door", "1", name) for name in VARIANTS
+        ("sparse-door-1", "sparse-door", "1", name) for name in (*VARIANTS, ORACLE)
     ]
+    oracle_row = rows.pop()  # checked below against its own run; the rest are the variants'
+    assert "note: GM-oracle: GM with a context learned on the test half itself" in printed
     mota = {row["variant"]: float(row["MOTA"]) for row in rows}
     for row in rows:  # the gain column agrees with the MOTA column
         expected = percent_difference(float(row["MOTA"]), mota["UM"])
@@ -390,7 +397,8 @@ def test_context_generalisation_quick(tmp_path, capsys):
     assert len({(row["FP"], row["FN"]) for row in rows}) > 2
     columns, summary = _read_csv(out / "summary.csv")
     assert columns == list(SUMMARY_COLUMNS)
-    for line, row in zip(summary, rows, strict=True):  # one seed: mean = min = max = the row
+    assert summary[-1]["variant"] == ORACLE
+    for line, row in zip(summary[:-1], rows, strict=True):  # one seed: mean = min = max = row
         assert (line["group"], line["variant"], line["seeds"]) == (
             "sparse-door",
             row["variant"],
@@ -409,7 +417,8 @@ def test_context_generalisation_quick(tmp_path, capsys):
     assert printed.count("n/a: ") == 2  # PETS09-S2L1 and the uniform family were not run
     columns, contexts = _read_csv(out / "contexts.csv")
     assert columns == list(CONTEXT_COLUMNS)
-    assert [row["context"] for row in contexts] == ["tracks", "gt"]
+    assert [row["context"] for row in contexts] == ["tracks", "gt", ORACLE]
+    oracle_context = contexts.pop()
     # clutter from the ground truth in both; births from a tracker run and from the gt
     assert contexts[0]["clutter_events"] == contexts[1]["clutter_events"] != "0"
     assert all(int(row["birth_events"]) > 0 for row in contexts)
@@ -417,7 +426,8 @@ def test_context_generalisation_quick(tmp_path, capsys):
     assert all(float(row["target_clutter_rate"]) == 0 for row in contexts)
     _assert_figure_png(out / "gain.png")
     text = (out / "summary.md").read_text()
-    assert "| group | seeds | UM | GM | A1 | A2 | A3 | A4 | A5 | A6 |" in text  # no GM+tuned
+    # no GM+tuned column
+    assert "| group | seeds | UM | GM | A1 | A2 | A3 | A4 | A5 | A6 | GM-oracle |" in text
     assert "## Goals (issue 15)" in text and "Run time" in text
     assert "run by run" not in text  # no real sequence
     assert "200 particles, 8 births per detection, confirmation 'auto', quick run" in text
@@ -445,6 +455,21 @@ def test_context_generalisation_quick(tmp_path, capsys):
     }
     assert "## Misses and false positives by kind" in text
     assert f"| sparse-door | UM | 1 | {um['FN']} | {um['FP']} |" in text
+    # GM-oracle is GM with a context learned the same way on the test half: its own run
+    # gives the row's counts, and its events are the test half's, not the training half's.
+    tested = Context.from_learned(learn_split(Split(split.test, split.test), config, 1))
+    assert int(oracle_context["birth_events"]) == tested.metadata["birth"]["num_events"]
+    assert int(oracle_context["clutter_events"]) == tested.metadata["clutter"]["num_events"]
+    trained = (contexts[0]["birth_events"], contexts[0]["clutter_events"])
+    assert (oracle_context["birth_events"], oracle_context["clutter_events"]) != trained
+    oracle_params = phd_params(config, split.test.info, tested, "GM")
+    (single,) = track_sequences([split.test], config, 1, [oracle_params])
+    scores = score_summary(evaluate_rows(split.test, single))
+    assert {key: float(oracle_row[key]) for key in ("MOTA", "FP", "FN", "IDSW")} == {
+        key: scores[key] for key in ("MOTA", "FP", "FN", "IDSW")
+    }
+    assert f"| {ORACLE} | 1 |" in text  # its errors by kind are shown
+    assert f"| {float(oracle_row['MOTA_gain_pct']):.1f} |" in printed  # its gain column
 
 
 def test_generalisation_real_runs_pair_um_and_gm_per_seed():
@@ -515,6 +540,10 @@ def test_generalisation_confirmation_reaches_the_experiment(tmp_path, monkeypatc
     with pytest.raises(SystemExit):
         _experiment("context-generalisation", *argv, "--first-frame")
     assert seen["first_frame"] is True
+    assert seen["oracle"] is False
+    with pytest.raises(SystemExit):
+        _experiment("context-generalisation", *argv, "--oracle")
+    assert seen["oracle"] is True
 
 
 def test_generalisation_retrodiction_reaches_every_run(tmp_path, monkeypatch):

@@ -265,6 +265,14 @@ def _context_generalisation_extras(parser: argparse.ArgumentParser) -> None:
         "learn-context --first-frame): GM, A1, A4 and A6 start their runs from it instead "
         "of the uniform one",
     )
+    parser.add_argument(
+        "--oracle",
+        action="store_true",
+        help="also GM-oracle: GM with a context learned on each scene's test half itself "
+        "(not held out; it bounds what a better learner could give the tracker, and GM's "
+        "distance below it is the learner's generalisation gap; the goals read GM only; "
+        "adds one learning per scene)",
+    )
 
 
 def _context_generalisation(args: argparse.Namespace) -> int:
@@ -307,6 +315,7 @@ def _context_generalisation(args: argparse.Namespace) -> int:
         smoothing=args.smoothing,
         birth_velocity=args.birth_velocity,
         first_frame=args.first_frame,
+        oracle=args.oracle,
         progress=not args.quiet,
     )
     print(markdown_table(gain_table(result.summary), GAIN_COLUMNS))

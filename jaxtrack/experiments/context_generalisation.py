@@ -66,6 +66,7 @@ from jaxtrack.experiments.common import (
     environment_line,
     error_counts,
     evaluate_rows,
+    learn_split,
     markdown_table,
     output_folder,
     percent_difference,
@@ -84,8 +85,12 @@ from jaxtrack.plot.generalisation import save_gain_figure
 
 #: The tuned variant's name.
 TUNED = "GM+tuned"
-#: The variants compared, in table order (GM+tuned last, when run).
-GENERALISATION_VARIANTS = (*VARIANTS, TUNED)
+#: The name of GM with a context learned on the test span itself (``--oracle``): not a held-out
+#: result but a bound, what the learned context could give the tracker had the learner seen
+#: the very events it is scored on.
+ORACLE = "GM-oracle"
+#: The variants compared, in table order (GM+tuned and GM-oracle last, when run).
+GENERALISATION_VARIANTS = (*VARIANTS, TUNED, ORACLE)
 #: The real sequences (folders of ``DATA/mot15``), learned on the first half.
 REAL_SEQUENCES = ("PETS09-S2L1", "TUD-Stadtmitte")
 #: The sequence whose frames ``DATA/video/vtest.avi`` holds (ground truth, seqinfo).
@@ -138,7 +143,7 @@ SUMMARY_COLUMNS = (
     *ERROR_KEYS,
 )
 #: The variants whose misses and false positives by kind ``summary.md`` shows.
-ERROR_VARIANTS = ("UM", "GM", TUNED)
+ERROR_VARIANTS = ("UM", "GM", TUNED, ORACLE)
 #: The columns of the learned contexts' table (``contexts.csv``).
 CONTEXT_COLUMNS = (
     "scene",
@@ -256,6 +261,7 @@ def scene_rows(
     quick: bool = False,
     timings: dict[str, float] | None = None,
     first_frame: bool = False,
+    oracle: bool = False,
 ) -> tuple[list[dict[str, Any]], dict[str, Context]]:
     """Learns, (tunes,) tracks every variant on one scene's test span and scores them.
 
@@ -269,10 +275,13 @@ def scene_rows(
             ``scoring``), added to.
         first_frame: the contexts also learn the first frame's intensity (GM, A1, A4, A6
             and GM+tuned start from it).
+        oracle: also :data:`ORACLE`, GM with a context learned as GM's is (births from a UM
+            run, clutter from the ground truth, same seed) but on the *test* span: an upper
+            bound of what the learned context gives the tracker, not a held-out result.
 
     Returns:
         One row per variant (``variant``, the scores, ``MOTA_gain_pct``) and the learned
-        contexts (``"tracks"``, ``"gt"``, and ``TUNED`` when tuned).
+        contexts (``"tracks"``, ``"gt"``, ``TUNED`` when tuned, ``ORACLE`` with ``oracle``).
 
     Raises:
         InputError: no birth or clutter events on the training span, or a bad setting.
@@ -289,6 +298,13 @@ def scene_rows(
         contexts[TUNED] = tuning.context
         params.append(phd_params(tuning.config, info, tuning.context, "GM"))
         names.append(TUNED)
+    if oracle:
+        with _timed(timings, "learning"):
+            contexts[ORACLE] = Context.from_learned(
+                learn_split(Split(split.test, split.test), config, seed, first_frame=first_frame)
+            )
+        params.append(phd_params(config, info, contexts[ORACLE], "GM"))
+        names.append(ORACLE)
     with _timed(timings, "tracking"):
         results = track_sequences([split.test] * len(params), config, seed, common_shapes(params))
     with _timed(timings, "scoring"):
@@ -480,18 +496,21 @@ GAIN_COLUMNS = (
     TUNED,
     f"{TUNED}-UM",
     f"{TUNED} gain %",
+    ORACLE,
+    f"{ORACLE} gain %",
     "ceiling gain %",
 )
 
 
 def gain_table(summary: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """One row per group: UM's and GM's mean MOTA, GM - UM in points, GM's relative gain
-    (mean, min, max over seeds) and the same for GM+tuned (NaN when not run)."""
+    (mean, min, max over seeds), the same for GM+tuned, GM-oracle's mean MOTA and gain (NaN
+    where a variant was not run) and a perfect tracker's gain."""
     by_key = {(row["group"], row["variant"]): row for row in summary}
     table = []
     for group in dict.fromkeys(row["group"] for row in summary):
         um, gm = by_key[(group, "UM")], by_key[(group, "GM")]
-        tuned = by_key.get((group, TUNED))
+        tuned, oracle = by_key.get((group, TUNED)), by_key.get((group, ORACLE))
         table.append(
             {
                 "group": group,
@@ -505,6 +524,8 @@ def gain_table(summary: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 TUNED: math.nan if tuned is None else tuned["MOTA_mean"],
                 f"{TUNED}-UM": math.nan if tuned is None else tuned["minus_UM"],
                 f"{TUNED} gain %": math.nan if tuned is None else tuned["gain_pct_mean"],
+                ORACLE: math.nan if oracle is None else oracle["MOTA_mean"],
+                f"{ORACLE} gain %": math.nan if oracle is None else oracle["gain_pct_mean"],
                 "ceiling gain %": um["gain_ceiling_pct"],
             }
         )
@@ -516,7 +537,8 @@ def context_row(scene: str, source: str, context: Context, seed: int = 0) -> dic
     (birth, clutter and the first frame's; NaN for a part the context does not record).
 
     ``source`` names the context: ``"tracks"`` (births from a UM run: GM, A1-A5), ``"gt"``
-    (A6) or ``TUNED``; ``seed`` the run's seed (a real sequence is learned once per seed).
+    (A6), ``TUNED`` or ``ORACLE``; ``seed`` the run's seed (a real sequence is learned once
+    per seed).
     The target clutter (:mod:`jaxtrack.context.target_clutter`) is given by the detections
     found beside objects and the rate learned from them (0: not learned).
     """
@@ -534,12 +556,12 @@ def context_row(scene: str, source: str, context: Context, seed: int = 0) -> dic
 
 
 #: The columns of :func:`real_runs`' rows.
-REAL_RUN_COLUMNS = ("scene", "seed", "UM", "GM", "GM-UM", TUNED)
+REAL_RUN_COLUMNS = ("scene", "seed", "UM", "GM", "GM-UM", TUNED, ORACLE)
 
 
 def real_runs(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """UM, GM, GM - UM (points) and GM+tuned MOTA of every run of a real sequence (rows of
-    scenes outside the bank; NaN where a variant was not run)."""
+    """UM, GM, GM - UM (points), GM+tuned and GM-oracle MOTA of every run of a real sequence
+    (rows of scenes outside the bank; NaN where a variant was not run)."""
     runs: dict[tuple[str, int], dict[str, Any]] = {}
     for row in rows:
         if row["family"] in FAMILIES:
@@ -552,9 +574,10 @@ def real_runs(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 "UM": math.nan,
                 "GM": math.nan,
                 TUNED: math.nan,
+                ORACLE: math.nan,
             },
         )
-        if row["variant"] in ("UM", "GM", TUNED):
+        if row["variant"] in ("UM", "GM", TUNED, ORACLE):
             run[row["variant"]] = row["MOTA"]
     for run in runs.values():
         run["GM-UM"] = round(run["GM"] - run["UM"], 2)
@@ -576,6 +599,7 @@ def run_context_generalisation(
     smoothing: str = "none",
     birth_velocity: str = PHDConfig.birth_velocity,
     first_frame: bool = False,
+    oracle: bool = False,
     progress: bool = False,
 ) -> GeneralisationResult:
     """The whole experiment: scenes, variants, scores, summary, goals, figure, files.
@@ -611,6 +635,9 @@ def run_context_generalisation(
             ``"detections"``).
         first_frame: every context also learns the first frame's intensity
             (:func:`~jaxtrack.pipelines.context.learn_context`).
+        oracle: also :data:`ORACLE` on every scene (:func:`scene_rows`): GM with a context
+            learned on the test span itself, a bound on the gain a better learner could
+            reach, never a held-out result (the goals read GM only).
         progress: a progress bar over the scenes.
 
     Returns:
@@ -639,6 +666,13 @@ def run_context_generalisation(
             "intensity); GM, A1, A4, A6 and GM+tuned start their runs from it, UM, A2, A3 and "
             "A5 from the uniform one"
         )
+    if oracle:
+        notes.append(
+            f"{ORACLE}: GM with a context learned on the test half itself (as GM's: births "
+            "from a UM run, clutter from the ground truth, same seed). Not held out: it bounds "
+            "what the learned context could give the tracker had the learner seen the events "
+            "it is scored on; GM's distance below it is the learner's generalisation gap"
+        )
     if tuned and not tuning_takes_context():
         tuned = False
         notes.append(
@@ -660,7 +694,14 @@ def run_context_generalisation(
         bar.set_postfix_str(name)
         split = _load_scene(out, name, family, scene_seed, data, timings)
         scene, contexts = scene_rows(
-            split, config, scene_seed, tuned, quick, timings, first_frame=first_frame
+            split,
+            config,
+            scene_seed,
+            tuned,
+            quick,
+            timings,
+            first_frame=first_frame,
+            oracle=oracle,
         )
         rows += [{"scene": name, "family": family, "seed": scene_seed, **row} for row in scene]
         context_rows += [
@@ -681,7 +722,7 @@ def run_context_generalisation(
         save_gain_figure(
             summary,
             out / "gain.png",
-            variants=[v for v in ("GM", TUNED) if v in variants],
+            variants=[v for v in ("GM", TUNED, ORACLE) if v in variants],
             goal=GOAL_GAIN_PCT,
         ),
     ]
