@@ -370,6 +370,7 @@ def test_context_generalisation_quick(tmp_path, capsys):
         ORACLE,
         ROW_COLUMNS,
         SUMMARY_COLUMNS,
+        scene_rows,
     )
     from jaxtrack.filters.phd_tracker import Context, phd_params
     from jaxtrack.metrics.errors import classify_errors
@@ -469,6 +470,11 @@ def test_context_generalisation_quick(tmp_path, capsys):
         key: scores[key] for key in ("MOTA", "FP", "FN", "IDSW")
     }
     assert f"| {ORACLE} | 1 |" in text  # its errors by kind are shown
+    # --oracle leaves the other variants' runs as they are without it (its run is separate)
+    plain, _ = scene_rows(split, config, 1, tuned=False, quick=True)
+    assert [(r["variant"], r["MOTA"], r["FP"], r["FN"], r["IDSW"]) for r in plain] == [
+        (r["variant"], float(r["MOTA"]), int(r["FP"]), int(r["FN"]), int(r["IDSW"])) for r in rows
+    ]
     assert f"| {float(oracle_row['MOTA_gain_pct']):.1f} |" in printed  # its gain column
 
 
