@@ -559,6 +559,8 @@ def context_row(scene: str, source: str, context: Context, seed: int = 0) -> dic
     return row
 
 
+#: The variants whose MOTA :func:`real_runs` lists.
+REAL_RUN_VARIANTS = ("UM", "GM", TUNED, ORACLE)
 #: The columns of :func:`real_runs`' rows.
 REAL_RUN_COLUMNS = ("scene", "seed", "UM", "GM", "GM-UM", TUNED, ORACLE)
 
@@ -575,13 +577,10 @@ def real_runs(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             {
                 "scene": row["scene"],
                 "seed": row["seed"],
-                "UM": math.nan,
-                "GM": math.nan,
-                TUNED: math.nan,
-                ORACLE: math.nan,
+                **dict.fromkeys(REAL_RUN_VARIANTS, math.nan),
             },
         )
-        if row["variant"] in ("UM", "GM", TUNED, ORACLE):
+        if row["variant"] in REAL_RUN_VARIANTS:
             run[row["variant"]] = row["MOTA"]
     for run in runs.values():
         run["GM-UM"] = round(run["GM"] - run["UM"], 2)
