@@ -69,6 +69,12 @@ from jaxtrack.context.zones import zone_distance
 from jaxtrack.filters.base import Filter
 from jaxtrack.filters.births import LOG_ZERO
 from jaxtrack.filters.cmt_conditions import group_members, predicted_mean, sharing_blob
+from jaxtrack.filters.cmt_exchanges import (
+    exchange_rows,
+    next_episodes,
+    overlaps,
+    split_exchanges,
+)
 from jaxtrack.filters.cmt_observation import (
     NUM_LEVELS,
     NUM_VALUES,
@@ -157,6 +163,9 @@ class CMTParams(NamedTuple):
         velocity_rate: rate ``alpha`` of each component's long-run velocity ``v_bar <- (1 -
             alpha) v_bar + alpha v`` (:func:`held_velocities`; read only when the step is
             built with ``hold_velocity``).
+        exchange_margin: the appearance gain (nats) a split exchange needs
+            (:mod:`~jaxtrack.filters.cmt_exchanges`; read only when the step is built with
+            ``exchange``).
     """
 
     mixture: MixtureParams
@@ -170,6 +179,7 @@ class CMTParams(NamedTuple):
     zone_boxes: Float[Array, "max_zones 4"]
     zone_mask: Bool[Array, " max_zones"]
     velocity_rate: Float[Array, ""]
+    exchange_margin: Float[Array, ""]
 
 
 class Graveyard(NamedTuple):
@@ -220,6 +230,9 @@ class CMTState(NamedTuple):
             built with ``free_blob_frames`` > 0).
         score_counts: ``[SCORE_BINS]`` histogram of the scores of every blob seen so far
             (:func:`~jaxtrack.filters.score_quantile.confident_score`).
+        episodes: ``[max_components, max_components]`` each pair's split-exchange episode
+            (:func:`~jaxtrack.filters.cmt_exchanges.next_episodes`; read only when the step
+            is built with ``exchange``).
     """
 
     mixture: MixtureState
@@ -234,6 +247,7 @@ class CMTState(NamedTuple):
     graveyard: Graveyard
     free: FreeBlobs
     score_counts: Float[Array, " score_bins"]
+    episodes: Int[Array, "max_components max_components"]
 
 
 class CMTInfo(NamedTuple):
@@ -298,6 +312,7 @@ def cmt_step(
     reidentify: int = 0,
     free_blob_frames: int = 0,
     box_support: bool = False,
+    exchange: bool = False,
     step: float = STEP,
     patch_shape: tuple[int, int] = DEFAULT_PATCH_SHAPE,
     num_levels: int = NUM_LEVELS,
@@ -330,6 +345,10 @@ def cmt_step(
             likelihood (static; False: the full likelihood, as eq. 4's ``pi_m`` always is).
             With the full likelihood the appearance exponent moves every support, so the
             threshold set for ``appearance_weight`` 1 deletes components at 2.
+        exchange: with the contextual proposal, two components that collided exchange
+            identities and appearance models when they separate if the observation model
+            says each explains the other's blob better (static; False: never, the paper's
+            tracker; :mod:`~jaxtrack.filters.cmt_exchanges`).
         step: colour quantisation step ``lambda`` (static).
         patch_shape: samples per box (static).
         num_levels: quantisation levels of eq. 17 (static).
@@ -397,6 +416,22 @@ def cmt_step(
         params.appearance_weight * blob_appearance,
         params,
     )
+    exchanging = exchange and variant != "mtb"
+    appearance_before = state.appearance
+    checked = None
+    if exchanging:
+        # Identities settled by the observation model when collided components separate;
+        # the particles (this frame's weights included) stay with their clouds.
+        partner, checked = split_exchanges(
+            state.episodes,
+            owner,
+            blobs,
+            blob_appearance,
+            alive & state.confirmed,
+            params.exchange_margin,
+        )
+        mixture = mixture._replace(ids=mixture.ids[partner])
+        appearance_before = exchange_rows(partner, state.appearance)
     log_box = owned_log_likelihood(particles, params, blobs, owner)
     if group_blobs:
         log_box = jnp.maximum(
@@ -479,11 +514,14 @@ def cmt_step(
     decisions = jnp.where(born[:, None], jnp.mean(new_mixture.particles, axis=1), estimates)
     decision_features = frame_features(frame, particle_boxes(decisions), step, patch_shape)
     merge_share = jnp.sum(jnp.exp(log_weights) * (conditions == MERGE), axis=-1)
+    frozen = merge_share > 0.5
+    if exchanging:  # a component overlapping another learns nothing (cmt_exchanges)
+        frozen = frozen | jnp.any(overlaps(particle_boxes(estimates), survivors), axis=1)
     appearance = update_appearance(
-        state.appearance,
+        appearance_before,
         decision_features,
         survivors & supported,
-        merge_share > 0.5,
+        frozen,
         born,
         params.observation,
     )
@@ -515,7 +553,7 @@ def cmt_step(
             mixture.ids,
             local,
             state.frame,
-            state.appearance,
+            appearance_before,
         )
     new_state = CMTState(
         mixture=new_mixture,
@@ -530,6 +568,11 @@ def cmt_step(
         graveyard=graveyard,
         free=free,
         score_counts=score_counts,
+        episodes=state.episodes
+        if checked is None
+        else next_episodes(
+            state.episodes, checked, particle_boxes(estimates), new_mixture.alive & ~born
+        ),
     )
     info = CMTInfo(
         tracks=tracks,
@@ -577,6 +620,7 @@ def init_cmt(
             runs=jnp.zeros((max_components,), jnp.int32),
         ),
         score_counts=init_counts(),
+        episodes=jnp.zeros((max_components, max_components), jnp.int8),
     )
 
 
@@ -703,6 +747,7 @@ def cmt_filter(
     reidentify: int = 0,
     free_blob_frames: int = 0,
     box_support: bool = False,
+    exchange: bool = False,
 ) -> Filter:
     """Builds CMT; all arguments are static.
 
@@ -719,6 +764,7 @@ def cmt_filter(
         free_blob_frames: frames a blob stays unowned before it starts a component whatever
             explains it (see :func:`cmt_step`; 0: never).
         box_support: supports from the box likelihood alone (see :func:`cmt_step`).
+        exchange: compile split exchanges in (see :func:`cmt_step`).
 
     Returns:
         The :class:`~jaxtrack.filters.base.Filter` (steps on
@@ -743,6 +789,7 @@ def cmt_filter(
         reidentify=reidentify,
         free_blob_frames=free_blob_frames,
         box_support=box_support,
+        exchange=exchange,
     )
     init = functools.partial(
         init_cmt,

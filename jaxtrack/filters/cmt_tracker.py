@@ -186,6 +186,18 @@ class CMTConfig(TrackerConfig):
             100.0,
         ),
     )
+    exchange_margin: float = setting(
+        -1.0,
+        Rule(
+            "two components that collided exchange identities and appearance models when "
+            "they separate if the observation model explains each one's blob by the other's "
+            "model better by this many nats (cpd and cmt variants; "
+            "jaxtrack.filters.cmt_exchanges; negative: never, the paper's tracker)",
+            float,
+            -1.0,
+            100.0,
+        ),
+    )
     output: str = setting("offline", OUTPUT)
     max_gap: int = setting(8, MAX_GAP)
     smoothing: str = setting("none", SMOOTHING)
@@ -234,6 +246,7 @@ def cmt_params(config: CMTConfig, zones: SceneZones | None = None) -> CMTParams:
         zone_boxes=boxes,
         zone_mask=mask,
         velocity_rate=jnp.float32(config.velocity_rate),
+        exchange_margin=jnp.float32(max(config.exchange_margin, 0.0)),
     )
 
 
@@ -260,6 +273,7 @@ def build_cmt(
         reidentify_frames(config, info),
         config.free_blob_frames,
         config.support == "box",
+        config.exchange_margin >= 0,
     )
     return filt, cmt_params(config, context)
 

@@ -1,0 +1,168 @@
+"""Split exchanges: the observation model decides who is who when two components separate (not
+in the CMT paper).
+
+Two people who cross give overlapping boxes and, while one hides the other, often a single
+blob. The two components then sit on the same blob and their particle clouds can change
+places; when the people separate, each component follows the blob its motion points to, and
+the box likelihood (:func:`~jaxtrack.filters.cmt.blob_owners`) outweighs the appearance term
+by tens of nats: measured in session 61 on twelve development crossings (synthetic video seeds
+222-227, ``top`` and ``bottom`` families), on the frames after the split where each person had
+a detection of their own the motion preferred the wrong pairing on 5 of 12 crossings, by 1 to
+45 nats, while COM's appearance term (times ``appearance_weight`` 3) preferred the right one
+by 0.2-1.7 nats. CMT's argument (Sec. V, Fig. 9) is that the observation model tells such
+targets apart; with the blob's box in the likelihood it never gets the chance.
+
+Here the components that collided keep their clouds (each goes on with the blob it holds) but
+the *identities* are settled by the observation model on the first frame the two are apart:
+
+* an *episode* opens for a pair of living components whose local decisions overlap by IoU at
+  least :data:`EXCHANGE_IOU` (:func:`next_episodes`);
+* it is *checked* on the first later frame where both components are confirmed and own a blob
+  (:func:`~jaxtrack.filters.cmt.blob_owners`), the two blobs distinct and apart (IoU below
+  :data:`EXCHANGE_IOU`): with ``L_s(b)`` the log-likelihood of blob ``b``'s features under
+  component ``s``'s appearance model and weights (eq. 11: COM's ``rho`` for ``cmt``, uniform
+  for ``cpd``), the pair's gain is ``L_i(b_j) + L_j(b_i) - L_i(b_i) - L_j(b_j)``: each model
+  explains the other's blob better. The pair *exchanges* when the gain exceeds ``margin``
+  (nats): the components swap their identities and appearance models (models and decayed
+  histograms), so each identity goes on with the person its model was learned on. Pairs are
+  resolved greedily by decreasing gain, each component in at most one exchange a frame;
+* the episode then closes, whatever the outcome; a pair checked while its decisions still
+  overlap opens no new episode until they have been apart (:func:`next_episodes`);
+* while a component's decision overlaps another's (:func:`overlaps`), its appearance model
+  is frozen, as under CMT's merge condition: the box then holds parts of both people, and a
+  model that learned them could no longer tell the pair apart when they separate (on a drawn
+  crossing of two differently dressed people, without the freeze the check's gain stayed
+  below 0.5 nats after 12 merged frames in the seeds whose motion swapped the pair).
+
+An exchange on the first frame the hidden person is picked up again costs no identity switch;
+a later one (CLEAR MOT counts the wrong identity's start and the return) costs two, which is
+why the check happens once, on the first frame the blobs allow it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from jaxtrack.boxes import iou_matrix
+from jaxtrack.types import Detections
+
+#: IoU of two components' local decisions that opens an episode, and below which their two
+#: blobs count as apart.
+EXCHANGE_IOU = 0.4
+#: Episode states of a pair (:func:`next_episodes`).
+APART, OPEN, CHECKED = 0, 1, 2
+
+
+def slot_blobs(owner: Int[Array, " max_detections"], num_slots: int) -> Int[Array, " num_slots"]:
+    """The blob each slot owns (-1: none), from :func:`~jaxtrack.filters.cmt.blob_owners`'
+    owner of each blob (-1: free)."""
+    blobs = jnp.arange(owner.shape[0], dtype=jnp.int32)
+    target = jnp.where(owner >= 0, owner, num_slots)  # free blobs scatter to a dropped row
+    return jnp.full((num_slots + 1,), -1, jnp.int32).at[target].set(blobs)[:num_slots]
+
+
+def exchange_gains(
+    blob_log_appearance: Float[Array, "max_components max_detections"],
+    held: Int[Array, " max_components"],
+) -> Float[Array, "max_components max_components"]:
+    """``gain[i, j] = L_i(b_j) + L_j(b_i) - L_i(b_i) - L_j(b_j)`` (module docstring), with
+    ``b_s = held[s]`` (any index where a slot holds none; :func:`split_exchanges` masks
+    those pairs)."""
+    index = jnp.maximum(held, 0)
+    cross = blob_log_appearance[:, index]  # [i, j] = L_i(b_j)
+    own = jnp.diagonal(cross)
+    return cross + cross.T - own[:, None] - own[None, :]
+
+
+def split_exchanges(
+    episodes: Int[Array, "max_components max_components"],
+    owner: Int[Array, " max_detections"],
+    blobs: Detections,
+    blob_log_appearance: Float[Array, "max_components max_detections"],
+    eligible: Bool[Array, " max_components"],
+    margin: Float[Array, ""],
+) -> tuple[Int[Array, " max_components"], Bool[Array, "max_components max_components"]]:
+    """This frame's exchanges (module docstring).
+
+    Args:
+        episodes: the pairs' episode states (:data:`OPEN` pairs are checked).
+        owner: the component each blob is evidence for (-1: none).
+        blobs: the frame's blobs.
+        blob_log_appearance: ``L_s(b)``, each blob's appearance log-likelihood under each
+            component's model (unscaled by the appearance exponent).
+        eligible: components that may exchange (alive and confirmed).
+        margin: the gain (nats) an exchange needs.
+
+    Returns:
+        ``partner``: the slot whose identity each slot takes (itself when it does not
+        exchange), and ``checked``: the pairs checked this frame (symmetric).
+    """
+    num_slots = episodes.shape[0]
+    held = slot_blobs(owner, num_slots)
+    holds = eligible & (held >= 0)
+    index = jnp.maximum(held, 0)
+    own_boxes = blobs.boxes[index]
+    apart = iou_matrix(own_boxes, own_boxes, jnp) < EXCHANGE_IOU
+    distinct = held[:, None] != held[None, :]
+    checked = (episodes == OPEN) & holds[:, None] & holds[None, :] & distinct & apart
+    gains = jax.lax.stop_gradient(exchange_gains(blob_log_appearance, held))
+    scores = jnp.where(checked & (gains > margin), gains, -jnp.inf)
+    scores = jnp.where(jnp.tri(num_slots, k=-1, dtype=bool), scores, -jnp.inf)  # i > j once
+
+    def pick(carry, _):
+        remaining, partner = carry
+        best = jnp.argmax(remaining)
+        i, j = best // num_slots, best % num_slots
+        found = jnp.isfinite(remaining[i, j])
+        partner = jnp.where(found, partner.at[i].set(j).at[j].set(i), partner)
+        taken = (jnp.arange(num_slots) == i) | (jnp.arange(num_slots) == j)
+        cleared = taken[:, None] | taken[None, :]
+        remaining = jnp.where(found & cleared, -jnp.inf, remaining)
+        return (remaining, partner), None
+
+    partner = jnp.arange(num_slots, dtype=jnp.int32)
+    (_, partner), _ = jax.lax.scan(pick, (scores, partner), None, length=num_slots // 2)
+    return partner, checked
+
+
+def exchange_rows(partner: Int[Array, " max_components"], tree: Any) -> Any:
+    """Every leaf of ``tree`` (leading axis: slots) with row ``s`` taken from ``partner[s]``."""
+    return jax.tree.map(lambda leaf: leaf[partner], tree)
+
+
+def overlaps(
+    boxes: Float[Array, "max_components 4"], live: Bool[Array, " max_components"]
+) -> Bool[Array, "max_components max_components"]:
+    """Pairs of distinct living components whose boxes (``x, y, w, h``) overlap by IoU at
+    least :data:`EXCHANGE_IOU`."""
+    pairs = live[:, None] & live[None, :] & ~jnp.eye(live.shape[0], dtype=bool)
+    return pairs & (iou_matrix(boxes, boxes, jnp) >= EXCHANGE_IOU)
+
+
+def next_episodes(
+    episodes: Int[Array, "max_components max_components"],
+    checked: Bool[Array, "max_components max_components"],
+    boxes: Float[Array, "max_components 4"],
+    live: Bool[Array, " max_components"],
+) -> Int[Array, "max_components max_components"]:
+    """The episode states after the frame (module docstring).
+
+    A pair of living components whose decisions ``boxes`` (``x, y, w, h``) overlap by IoU at
+    least :data:`EXCHANGE_IOU` is :data:`OPEN`, unless it was checked this frame or before
+    while still overlapping (:data:`CHECKED`); an open pair stays open until checked; a
+    checked pair apart again is :data:`APART`. Pairs with a dead or new component, and a
+    component with itself, are :data:`APART`.
+    """
+    close = overlaps(boxes, live)
+    was_checked = checked | (episodes == CHECKED)
+    state = jnp.where(
+        close,
+        jnp.where(was_checked, CHECKED, OPEN),
+        jnp.where((episodes == OPEN) & ~checked, OPEN, APART),
+    )
+    pairs = live[:, None] & live[None, :] & ~jnp.eye(live.shape[0], dtype=bool)
+    return jnp.where(pairs, state, APART).astype(jnp.int8)
