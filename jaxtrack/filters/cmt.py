@@ -43,6 +43,12 @@ model look at the scene's context. One :func:`cmt_step` on
 6. **update** the appearance models and decayed histograms at the local decisions, except
    for components whose particles mostly drew *merge* (appearance frozen, Sec. IV-B).
 
+With ``exchange`` (``exchange_margin`` >= 0 in the configuration; not in the paper), two
+components whose decisions overlapped settle their identities by the observation model on
+the first frame their blobs are apart (:mod:`~jaxtrack.filters.cmt_exchanges`: between steps 2
+and 3 they swap identities and appearance models when each model explains the other's blob
+better by the margin), and a component overlapping another learns no appearance.
+
 A component is output (``tracks``) once a *confident* blob has explained it, on the frames a
 blob supports it (confident: scoring at least ``confirm_score``, or at least the
 ``confirm_quantile`` of the scores of every blob seen so far when that is lower:

@@ -4,13 +4,16 @@ in the CMT paper).
 Two people who cross give overlapping boxes and, while one hides the other, often a single
 blob. The two components then sit on the same blob and their particle clouds can change
 places; when the people separate, each component follows the blob its motion points to, and
-the box likelihood (:func:`~jaxtrack.filters.cmt.blob_owners`) outweighs the appearance term
-by tens of nats: measured in session 61 on twelve development crossings (synthetic video seeds
-222-227, ``top`` and ``bottom`` families), on the frames after the split where each person had
-a detection of their own the motion preferred the wrong pairing on 5 of 12 crossings, by 1 to
-45 nats, while COM's appearance term (times ``appearance_weight`` 3) preferred the right one
-by 0.2-1.7 nats. CMT's argument (Sec. V, Fig. 9) is that the observation model tells such
-targets apart; with the blob's box in the likelihood it never gets the chance.
+the box likelihood (:func:`~jaxtrack.filters.cmt.blob_owners`) outweighs the appearance term.
+Measured in session 61 on twelve development crossings (synthetic video seeds 222-227,
+``top`` and ``bottom`` families), on the first frame after the split where each person had a
+detection of their own: the motion preferred the wrong pairing on 5 of the 12, by 0.9-25 nats
+of box log-likelihood, and COM's appearance term (times ``appearance_weight`` 3) preferred
+the right one on 4 of those 5, by 0.2-1.1 nats. Eq. 11's mixture bounds that term: a person
+who matches a model on features of total weight ``w`` keeps at least ``w`` of its likelihood
+(gap at most ``-log w``), and most colour buckets are empty for both people. CMT's argument
+(Sec. V, Fig. 9) is that the observation model tells such targets apart; with the blob's box
+in the likelihood it never gets the chance.
 
 Here the components that collided keep their clouds (each goes on with the blob it holds) but
 the *identities* are settled by the observation model on the first frame the two are apart:

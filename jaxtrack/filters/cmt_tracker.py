@@ -187,12 +187,13 @@ class CMTConfig(TrackerConfig):
         ),
     )
     exchange_margin: float = setting(
-        -1.0,
+        0.1,
         Rule(
             "two components that collided exchange identities and appearance models when "
             "they separate if the observation model explains each one's blob by the other's "
             "model better by this many nats (cpd and cmt variants; "
-            "jaxtrack.filters.cmt_exchanges; negative: never, the paper's tracker)",
+            "jaxtrack.filters.cmt_exchanges; 0.1 since session 61; negative: never, the "
+            "paper's tracker)",
             float,
             -1.0,
             100.0,
