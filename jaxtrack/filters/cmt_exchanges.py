@@ -51,6 +51,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from jaxtrack.boxes import iou_matrix
+from jaxtrack.filters.hier_exchanges import exchanges
 from jaxtrack.types import Detections
 
 #: IoU of two components' local decisions that opens an episode, and below which their two
@@ -68,17 +69,13 @@ def slot_blobs(owner: Int[Array, " max_detections"], num_slots: int) -> Int[Arra
     return jnp.full((num_slots + 1,), -1, jnp.int32).at[target].set(blobs)[:num_slots]
 
 
-def exchange_gains(
+def paired_likelihoods(
     blob_log_appearance: Float[Array, "max_components max_detections"],
     held: Int[Array, " max_components"],
 ) -> Float[Array, "max_components max_components"]:
-    """``gain[i, j] = L_i(b_j) + L_j(b_i) - L_i(b_i) - L_j(b_j)`` (module docstring), with
-    ``b_s = held[s]`` (any index where a slot holds none; :func:`split_exchanges` masks
-    those pairs)."""
-    index = jnp.maximum(held, 0)
-    cross = blob_log_appearance[:, index]  # [i, j] = L_i(b_j)
-    own = jnp.diagonal(cross)
-    return cross + cross.T - own[:, None] - own[None, :]
+    """``[i, j] = L_i(b_j)``: the blob component ``j`` holds (``held[j]``; any index where it
+    holds none, masked by :func:`split_exchanges`) under component ``i``'s model."""
+    return blob_log_appearance[:, jnp.maximum(held, 0)]
 
 
 def split_exchanges(
@@ -112,23 +109,11 @@ def split_exchanges(
     apart = iou_matrix(own_boxes, own_boxes, jnp) < EXCHANGE_IOU
     distinct = held[:, None] != held[None, :]
     checked = (episodes == OPEN) & holds[:, None] & holds[None, :] & distinct & apart
-    gains = jax.lax.stop_gradient(exchange_gains(blob_log_appearance, held))
-    scores = jnp.where(checked & (gains > margin), gains, -jnp.inf)
-    scores = jnp.where(jnp.tri(num_slots, k=-1, dtype=bool), scores, -jnp.inf)  # i > j once
-
-    def pick(carry, _):
-        remaining, partner = carry
-        best = jnp.argmax(remaining)
-        i, j = best // num_slots, best % num_slots
-        found = jnp.isfinite(remaining[i, j])
-        partner = jnp.where(found, partner.at[i].set(j).at[j].set(i), partner)
-        taken = (jnp.arange(num_slots) == i) | (jnp.arange(num_slots) == j)
-        cleared = taken[:, None] | taken[None, :]
-        remaining = jnp.where(found & cleared, -jnp.inf, remaining)
-        return (remaining, partner), None
-
-    partner = jnp.arange(num_slots, dtype=jnp.int32)
-    (_, partner), _ = jax.lax.scan(pick, (scores, partner), None, length=num_slots // 2)
+    # The pair's gain L_i(b_j) + L_j(b_i) - L_i(b_i) - L_j(b_j) is the Hierarchical tracker's
+    # D(i, i) + D(j, j) - D(i, j) - D(j, i) with D = -L: its greedy resolution applies.
+    cross = jax.lax.stop_gradient(paired_likelihoods(blob_log_appearance, held))
+    partner = exchanges(-cross, checked, margin)
+    partner = jnp.where(partner >= 0, partner, jnp.arange(num_slots, dtype=jnp.int32))
     return partner, checked
 
 
