@@ -71,7 +71,9 @@ session 56: a component's support from the blobs' box likelihood alone, so
 ``appearance_weight`` above 1 does not delete followed targets; ``likelihood``, the paper's,
 before), ``information_correction``
 (0, the paper's; COM's mutual information lowered by this multiple of its chance level),
-``output``, ``max_gap``.
+``exchange_margin`` (0.1 since session 61; negative: never, the paper's tracker; two
+components that collided swap identities and appearance models when they separate if each
+one's model explains the other's blob better by this many nats), ``output``, ``max_gap``.
 
 ``--tracker hierarchical`` runs the Hierarchical tracker (SPEC section 4,
 ``jaxtrack.filters.hierarchical``): a bank of constant-velocity Kalman filters whose tracks
