@@ -424,7 +424,6 @@ def cmt_step(
     )
     exchanging = exchange and variant != "mtb"
     appearance_before = state.appearance
-    checked = None
     if exchanging:
         # Identities settled by the observation model when collided components separate;
         # the particles (this frame's weights included) stay with their clouds.
@@ -522,7 +521,8 @@ def cmt_step(
     merge_share = jnp.sum(jnp.exp(log_weights) * (conditions == MERGE), axis=-1)
     frozen = merge_share > 0.5
     if exchanging:  # a component overlapping another learns nothing (cmt_exchanges)
-        frozen = frozen | jnp.any(overlaps(particle_boxes(estimates), survivors), axis=1)
+        close = overlaps(particle_boxes(estimates), survivors)
+        frozen = frozen | jnp.any(close, axis=1)
     appearance = update_appearance(
         appearance_before,
         decision_features,
@@ -574,11 +574,9 @@ def cmt_step(
         graveyard=graveyard,
         free=free,
         score_counts=score_counts,
-        episodes=state.episodes
-        if checked is None
-        else next_episodes(
-            state.episodes, checked, particle_boxes(estimates), new_mixture.alive & ~born
-        ),
+        episodes=next_episodes(state.episodes, checked, close, survivors)
+        if exchanging
+        else state.episodes,
     )
     info = CMTInfo(
         tracks=tracks,

@@ -124,35 +124,39 @@ def exchange_rows(partner: Int[Array, " max_components"], tree: Any) -> Any:
     return jax.tree.map(lambda leaf: leaf[partner], tree)
 
 
+def living_pairs(
+    live: Bool[Array, " max_components"],
+) -> Bool[Array, "max_components max_components"]:
+    """Pairs of distinct living components."""
+    return live[:, None] & live[None, :] & ~jnp.eye(live.shape[0], dtype=bool)
+
+
 def overlaps(
     boxes: Float[Array, "max_components 4"], live: Bool[Array, " max_components"]
 ) -> Bool[Array, "max_components max_components"]:
     """Pairs of distinct living components whose boxes (``x, y, w, h``) overlap by IoU at
     least :data:`EXCHANGE_IOU`."""
-    pairs = live[:, None] & live[None, :] & ~jnp.eye(live.shape[0], dtype=bool)
-    return pairs & (iou_matrix(boxes, boxes, jnp) >= EXCHANGE_IOU)
+    return living_pairs(live) & (iou_matrix(boxes, boxes, jnp) >= EXCHANGE_IOU)
 
 
 def next_episodes(
     episodes: Int[Array, "max_components max_components"],
     checked: Bool[Array, "max_components max_components"],
-    boxes: Float[Array, "max_components 4"],
+    close: Bool[Array, "max_components max_components"],
     live: Bool[Array, " max_components"],
 ) -> Int[Array, "max_components max_components"]:
     """The episode states after the frame (module docstring).
 
-    A pair of living components whose decisions ``boxes`` (``x, y, w, h``) overlap by IoU at
-    least :data:`EXCHANGE_IOU` is :data:`OPEN`, unless it was checked this frame or before
+    A ``close`` pair (:func:`overlaps` of the living components' decisions) is :data:`OPEN`,
+    unless it was checked this frame or before
     while still overlapping (:data:`CHECKED`); an open pair stays open until checked; a
     checked pair apart again is :data:`APART`. Pairs with a dead or new component, and a
     component with itself, are :data:`APART`.
     """
-    close = overlaps(boxes, live)
     was_checked = checked | (episodes == CHECKED)
     state = jnp.where(
         close,
         jnp.where(was_checked, CHECKED, OPEN),
         jnp.where((episodes == OPEN) & ~checked, OPEN, APART),
     )
-    pairs = live[:, None] & live[None, :] & ~jnp.eye(live.shape[0], dtype=bool)
-    return jnp.where(pairs, state, APART).astype(jnp.int8)
+    return jnp.where(living_pairs(live), state, APART).astype(jnp.int8)

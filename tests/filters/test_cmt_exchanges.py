@@ -15,6 +15,7 @@ from jaxtrack.filters.cmt_exchanges import (
     OPEN,
     exchange_rows,
     next_episodes,
+    overlaps,
     paired_likelihoods,
     slot_blobs,
     split_exchanges,
@@ -56,9 +57,9 @@ def _blobs(boxes, num_slots=6):
 
 
 def _swapped_likelihoods(num_slots, num_blobs, pairs):
-    """``L[s, b]``: 0 everywhere, -2 on each slot's own blob and 0 on its partner's for the
-    pairs given as ``(slot, slot, own blob, own blob, gain)`` (the pair's gain is then
-    ``2 * 2 = 4`` scaled by the last entry / 4)."""
+    """``L[s, b]``: -5 everywhere except, for each pair ``(slot, slot, own blob, own blob,
+    gain)``, ``-gain / 4`` on each slot's own blob and ``+gain / 4`` on the other's, so that
+    the pair's gain ``L_i(b_j) + L_j(b_i) - L_i(b_i) - L_j(b_j)`` is ``gain``."""
     table = np.full((num_slots, num_blobs), -5.0, np.float32)
     for i, j, bi, bj, gain in pairs:
         table[i, bi] = table[j, bj] = -gain / 4
@@ -141,6 +142,11 @@ def test_exchange_rows_permute_every_leaf():
     assert np.asarray(got[1]).tolist() == [[2, 3], [0, 1], [4, 5], [6, 7]]
 
 
+def advance(episodes, checked, boxes, live):
+    """The episode states after a frame whose decisions are ``boxes``."""
+    return next_episodes(episodes, checked, overlaps(boxes, live), live)
+
+
 def test_episode_states_follow_their_rules():
     # Four slots; 0 and 1 overlap, 2 and 3 are far apart from everything.
     boxes = jnp.asarray(
@@ -149,27 +155,27 @@ def test_episode_states_follow_their_rules():
     live = jnp.ones(4, bool)
     none = jnp.zeros((4, 4), bool)
     start = jnp.full((4, 4), APART, jnp.int8)
-    opened = np.asarray(next_episodes(start, none, boxes, live))
+    opened = np.asarray(advance(start, none, boxes, live))
     assert opened[0, 1] == opened[1, 0] == OPEN and np.sum(opened != APART) == 2
     # Checked while still overlapping: CHECKED, and it stays so while they overlap.
     checked = none.at[0, 1].set(True).at[1, 0].set(True)
-    after = next_episodes(jnp.asarray(opened), checked, boxes, live)
+    after = advance(jnp.asarray(opened), checked, boxes, live)
     assert int(after[0, 1]) == CHECKED
-    assert int(next_episodes(after, none, boxes, live)[0, 1]) == CHECKED
+    assert int(advance(after, none, boxes, live)[0, 1]) == CHECKED
     # Apart: a checked pair is APART, an open unchecked one stays OPEN.
     far = boxes.at[1].set(jnp.asarray([60.0, 10.0, 16.0, 36.0]))
-    assert int(next_episodes(after, none, far, live)[0, 1]) == APART
-    assert int(next_episodes(jnp.asarray(opened), none, far, live)[0, 1]) == OPEN
-    assert int(next_episodes(jnp.asarray(opened), checked, far, live)[0, 1]) == APART
+    assert int(advance(after, none, far, live)[0, 1]) == APART
+    assert int(advance(jnp.asarray(opened), none, far, live)[0, 1]) == OPEN
+    assert int(advance(jnp.asarray(opened), checked, far, live)[0, 1]) == APART
     # A dead or new slot ends its pairs.
     one_dead = live.at[1].set(False)
-    assert int(next_episodes(jnp.asarray(opened), none, boxes, one_dead)[0, 1]) == APART
+    assert int(advance(jnp.asarray(opened), none, boxes, one_dead)[0, 1]) == APART
     # The threshold: 10 x 10 boxes 4 px apart overlap by IoU 60 / 140 = 0.43, 5 px apart by
     # 50 / 150 = 0.33, either side of EXCHANGE_IOU.
     assert 50 / 150 < EXCHANGE_IOU < 60 / 140
     for shift, want in ((4.0, OPEN), (5.0, APART)):
         pair = jnp.asarray([[0.0, 0.0, 10.0, 10.0], [shift, 0.0, 10.0, 10.0]])
-        got = next_episodes(jnp.full((2, 2), APART, jnp.int8), none[:2, :2], pair, live[:2])
+        got = advance(jnp.full((2, 2), APART, jnp.int8), none[:2, :2], pair, live[:2])
         assert int(got[0, 1]) == want
 
 
