@@ -14,6 +14,8 @@ confirmed identity the hypotheses that were dropped just before it at its place.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 
 from jaxtrack.boxes import iou_matrix
@@ -52,6 +54,7 @@ def finalise_tracks(
     first_frame: int = 1,
     trim: bool = False,
     chain_iou: float = 0.0,
+    breaks: Mapping[int, Sequence[int]] | None = None,
 ) -> MotTable:
     """Offline output: confirmed tracks over their whole life, short gaps interpolated.
 
@@ -65,6 +68,10 @@ def finalise_tracks(
         chain_iou: when positive, each confirmed identity first takes over the candidates
             that were never confirmed and ended just before it began
             (:func:`chain_candidates`, within ``max_gap`` frames, at this IoU); 0: off.
+        breaks: ``{identity: frames}``: for each frame ``f``, the identity's last gap that
+            ends at or before ``f`` is not filled (a join the tracker made with little
+            evidence, e.g. the Hierarchical tracker's re-association by a fallback model;
+            :func:`gap_breaks`). None: every gap up to ``max_gap`` is filled.
 
     Returns:
         The rows of every identity that appears in ``tracks``, taken from ``candidates``,
@@ -84,7 +91,12 @@ def finalise_tracks(
         own = own[np.argsort(kept.frames[own])]
         frames = kept.frames[own]
         steps = np.diff(frames)
-        for k in np.nonzero((steps > 1) & (steps <= max_gap + 1))[0]:
+        filled = (steps > 1) & (steps <= max_gap + 1)
+        for frame in (breaks or {}).get(int(identity), ()):
+            before = np.nonzero((steps > 1) & (frames[1:] <= frame))[0]
+            if before.size:
+                filled[before[-1]] = False
+        for k in np.nonzero(filled)[0]:
             start, end = own[k], own[k + 1]
             gap = np.arange(frames[k] + 1, frames[k + 1])
             fraction = ((gap - frames[k]) / steps[k])[:, None]
@@ -103,6 +115,26 @@ def finalise_tracks(
         np.concatenate([part.confs for part in parts]),
     )
     return merged.select(np.lexsort((merged.ids, merged.frames)))
+
+
+def gap_breaks(flags: np.ndarray, ids: np.ndarray, first_frame: int = 1) -> dict[int, list[int]]:
+    """The ``breaks`` of :func:`finalise_tracks` from per-frame, per-slot flags.
+
+    Args:
+        flags: ``[num_frames, slots]``, True where the slot's identity is not to be
+            interpolated across its gap before that frame.
+        ids: ``[num_frames, slots]``, the slots' identities on each frame.
+        first_frame: frame number of index 0.
+
+    Returns:
+        ``{identity: [frame, ...]}`` (frames in increasing order).
+    """
+    frame_index, slot = np.nonzero(np.asarray(flags))
+    identities = np.asarray(ids)[frame_index, slot].tolist()
+    breaks: dict[int, list[int]] = {}
+    for index, identity in zip(frame_index.tolist(), identities, strict=True):
+        breaks.setdefault(int(identity), []).append(index + first_frame)
+    return breaks
 
 
 def _within_evidence(rows: MotTable) -> np.ndarray:

@@ -171,6 +171,8 @@ class HierarchicalParams(NamedTuple):
         exchange_margin: the margin of the exchange check (step 4b; ``inf``: never).
         drift_check: > 0: the drift check of step 2b (0: only tracks resuming after
             coasting are checked).
+        fallback_appearance: > 0: a tracker never single learns while colliding (step 5's
+            fallback model), used only by the re-association of step 3.
     """
 
     low: LowParams
@@ -187,6 +189,7 @@ class HierarchicalParams(NamedTuple):
     score_weight: Float[Array, ""]
     exchange_margin: Float[Array, ""]
     drift_check: Float[Array, ""]
+    fallback_appearance: Float[Array, ""]
 
 
 class HighState(NamedTuple):
@@ -206,6 +209,8 @@ class HighState(NamedTuple):
         event: its event state (:data:`~jaxtrack.filters.hier_events.EVENT_NAMES`).
         partners: ``[S, S]``, the followed trackers it collided with since they were last
             both single (:mod:`~jaxtrack.filters.hier_exchanges`).
+        single_model: its appearance model was learned while single (it has been checkable
+            once since its start); False while it has none or only a fallback model.
     """
 
     ids: Int[Array, " S"]
@@ -219,6 +224,7 @@ class HighState(NamedTuple):
     reassociated: Bool[Array, " S"]
     event: Int[Array, " S"]
     partners: Bool[Array, "S S"]
+    single_model: Bool[Array, " S"]
 
 
 class HierarchicalState(NamedTuple):
@@ -251,6 +257,9 @@ class HierarchicalInfo(NamedTuple):
         merged: per high-level slot, the identity merged into it on the frame by a
             re-association (-1: none): the rows of that identity, before and after, are the
             tracker's (:func:`~jaxtrack.pipelines.events.merge_identities`).
+        unfilled: per high-level slot, it was re-associated on the frame by a fallback model
+            (``fallback_appearance``): the offline output does not interpolate its identity's
+            gap before the frame (:func:`~jaxtrack.association.offline.finalise_tracks`).
     """
 
     tracks: Tracks
@@ -267,6 +276,7 @@ class HierarchicalInfo(NamedTuple):
     low: LowInfo
     overflow: Bool[Array, ""]
     merged: Int[Array, " S"]
+    unfilled: Bool[Array, " S"]
 
 
 def init_high(num_slots: int) -> HighState:
@@ -286,6 +296,7 @@ def init_high(num_slots: int) -> HighState:
         reassociated=false,
         event=zeros,
         partners=jnp.zeros((num_slots, num_slots), bool),
+        single_model=false,
     )
 
 
@@ -424,6 +435,7 @@ def _start(high: HighState, starts, low: LowState, boxes, velocity, group_of):
         age=jnp.where(born, 0, high.age),
         reassociated=jnp.where(born, False, high.reassociated),
         event=jnp.where(born, 0, high.event),
+        single_model=jnp.where(born, False, high.single_model),
     )
     return high._replace(group=jnp.where(born, group_of(born, high), high.group)), new
 
@@ -474,7 +486,8 @@ def _check_resumed(
     )
     resumed = resumed | separated
     gated, testable = own_track_gate(previous.appearance, histograms[slot], params.appearance)
-    release = resumed & testable & ~gated
+    # A fallback model (learned while colliding) only re-associates; it refuses nothing.
+    release = resumed & testable & ~gated & high.single_model
     released = (
         jnp.zeros((num_tracks,), bool)
         .at[jnp.where(release, slot, num_tracks)]
@@ -590,6 +603,7 @@ def hierarchical_step(
             jnp.array(False),
             boxes,
             jnp.full_like(state.high.ids, -1),
+            jnp.zeros_like(state.high.ids, bool),
         )
         return state, info
 
@@ -618,6 +632,8 @@ def hierarchical_step(
     )
     reachable = _within_reach(high, boxes, params.search_rate) & ~released_pairs
     match = reassociate(distance, gated & reachable)
+    # A fallback model (learned while colliding) is weaker evidence: no gap filled across it.
+    unfilled = (match >= 0) & ~high.single_model
     high, merged = _take(high, match, owner, low, boxes, velocity)
     taken = (
         jnp.zeros((num_tracks,), bool)
@@ -635,13 +651,27 @@ def hierarchical_step(
     slot = jnp.clip(high.low_slot, 0)
     collisions = collision_map(high.boxes, alive, params.events.min_overlap)
     single = ~jnp.any(collisions, axis=1)
-    table = reset_slots(state.appearance, new.born)
     checkable = following & measured[slot] & low.confirmed[slot] & single & ~high.group
+    # A tracker's first single frame restarts its model (dropping a fallback model learned
+    # while colliding; without the fallback the model is still empty then: no change).
+    restart = checkable & ~high.single_model
+    table = reset_slots(state.appearance, new.born | restart)
+    fallback = (
+        (params.fallback_appearance > 0)
+        & following
+        & measured[slot]
+        & low.confirmed[slot]
+        & ~single
+        & ~high.group
+        & ~high.single_model
+    )
     fresh = following & ~new.born
     high = _undo_exchanges(high, collisions, fresh, checkable, table, histograms, params)
     slot = jnp.clip(high.low_slot, 0)
-    # A swap exchanges two checkable trackers' tracks: the set to update is unchanged.
-    update = checkable
+    # A swap exchanges two checkable trackers' tracks: the set to update is unchanged. A
+    # fallback update never meets a checkable tracker's (one is single, the other not).
+    update = checkable | fallback
+    high = high._replace(single_model=high.single_model | checkable)
     table = update_appearance(
         table,
         histograms[slot],
@@ -677,11 +707,12 @@ def hierarchical_step(
         new.overflow,
         boxes,
         merged,
+        unfilled,
     )
     return state, info
 
 
-def _info(tracks, candidates, state, low_info, overflow, boxes, merged):
+def _info(tracks, candidates, state, low_info, overflow, boxes, merged, unfilled):
     """The frame's :class:`HierarchicalInfo` (after the frame's ``state``; ``boxes``: its
     low-level estimates, :func:`~jaxtrack.filters.hier_low.low_boxes`)."""
     high, low = state.high, state.low
@@ -700,6 +731,7 @@ def _info(tracks, candidates, state, low_info, overflow, boxes, merged):
         low=low_info,
         overflow=overflow | (low_info.overflow > 0),
         merged=merged,
+        unfilled=unfilled,
     )
 
 

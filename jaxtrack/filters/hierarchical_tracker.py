@@ -175,6 +175,17 @@ class HierarchicalConfig(TrackerConfig):
             1,
         ),
     )
+    fallback_appearance: int = setting(
+        0,
+        Rule(
+            "1: a tracker that has never been single learns its appearance while colliding, "
+            "a fallback used only to re-associate it when lost; its first single frame "
+            "restarts the model (0: learned only while single, the issue's rule)",
+            int,
+            0,
+            1,
+        ),
+    )
     score_weight: float = setting(
         1.0,
         Rule(
@@ -286,6 +297,7 @@ def hierarchical_params(
         exchange_margin=margin_parameter(config.exchange_margin),
         score_weight=jnp.float32(config.score_weight),
         drift_check=jnp.float32(config.drift_check),
+        fallback_appearance=jnp.float32(config.fallback_appearance),
         resume_frames=jnp.float32(
             max(round(config.resume_seconds * fps), 1) if config.resume_seconds > 0 else jnp.inf
         ),
@@ -407,5 +419,6 @@ def hierarchical_properties(params: Any) -> Any:
         confirm_quantile=named("confirm_quantile"),
         exchange_margin=named("exchange_margin"),
         drift_check=named("drift_check"),
+        fallback_appearance=named("fallback_appearance"),
         score_weight=named("score_weight"),
     )

@@ -33,8 +33,10 @@ from jaxtrack.types import MotTable, Tracks
 
 class EventOutputs(NamedTuple):
     """Per frame: the tracks and candidates (for the result rows), the slots' events and
-    identities, the identities merged into them by re-associations, and whether a table was
-    full (``overflow``; None for a tracker without the flag)."""
+    identities, the identities merged into them by re-associations, whether a table was
+    full (``overflow``; None for a tracker without the flag) and the slots whose identity's
+    gap before the frame is not to be filled offline (``unfilled``, the Hierarchical
+    tracker's; None for a tracker without it)."""
 
     tracks: Tracks
     candidates: Tracks
@@ -42,6 +44,7 @@ class EventOutputs(NamedTuple):
     event_ids: Array
     merged: Array
     overflow: Any = None
+    unfilled: Any = None
 
 
 def event_outputs(state: Any, info: Any, index: Any) -> EventOutputs:
@@ -55,6 +58,7 @@ def event_outputs(state: Any, info: Any, index: Any) -> EventOutputs:
         info.event_ids,
         info.merged,
         getattr(info, "overflow", None),
+        getattr(info, "unfilled", None),
     )
 
 

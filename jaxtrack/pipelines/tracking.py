@@ -27,7 +27,7 @@ import numpy as np
 from tqdm import tqdm
 
 from jaxtrack.association.estimates import Estimates
-from jaxtrack.association.offline import finalise_tracks, track_rows
+from jaxtrack.association.offline import finalise_tracks, gap_breaks, track_rows
 from jaxtrack.association.retrodiction import RETRODICTION_IOU, detection_rows, retrodict
 from jaxtrack.association.smoothing import smooth_tracks
 from jaxtrack.configs import TrackerConfig
@@ -279,6 +279,7 @@ def output_rows(
     """
     if config.output == "online":
         return track_rows(info.tracks, first_frame)
+    unfilled = getattr(info, "unfilled", None)
     rows = finalise_tracks(
         info.tracks,
         info.candidates,
@@ -286,6 +287,7 @@ def output_rows(
         first_frame,
         trim=config.trims_tails,
         chain_iou=getattr(config, "chain_iou", 0.0),
+        breaks=None if unfilled is None else gap_breaks(unfilled, info.event_ids, first_frame),
     )
     frames = getattr(config, "retrodiction", 0)
     if frames and detections is not None:

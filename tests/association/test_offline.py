@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from jaxtrack.association.offline import chain_candidates, finalise_tracks, track_rows
+from jaxtrack.association.offline import (
+    chain_candidates,
+    finalise_tracks,
+    gap_breaks,
+    track_rows,
+)
 from jaxtrack.types import PAD_BOX, MotTable, Tracks
 
 
@@ -46,6 +51,35 @@ def test_finalise_backfills_confirmed_tracks_and_interpolates_short_gaps():
     assert np.all(np.diff(rows.frames) >= 0)
     no_gap = finalise_tracks(_tracks(online), _tracks(candidates))
     assert np.sum(no_gap.ids == 1) == 6
+
+
+def test_a_break_leaves_the_last_gap_before_it_unfilled():
+    """Identity 1 has rows on frames 1, 4, 5, 8, 9 (gaps 2-3 and 6-7, both short enough):
+    a break at frame 8 (the re-association's frame, as :func:`gap_breaks` gives it) or 7
+    (inside the gap: the gap ending at or before it is 2-3) leaves one gap unfilled; a break
+    on identity 2 or at frame 1 (no gap before it) changes nothing."""
+    frames = (0, 3, 4, 7, 8)
+    tracks = _tracks([(t, 0, 1, 10.0 * t) for t in frames], num_frames=9)
+    filled = finalise_tracks(tracks, tracks, max_gap=2)
+    assert filled.frames[filled.ids == 1].tolist() == list(range(1, 10))
+    for breaks, expected in (
+        ({1: [8]}, [1, 2, 3, 4, 5, 8, 9]),
+        ({1: [9]}, [1, 2, 3, 4, 5, 8, 9]),
+        ({1: [7]}, [1, 4, 5, 6, 7, 8, 9]),
+        ({1: [5, 8]}, [1, 4, 5, 8, 9]),
+        ({2: [8]}, list(range(1, 10))),
+        ({1: [1]}, list(range(1, 10))),
+    ):
+        rows = finalise_tracks(tracks, tracks, max_gap=2, breaks=breaks)
+        assert rows.frames[rows.ids == 1].tolist() == expected, breaks
+
+
+def test_gap_breaks_reads_the_flagged_slots_identities():
+    flags = np.zeros((4, 3), bool)
+    flags[1, 2] = flags[3, 0] = flags[3, 2] = True
+    ids = np.array([[5, -1, 7], [5, -1, 7], [5, 6, 7], [9, 6, 7]])
+    assert gap_breaks(flags, ids, first_frame=10) == {7: [11, 13], 9: [13]}
+    assert gap_breaks(np.zeros((2, 2), bool), np.zeros((2, 2), int)) == {}
 
 
 def _table(rows):
