@@ -176,11 +176,12 @@ class HierarchicalConfig(TrackerConfig):
         ),
     )
     fallback_appearance: int = setting(
-        0,
+        1,
         Rule(
             "1: a tracker that has never been single learns its appearance while colliding, "
-            "a fallback used only to re-associate it when lost; its first single frame "
-            "restarts the model (0: learned only while single, the issue's rule)",
+            "a fallback used only to re-associate it when lost (no gap interpolated across "
+            "such a re-association); its first single frame restarts the model (0: learned "
+            "only while single, the issue's rule)",
             int,
             0,
             1,

@@ -116,6 +116,7 @@ def test_the_first_single_frame_restarts_the_model():
     assert counts[0] == counts[1] > 0
 
 
-def test_the_fallback_is_off_by_default():
-    """Off: the issue's rule (learn only while single) until measured (README)."""
-    assert HierarchicalConfig().fallback_appearance == 0
+def test_the_fallback_is_on_by_default():
+    """On since session 62, by a rule written before a held-out run (README, "A fallback
+    appearance for trackers never single")."""
+    assert HierarchicalConfig().fallback_appearance == 1
