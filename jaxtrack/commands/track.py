@@ -100,7 +100,8 @@ tracks once apart when each one's appearance is nearer the other's box; negative
 ``drift_check`` (0; 1: a tracker single again after colliding lets its track go when its
 appearance gate refuses the track's box), ``fallback_appearance`` (1: a tracker never
 single learns its appearance while colliding, used only to re-associate it when lost, and no
-gap is interpolated across such a re-association; 0: learned only while single),
+gap is interpolated across such a re-association; 0: learned only while single; 2: group
+trackers learn one too),
 ``score_weight`` (1: the detections' score log-odds lower the association cost; 0: the
 paper's cost), ``output``, ``max_gap``; the noise used
 is printed and recorded in ``RES.config.json`` (``low_noise``).

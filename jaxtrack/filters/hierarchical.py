@@ -172,7 +172,8 @@ class HierarchicalParams(NamedTuple):
         drift_check: > 0: the drift check of step 2b (0: only tracks resuming after
             coasting are checked).
         fallback_appearance: > 0: a tracker never single learns while colliding (step 5's
-            fallback model), used only by the re-association of step 3.
+            fallback model), used only by the re-association of step 3; > 1: group trackers
+            too.
     """
 
     low: LowParams
@@ -662,7 +663,7 @@ def hierarchical_step(
         & measured[slot]
         & low.confirmed[slot]
         & ~single
-        & ~high.group
+        & (~high.group | (params.fallback_appearance > 1))
         & ~high.single_model
     )
     fresh = following & ~new.born

@@ -181,10 +181,10 @@ class HierarchicalConfig(TrackerConfig):
             "1: a tracker that has never been single learns its appearance while colliding, "
             "a fallback used only to re-associate it when lost (no gap interpolated across "
             "such a re-association); its first single frame restarts the model (0: learned "
-            "only while single, the issue's rule)",
+            "only while single, the issue's rule; 2: group trackers learn one too)",
             int,
             0,
-            1,
+            2,
         ),
     )
     score_weight: float = setting(

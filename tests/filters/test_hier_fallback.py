@@ -36,6 +36,30 @@ WALKER_COLOURS = [
 CONFIG = HierarchicalConfig(variant="full", max_tracks=8, max_trackers=8, fallback_appearance=1)
 
 
+#: Frames before target 0 first shows (its companions' trackers exist by then).
+LATE = 6
+
+
+def group_scene():
+    """Target 0 walks right between two companions, 12 px behind one and ahead of the other
+    (each overlapping a quarter of its box). It shows from frame :data:`LATE`, so its tracker
+    is born colliding with two existing trackers: a group tracker (Sec. 5.1). It is hidden in
+    :data:`HIDDEN`."""
+    colours = [*WALKER_COLOURS, ((240, 140, 20), (120, 20, 160))]
+    frames, kept = [], []
+    for t in range(NUM_FRAMES):
+        image = BACKGROUND.copy()
+        truth = [(22.0 + 1.5 * t + dx, 20.0, 16.0, 36.0) for dx in (0.0, 12.0, -12.0)]
+        shown = [t >= LATE and t not in HIDDEN, True, True]
+        # the companions first, target 0 on top (its box is drawn whole)
+        for k in (1, 2, 0):
+            if shown[k]:
+                two_tone(image, truth[k], *colours[3 if k == 2 else k])
+        frames.append(image)
+        kept.append([box for box, visible in zip(truth, shown, strict=True) if visible])
+    return frame_inputs(frames, kept, num_slots=4)
+
+
 def walk_scene(apart_from=None):
     """Target 0 and its companion walk right side by side (boxes 16 wide, 12 px apart); target
     0 is hidden in :data:`HIDDEN`. A third target walks left on a lower row. From frame
@@ -77,6 +101,22 @@ def test_a_tracker_never_single_is_reassociated_by_its_fallback_model(fallback, 
     assert len(before) == 1 and len(after) == 1
     assert (after == before) is kept
     assert bool((info.merged >= 0).sum() == 1) is kept
+
+
+@pytest.mark.parametrize(("fallback", "kept"), [(2, True), (1, False)])
+def test_group_trackers_learn_a_fallback_model_at_level_2(fallback, kept):
+    """Three people walk side by side; the middle one's tracker is born after the others',
+    colliding with both: a group tracker. With ``fallback_appearance=2`` it has a fallback
+    model and keeps its identity across the occlusion; at 1 (group trackers learn nothing)
+    the person comes back under a new identity."""
+    info, rows = tracked("full", group_scene(), fallback_appearance=fallback)
+    assert np.all(np.asarray(info.tracks.mask).sum(axis=1)[LATE + 6 : HIDDEN[0]] == 3)
+    expected_x = 22.0 + 1.5 * rows.frames
+    on_target = np.abs(rows.boxes[:, 0] - expected_x) < 4
+    before = set(rows.ids[on_target & (rows.frames <= HIDDEN[0])].tolist())
+    after = set(rows.ids[on_target & (rows.frames > HIDDEN[-1] + 8)].tolist())
+    assert len(before) == 1 and len(after) == 1
+    assert (after == before) is kept
 
 
 def test_no_gap_is_filled_across_a_fallback_reassociation():
