@@ -28,7 +28,8 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
    low-level track confirmed on this frame is first offered to the lost trackers: gated on
    the coincident features' Bhattacharyya distances, it goes to the nearest lost tracker
    within the gate, which keeps its identity. A lost tracker with no candidate in its gate
-   tries again on the next frames.
+   tries again on the next frames. A re-association made with a fallback model (step 5) is
+   flagged (``unfilled``): the offline output does not interpolate across it.
 4. **New trackers**: a confirmed track no lost tracker takes starts a high-level tracker with
    a new identity (the low-level track's); it is a *group* tracker when it is born colliding
    with two or more trackers (Sec. 5.1). Its appearance starts from the frame's histograms.
@@ -40,7 +41,11 @@ One :func:`hierarchical_step` on frame ``k`` (the paper's Fig. 1, top to bottom)
 5. **Appearance update** (Sec. 5.2-5.3): a tracker whose track is confirmed and measured on
    the frame, that is single (it collides with no other tracker) and not a group tracker,
    re-ranks its 49 colour features against the background model and updates its pool and
-   its mean histograms; otherwise its appearance is frozen.
+   its mean histograms; otherwise its appearance is frozen. Beyond the paper, with
+   ``fallback_appearance``: a tracker that has never been single (``HighState.single_model``
+   False) updates a *fallback* model while colliding (group trackers only at level 2), used
+   only by step 3; steps 2b and 4b never read it, and the tracker's first single frame
+   restarts its model.
 6. **Events** (Sec. 5.5, :mod:`~jaxtrack.filters.hier_events`): each tracker's state
    (single, grouping, grouped, splitting, entering) from the collision map of the
    estimates, in which a lost tracker's extrapolated box collides with no one (a group
