@@ -91,9 +91,10 @@ def finalise_tracks(
         own = own[np.argsort(kept.frames[own])]
         frames = kept.frames[own]
         steps = np.diff(frames)
-        filled = (steps > 1) & (steps <= max_gap + 1)
+        gaps = steps > 1
+        filled = gaps & (steps <= max_gap + 1)
         for frame in (breaks or {}).get(int(identity), ()):
-            before = np.nonzero((steps > 1) & (frames[1:] <= frame))[0]
+            before = np.nonzero(gaps & (frames[1:] <= frame))[0]
             if before.size:
                 filled[before[-1]] = False
         for k in np.nonzero(filled)[0]:

@@ -18,7 +18,7 @@ import pytest
 from jaxtrack.filters.base import run
 from jaxtrack.filters.hierarchical_tracker import HierarchicalConfig, build_hierarchical
 from jaxtrack.pipelines.tracking import output_rows
-from tests.filters.test_cmt import INFO, frame_inputs, two_tone
+from tests.filters.test_cmt import INFO, scene
 from tests.filters.test_hierarchical import BACKGROUND, NUM_FRAMES, tracked
 
 #: Frames in which target 0 is neither detected nor drawn (longer than the 12 frames a
@@ -40,24 +40,31 @@ CONFIG = HierarchicalConfig(variant="full", max_tracks=8, max_trackers=8, fallba
 LATE = 6
 
 
+def _scene(companions, target, shown, colours):
+    """:func:`~tests.filters.test_cmt.scene` of the ``companions[t]`` boxes, then target 0's
+    ``target[t]`` on top on the frames where ``shown(t)``; ``colours``: the companions', then
+    target 0's."""
+    return scene(
+        [[*companions[t], *([target[t]] if shown(t) else [])] for t in range(NUM_FRAMES)],
+        colours,
+    )
+
+
 def group_scene():
     """Target 0 walks right between two companions, 12 px behind one and ahead of the other
     (each overlapping a quarter of its box). It shows from frame :data:`LATE`, so its tracker
     is born colliding with two existing trackers: a group tracker (Sec. 5.1). It is hidden in
     :data:`HIDDEN`."""
-    colours = [*WALKER_COLOURS, ((240, 140, 20), (120, 20, 160))]
-    frames, kept = [], []
-    for t in range(NUM_FRAMES):
-        image = BACKGROUND.copy()
-        truth = [(22.0 + 1.5 * t + dx, 20.0, 16.0, 36.0) for dx in (0.0, 12.0, -12.0)]
-        shown = [t >= LATE and t not in HIDDEN, True, True]
-        # the companions first, target 0 on top (its box is drawn whole)
-        for k in (1, 2, 0):
-            if shown[k]:
-                two_tone(image, truth[k], *colours[3 if k == 2 else k])
-        frames.append(image)
-        kept.append([box for box, visible in zip(truth, shown, strict=True) if visible])
-    return frame_inputs(frames, kept, num_slots=4)
+    x = [22.0 + 1.5 * t for t in range(NUM_FRAMES)]
+    return _scene(
+        [
+            [(x[t] + 12.0, 20.0, 16.0, 36.0), (x[t] - 12.0, 20.0, 16.0, 36.0)]
+            for t in range(NUM_FRAMES)
+        ],
+        [(x[t], 20.0, 16.0, 36.0) for t in range(NUM_FRAMES)],
+        lambda t: t >= LATE and t not in HIDDEN,
+        [WALKER_COLOURS[1], ((240, 140, 20), (120, 20, 160)), WALKER_COLOURS[0]],
+    )
 
 
 def walk_scene(apart_from=None):
@@ -65,22 +72,20 @@ def walk_scene(apart_from=None):
     0 is hidden in :data:`HIDDEN`. A third target walks left on a lower row. From frame
     ``apart_from`` on (None: never) the companion walks twice as fast: their boxes part (no
     collision once 15 px apart, 2 frames later)."""
-    frames, kept = [], []
-    for t in range(NUM_FRAMES):
-        image = BACKGROUND.copy()
-        ahead = 12.0 + (1.5 * max(t - apart_from, 0) if apart_from is not None else 0.0)
-        truth = [
-            (10.0 + 1.5 * t, 20.0, 16.0, 36.0),
-            (10.0 + ahead + 1.5 * t, 20.0, 16.0, 36.0),
-            (130.0 - 1.5 * t, 76.0, 16.0, 36.0),
-        ]
-        shown = [t not in HIDDEN, True, True]
-        for box, (top, bottom), visible in zip(truth, WALKER_COLOURS, shown, strict=True):
-            if visible:
-                two_tone(image, box, top, bottom)
-        frames.append(image)
-        kept.append([box for box, visible in zip(truth, shown, strict=True) if visible])
-    return frame_inputs(frames, kept, num_slots=4)
+    x = [10.0 + 1.5 * t for t in range(NUM_FRAMES)]
+    ahead = [
+        12.0 + (1.5 * max(t - apart_from, 0) if apart_from is not None else 0.0)
+        for t in range(NUM_FRAMES)
+    ]
+    return _scene(
+        [
+            [(x[t] + ahead[t], 20.0, 16.0, 36.0), (130.0 - 1.5 * t, 76.0, 16.0, 36.0)]
+            for t in range(NUM_FRAMES)
+        ],
+        [(x[t], 20.0, 16.0, 36.0) for t in range(NUM_FRAMES)],
+        lambda t: t not in HIDDEN,
+        [WALKER_COLOURS[1], WALKER_COLOURS[2], WALKER_COLOURS[0]],
+    )
 
 
 def identities_of_target_0(rows):
