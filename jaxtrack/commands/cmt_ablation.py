@@ -8,7 +8,6 @@ from pathlib import Path
 
 from jaxtrack.commands.arguments import SEED_COUNT_TYPE, SEED_TYPE, consecutive_seeds
 from jaxtrack.commands.paths import check_outputs, output_folder, sequence_inputs, video_input
-from jaxtrack.configs import SMOOTHINGS
 from jaxtrack.datasets.video_files import TRUTH_FILE
 from jaxtrack.experiments.cmt_ablation import (
     ABLATION_FILES,
@@ -21,7 +20,7 @@ from jaxtrack.experiments.cmt_ablation import (
     run_cmt_ablation,
 )
 from jaxtrack.experiments.cmt_analysis import FIG8_FRAMES, FIG9_LEAD
-from jaxtrack.experiments.common import markdown_table
+from jaxtrack.experiments.common import EXPERIMENT_SMOOTHINGS, markdown_table
 
 SEEDS = " ".join(map(str, HELD_OUT_SEEDS))
 FIG8_SPAN = f"{FIG8_FRAMES[0]}-{FIG8_FRAMES[1]}"
@@ -80,12 +79,13 @@ def add_video_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--smoothing",
-        choices=SMOOTHINGS,
-        default="none",
-        help="every tracker's offline output re-estimated by the Rauch-Tung-Striebel smoother "
-        "(the configurations' smoothing setting, under the PHD tracker's dynamics; default "
-        "none: the trackers' own estimates, as the papers output them); the references "
-        "(True identities) are not trackers and stay as they are",
+        choices=EXPERIMENT_SMOOTHINGS,
+        default="default",
+        help="rts: every tracker's offline output re-estimated by the Rauch-Tung-Striebel "
+        "smoother (the configurations' smoothing setting, under the PHD tracker's dynamics); "
+        "none: every tracker's own estimates, as the papers output them; default: each "
+        "configuration's own (the Fusion tracker's is rts since session 63, the others' "
+        "none). The references (True identities) are not trackers and stay as they are",
     )
 
 

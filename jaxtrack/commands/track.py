@@ -30,7 +30,8 @@ offline output extends each confirmed track back by up to N frames onto the dete
 before its first box, IoU >= 0.5 with its constant-velocity box) and ``smoothing``
 ("none", default, or "rts": the offline output's boxes re-estimated by the
 Rauch-Tung-Striebel smoother under the tracker's own dynamics and noise; every tracker has
-the key, the others smooth under the PHD tracker's default noise)). Unknown keys, wrong
+the key, the others smooth under the PHD tracker's default noise; the Fusion tracker's
+default is "rts")). Unknown keys, wrong
 types and out-of-range values are errors naming the key.
 
 ``--context CTX.npz`` (from ``jaxtrack learn-context``) uses learned intensities; ``--variant``
@@ -134,7 +135,9 @@ output extends each target backwards onto the detections before its first box, a
 detection member's support gate IoU 0.3; 0, off, by default), ``hypothesis_rows``
 (``"chained"``, default: the hypotheses dropped just before a target's voted-in one, at its
 walked-back place, are its rows too; ``"voted"``: its rows start with the one voted in),
-``smoothing``;
+``smoothing`` (``"rts"``, default since session 63, beyond the paper: the offline output's
+boxes re-estimated by the Rauch-Tung-Striebel smoother; ``"none"``: the fused boxes as the
+tracker estimated them online; the online output is never smoothed);
 ``--pool`` and ``--fusion`` override the file's.
 
 A tracker that looks at the images (its registry entry ``uses_frames``, e.g. the appearance

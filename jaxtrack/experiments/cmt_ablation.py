@@ -70,6 +70,7 @@ from jaxtrack.experiments.common import (
     evaluate_rows,
     markdown_table,
     output_folder,
+    smoothed_names,
     smoothed_trackers,
     smoothing_sentence,
     summed_errors,
@@ -598,7 +599,7 @@ def run_cmt_ablation(
     quick: bool = False,
     progress: bool = True,
     tracker_seeds: int = 1,
-    smoothing: str = "none",
+    smoothing: str = "default",
 ) -> CMTAblation:
     """The whole experiment (module docstring): the table, the goals and both figures.
 
@@ -611,8 +612,9 @@ def run_cmt_ablation(
             seed + tracker_seeds - 1`` (>= 1); the table and the goals read their means.
         quick: a smoke run (:func:`experiment_sequences`, :func:`experiment_trackers`).
         progress: print each step and show a progress bar over the runs.
-        smoothing: every tracker's ``smoothing`` setting (``"none"``: the trackers' own
-            estimates; ``"rts"``: :mod:`jaxtrack.association.smoothing`); the scores read
+        smoothing: every tracker's ``smoothing`` setting (``"default"``: each
+            configuration's own; ``"none"``: the trackers' own estimates; ``"rts"``:
+            :mod:`jaxtrack.association.smoothing`); the scores read
             the smoothed rows, Fig. 8 and 9 (inside the trackers) do not change.
 
     Returns:
@@ -671,6 +673,7 @@ def run_cmt_ablation(
         "quick": quick,
         "seed": seed,
         "smoothing": smoothing,
+        "smoothed": smoothed_names(trackers),
         "tracker_seeds": run_seeds,
         "synthetic_seeds_held_out": list(seeds[:1] if quick else seeds),
         "sequences": [

@@ -31,7 +31,7 @@ from typing import NamedTuple
 
 import cv2
 
-from jaxtrack.configs import SMOOTHING, TrackerConfig
+from jaxtrack.configs import SMOOTHINGS, TrackerConfig
 from jaxtrack.context.samples import WARMUP_FRAMES
 from jaxtrack.datasets.scene_config import SceneConfig
 from jaxtrack.datasets.synthetic import generate_scene, write_scene
@@ -39,6 +39,7 @@ from jaxtrack.errors import InputError
 from jaxtrack.filters.phd_tracker import PHDConfig
 from jaxtrack.io import MotSequence, MotTable, load_sequence
 from jaxtrack.io.motchallenge import read_seqinfo
+from jaxtrack.limits import Rule
 from jaxtrack.metrics.errors import FN_KINDS, FP_KINDS, classify_errors
 from jaxtrack.metrics.evaluate import Evaluation, evaluate_sequence
 from jaxtrack.metrics.switches import SCORE_NAMES
@@ -235,31 +236,57 @@ def _git(root: Path, *args: str) -> str:
     return done.stdout.strip()
 
 
+#: The video experiments' ``--smoothing``: each configuration's own default (the Fusion
+#: tracker's offline output smoothed since session 63, the others' not), or one of
+#: :data:`~jaxtrack.configs.SMOOTHINGS` for every tracker.
+EXPERIMENT_SMOOTHINGS = ("default", *SMOOTHINGS)
+#: Its rule.
+EXPERIMENT_SMOOTHING = Rule(
+    "every compared tracker's smoothing: 'default' (each configuration's own), 'none' or "
+    "'rts' (all of them)",
+    str,
+    choices=EXPERIMENT_SMOOTHINGS,
+)
+
+
 def smoothed_trackers(
     trackers: dict[str, TrackerConfig], smoothing: str
 ) -> dict[str, TrackerConfig]:
     """Every configuration of ``trackers`` with its ``smoothing`` setting set to
-    ``smoothing`` (``"none"``: returned unchanged), in the same order.
+    ``smoothing`` (``"default"``: returned unchanged), in the same order.
 
     Raises:
         InputError: an unknown smoothing.
     """
-    SMOOTHING.check("smoothing", smoothing)
-    if smoothing == "none":
+    EXPERIMENT_SMOOTHING.check("smoothing", smoothing)
+    if smoothing == "default":
         return dict(trackers)
     return {name: config.replace(smoothing=smoothing) for name, config in trackers.items()}
 
 
+def smoothed_names(trackers: dict[str, TrackerConfig]) -> list[str]:
+    """The names of the configurations whose offline output is smoothed, in order (a
+    record's ``smoothed``)."""
+    return [name for name, config in trackers.items() if config.smoothing != "none"]
+
+
 def smoothing_sentence(record: dict) -> str:
-    """The sentence a ``table.md`` states its trackers' smoothing with (empty for a record
-    without smoothing: the trackers' own estimates)."""
-    smoothing = record.get("smoothing", "none")
-    if smoothing == "none":
+    """The sentence a ``table.md`` states its trackers' smoothing with: every tracker's
+    (``smoothing`` "rts"), those named in ``smoothed`` (their configurations' default), or
+    empty when none is smoothed (the trackers' own estimates)."""
+    if record.get("smoothing") == "rts":
+        return (
+            "Every tracker's output smoothed (`smoothing: rts`, "
+            "`jaxtrack.association.smoothing`): not the papers' protocol, which scores the "
+            "filters' own estimates. "
+        )
+    smoothed = record.get("smoothed", [])
+    if not smoothed:
         return ""
     return (
-        f"Every tracker's output smoothed (`smoothing: {smoothing}`, "
-        "`jaxtrack.association.smoothing`): not the papers' protocol, which scores the "
-        "filters' own estimates. "
+        f"Smoothed by their configuration's default (`smoothing: rts`, "
+        f"`jaxtrack.association.smoothing`; beyond the paper): {', '.join(smoothed)}; the "
+        "other trackers output their own estimates. "
     )
 
 

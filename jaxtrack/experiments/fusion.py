@@ -69,6 +69,7 @@ from jaxtrack.experiments.common import (
     error_section,
     evaluate_rows,
     markdown_table,
+    smoothed_names,
     smoothed_trackers,
     smoothing_sentence,
     summed_errors,
@@ -224,7 +225,7 @@ def run_experiment(
     seed: int = 0,
     quick: bool = False,
     progress: bool = True,
-    smoothing: str = "none",
+    smoothing: str = "default",
     init_rule: str = "share",
 ) -> dict[str, Any]:
     """The whole experiment (module docstring); writes ``table.md``, ``results.json`` and
@@ -238,8 +239,9 @@ def run_experiment(
         quick: a smoke run: TUD-Campus's and one short scene's first frames,
             :data:`QUICK_TRACKERS`.
         progress: print each step and show a progress bar over the runs.
-        smoothing: every tracker's ``smoothing`` setting (``"none"``: the trackers' own
-            estimates; ``"rts"``: :mod:`jaxtrack.association.smoothing`); the True
+        smoothing: every tracker's ``smoothing`` setting (``"default"``: each
+            configuration's own; ``"none"``: the trackers' own estimates; ``"rts"``:
+            :mod:`jaxtrack.association.smoothing`); the True
             identities reference is never smoothed.
         init_rule: every Fusion configuration's ``init_rule`` (``"share"``: the paper's
             99 % rule, the default; ``"cost"``:
@@ -282,6 +284,7 @@ def run_experiment(
         "quick": quick,
         "seed": seed,
         "smoothing": smoothing,
+        "smoothed": smoothed_names(trackers),
         "init_rule": init_rule,
         "synthetic_seeds_held_out": list(seeds[:1] if quick else seeds),
         "sequences": [s.name for s in sequences],

@@ -48,6 +48,7 @@ from jaxtrack.experiments.common import (
     error_section,
     evaluate_rows,
     markdown_table,
+    smoothed_names,
     smoothed_trackers,
     smoothing_sentence,
     summed_errors,
@@ -121,7 +122,7 @@ def run_experiment(
     seed: int = 0,
     quick: bool = False,
     progress: bool = True,
-    smoothing: str = "none",
+    smoothing: str = "default",
 ) -> dict[str, Any]:
     """The whole experiment (module docstring); writes ``table.md``, ``results.json`` and
     every result (``sequences/SEQ/SOURCE/TRACKER.txt``, with ``.events.csv`` for the full
@@ -134,8 +135,9 @@ def run_experiment(
         seed: the trackers' seed.
         quick: a smoke run on TUD-Campus's and one short scene's first frames.
         progress: print each step and show a progress bar over the runs.
-        smoothing: every variant's ``smoothing`` setting (``"none"``: the trackers' own
-            estimates; ``"rts"``: :mod:`jaxtrack.association.smoothing`).
+        smoothing: every variant's ``smoothing`` setting (``"default"``: each
+            configuration's own; ``"none"``: the trackers' own estimates; ``"rts"``:
+            :mod:`jaxtrack.association.smoothing`).
 
     Returns:
         The record written to ``results.json``.
@@ -179,6 +181,7 @@ def run_experiment(
         "quick": quick,
         "seed": seed,
         "smoothing": smoothing,
+        "smoothed": smoothed_names(configs),
         "synthetic_seeds_held_out": list(seeds[:1] if quick else seeds),
         "sequences": [s.name for s in sequences],
         "trackers": {name: tracker_description(c) for name, c in configs.items()},

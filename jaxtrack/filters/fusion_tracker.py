@@ -98,6 +98,19 @@ HYPOTHESIS_ROWS = ("voted", "chained")
 #: 0-2, 4-6, their detections and blobs): 0.1 made one wrong swap on PETS09-S2L1's
 #: detections (IDF1 -7), 0.2 and 0.3 none there, 0.2 gained most on the scenes' blobs.
 EXCHANGE_MARGIN = 0.2
+#: The offline output's smoothing when the configuration names none (``FusionConfig.
+#: smoothing``; session 63): the Rauch-Tung-Striebel smoother of
+#: :mod:`jaxtrack.association.smoothing`, beyond the paper. Made the default by a rule written
+#: before its held-out run (fresh synthetic video seeds 291-293, TUD-Campus, TUD-Stadtmitte,
+#: PETS09-S2L1 399:795; README, "The offline output smoothed by default"); the online output
+#: has nothing to smooth and gets ``"none"``.
+DEFAULT_SMOOTHING = "rts"
+#: ``FusionConfig.smoothing``'s rule: the shared one, whose default depends on the output.
+FUSION_SMOOTHING = dataclasses.replace(
+    SMOOTHING,
+    doc=SMOOTHING.doc
+    + f" (default: {DEFAULT_SMOOTHING!r} with the offline output, 'none' with the online one)",
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,9 +204,14 @@ class FusionConfig(TrackerConfig):
             choices=HYPOTHESIS_ROWS,
         ),
     )
-    smoothing: str = setting("none", SMOOTHING)
+    #: None: :data:`DEFAULT_SMOOTHING` for the offline output, ``"none"`` for the online one
+    #: (resolved on construction; a given value is kept and checked as every tracker's is).
+    smoothing: str = setting(None, FUSION_SMOOTHING)
 
     def __post_init__(self) -> None:
+        if self.smoothing is None:
+            default = DEFAULT_SMOOTHING if self.output == "offline" else "none"
+            object.__setattr__(self, "smoothing", default)
         super().__post_init__()
         check_retrodiction(self)
 

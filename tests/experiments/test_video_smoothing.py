@@ -17,9 +17,11 @@ from jaxtrack.experiments import cmt_ablation, fusion, hierarchical
 from jaxtrack.experiments.common import (
     environment,
     environment_line,
+    smoothed_names,
     smoothed_trackers,
     smoothing_sentence,
 )
+from jaxtrack.filters.fusion_tracker import FusionConfig
 
 
 class Captured(Exception):
@@ -32,8 +34,14 @@ def test_smoothed_trackers_sets_every_configuration_and_keeps_the_order():
     assert list(smoothed) == list(trackers)
     for name, config in smoothed.items():
         assert config.smoothing == "rts"
-        assert config.replace(smoothing="none") == trackers[name]
-    assert smoothed_trackers(trackers, "none") == trackers
+        assert config.replace(smoothing=trackers[name].smoothing) == trackers[name]
+    assert smoothed_trackers(trackers, "default") == trackers
+    plain = smoothed_trackers(trackers, "none")
+    assert list(plain) == list(trackers)
+    assert all(config.smoothing == "none" for config in plain.values())
+    # the Fusion configurations are smoothed by their default, the PHD baseline is not
+    assert smoothed_names(trackers) == [name for name in trackers if name != fusion.BASELINE]
+    assert smoothed_names(plain) == []
     with pytest.raises(InputError, match="smoothing"):
         smoothed_trackers(trackers, "kalman")
 
@@ -54,8 +62,17 @@ def test_the_experiment_runs_its_trackers_smoothed(module, monkeypatch, tmp_path
     assert seen and all(config.smoothing == "rts" for config in seen.values())
     seen.clear()
     with pytest.raises(Captured):
-        module.run_experiment(tmp_path, tmp_path, [101], progress=False)
+        module.run_experiment(tmp_path, tmp_path, [101], smoothing="none", progress=False)
     assert seen and all(config.smoothing == "none" for config in seen.values())
+    seen.clear()
+    with pytest.raises(Captured):
+        module.run_experiment(tmp_path, tmp_path, [101], progress=False)
+    # the default: each configuration's own (the Fusion tracker's "rts", the others' "none")
+    assert seen and all(
+        config.smoothing == ("rts" if isinstance(config, FusionConfig) else "none")
+        for config in seen.values()
+    )
+    assert any(isinstance(config, FusionConfig) for config in seen.values()) == (module is fusion)
 
 
 def test_the_cmt_ablation_tables_its_trackers_smoothed(monkeypatch, tmp_path):
@@ -103,8 +120,11 @@ def test_the_option_reaches_the_experiment(
         main([*argv, "--smoothing", "rts"])
     assert seen["smoothing"] == "rts"
     with pytest.raises(Captured):
-        main(argv)
+        main([*argv, "--smoothing", "none"])
     assert seen["smoothing"] == "none"
+    with pytest.raises(Captured):
+        main(argv)
+    assert seen["smoothing"] == "default"
 
 
 @pytest.mark.parametrize("name", ["hierarchical", "fusion"])
@@ -119,13 +139,17 @@ def test_help_states_the_smoothing(capsys):
         with pytest.raises(SystemExit):
             main(["experiment", name, "--help"])
         text = " ".join(capsys.readouterr().out.split())
-        assert "--smoothing {none,rts}" in text and "Rauch-Tung-Striebel" in text
+        assert "--smoothing {default,none,rts}" in text and "Rauch-Tung-Striebel" in text
 
 
 def test_the_table_states_the_smoothing():
     assert smoothing_sentence({"smoothing": "none"}) == ""
     assert smoothing_sentence({}) == ""
     assert "`smoothing: rts`" in smoothing_sentence({"smoothing": "rts"})
+    assert "Every tracker's" in smoothing_sentence({"smoothing": "rts", "smoothed": ["A"]})
+    assert smoothing_sentence({"smoothing": "default", "smoothed": []}) == ""
+    default = smoothing_sentence({"smoothing": "default", "smoothed": ["Naive fusion", "Proposed"]})
+    assert "their configuration's default" in default and "Naive fusion, Proposed;" in default
 
 
 def test_quick_hierarchical_run_smoothed_is_jaxtrack_track_smoothed(tmp_path, capsys, mot15_root):
