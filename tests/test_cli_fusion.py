@@ -13,11 +13,14 @@ import cv2
 import numpy as np
 import pytest
 
+from jaxtrack.association.smoothing import smooth_tracks
 from jaxtrack.cli import main
 from jaxtrack.commands.arguments import apply_fusion_arguments, parse_pool
+from jaxtrack.errors import InputError
 from jaxtrack.filters.fusion_tracker import FusionConfig
 from jaxtrack.io import read_mot_file, write_seqinfo
 from jaxtrack.io.video import id_colour
+from jaxtrack.pipelines.tracking import smoothing_noise
 from jaxtrack.plot.fusion_frames import (
     HYPOTHESIS_COLOUR,
     LEGEND_MARGIN,
@@ -141,6 +144,34 @@ def test_track_records_pool_fusion_and_training(sequence, tmp_path, capsys):
     assert used["pool"] == "detection,classifier" and used["fusion"] == "naive"
     assert used["training"].startswith("trained on frames 3:12; ground-truth trajectories")
     assert used["training"] in capsys.readouterr().err
+
+
+def test_the_offline_output_is_smoothed_by_default(sequence, tmp_path, capsys):
+    """The default offline output is the ``{"smoothing": "none"}`` output re-estimated by
+    the Rauch-Tung-Striebel smoother under the PHD tracker's default noise (session 63):
+    the same rows, frames and identities, other boxes. The online output has nothing to
+    smooth: its default is ``"none"``, and asking for ``"rts"`` there is refused."""
+    argv = ["track", str(sequence), "--tracker", "fusion", "--frames", f"1:{FRAMES}", *POOL]
+    plain_config = tmp_path / "plain.json"
+    plain_config.write_text(json.dumps({"smoothing": "none"}))
+    smoothed, plain = tmp_path / "smoothed.txt", tmp_path / "plain.txt"
+    assert main([*argv, "--out", str(smoothed), "--quiet"]) == 0
+    assert main([*argv, "--config", str(plain_config), "--out", str(plain), "--quiet"]) == 0
+    capsys.readouterr()
+    smoothed_rows = read_mot_file(smoothed, "res", NUM_FRAMES)
+    plain_rows = read_mot_file(plain, "res", NUM_FRAMES)
+    expected = smooth_tracks(plain_rows, *smoothing_noise(FusionConfig()))
+    np.testing.assert_array_equal(smoothed_rows.frames, expected.frames)
+    np.testing.assert_array_equal(smoothed_rows.ids, expected.ids)
+    np.testing.assert_allclose(smoothed_rows.boxes, expected.boxes, atol=0.01)
+    assert np.abs(smoothed_rows.boxes - plain_rows.boxes).max() > 0.01
+    used = json.loads((tmp_path / "smoothed.config.json").read_text())
+    assert used["smoothing"] == "rts"
+    assert FusionConfig().smoothing == "rts"
+    assert FusionConfig(output="online").smoothing == "none"
+    assert FusionConfig.from_dict({"output": "online"}).smoothing == "none"
+    with pytest.raises(InputError, match="smoothing 'rts'"):
+        FusionConfig(output="online", smoothing="rts")
 
 
 def test_track_video_annotates_members_fused_box_and_hypothesis(sequence, tmp_path, capsys):
