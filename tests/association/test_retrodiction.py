@@ -130,7 +130,9 @@ def test_fusion_retrodiction_walks_at_its_support_gate():
     mask = np.zeros((6, 1), bool)
     mask[2, 0] = True
     detections = Detections(det_boxes, mask.astype(np.float32), mask)
-    fusion = output_rows(info, FusionConfig(retrodiction=5, max_gap=0), 1, detections)
+    fusion = output_rows(
+        info, FusionConfig(retrodiction=5, max_gap=0, smoothing="none"), 1, detections
+    )
     phd = output_rows(info, PHDConfig(retrodiction=5, max_gap=0), 1, detections)
     assert sorted(fusion.frames.tolist()) == [3, 4, 5, 6]
     np.testing.assert_allclose(fusion.boxes[fusion.frames == 3], [[108.0, 50.0, W, H]])

@@ -172,7 +172,9 @@ def test_online_output_with_smoothing_is_refused_and_the_setting_round_trips(tra
         config_type(smoothing="kalman")
     config = config_type(smoothing="rts")
     assert config_type.from_dict(config.to_dict()) == config
-    assert config_type().smoothing == "none"
+    # off by default, except the Fusion tracker's offline output (session 63)
+    assert config_type().smoothing == ("rts" if tracker == "fusion" else "none")
+    assert config_type(output="online").smoothing == "none"
 
 
 def test_kalman_tracker_smooths_under_the_phd_trackers_default_noise(mot15_root):
