@@ -172,6 +172,14 @@ def test_the_offline_output_is_smoothed_by_default(sequence, tmp_path, capsys):
     assert FusionConfig.from_dict({"output": "online"}).smoothing == "none"
     with pytest.raises(InputError, match="smoothing 'rts'"):
         FusionConfig(output="online", smoothing="rts")
+    # a change of output alone follows the output's default; a smoothing given is kept
+    assert FusionConfig().replace(output="online").smoothing == "none"
+    assert FusionConfig(output="online").replace(output="offline").smoothing == "rts"
+    assert FusionConfig(smoothing="none").replace(output="online").smoothing == "none"
+    assert FusionConfig(smoothing="none").replace(output="offline").smoothing == "none"
+    assert FusionConfig().replace(max_gap=3).smoothing == "rts"
+    with pytest.raises(InputError, match="smoothing 'rts'"):
+        FusionConfig().replace(output="online", smoothing="rts")
 
 
 def test_track_video_annotates_members_fused_box_and_hypothesis(sequence, tmp_path, capsys):

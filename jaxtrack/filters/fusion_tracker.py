@@ -105,6 +105,14 @@ EXCHANGE_MARGIN = 0.2
 #: PETS09-S2L1 399:795; README, "The offline output smoothed by default"); the online output
 #: has nothing to smooth and gets ``"none"``.
 DEFAULT_SMOOTHING = "rts"
+
+
+def _default_smoothing(output: str) -> str:
+    """``FusionConfig.smoothing`` when none is given: :data:`DEFAULT_SMOOTHING` for the
+    offline output, ``"none"`` for the online one."""
+    return DEFAULT_SMOOTHING if output == "offline" else "none"
+
+
 #: ``FusionConfig.smoothing``'s rule: the shared one, whose default depends on the output.
 FUSION_SMOOTHING = dataclasses.replace(
     SMOOTHING,
@@ -210,10 +218,19 @@ class FusionConfig(TrackerConfig):
 
     def __post_init__(self) -> None:
         if self.smoothing is None:
-            default = DEFAULT_SMOOTHING if self.output == "offline" else "none"
-            object.__setattr__(self, "smoothing", default)
+            object.__setattr__(self, "smoothing", _default_smoothing(self.output))
         super().__post_init__()
         check_retrodiction(self)
+
+    def replace(self, **changes: Any) -> FusionConfig:
+        """A copy with some keys changed (validated). A change of ``output`` alone takes the
+        new output's default smoothing when this one has its output's default, so that
+        ``FusionConfig().replace(output="online")`` is not refused for a smoothing nobody
+        asked for."""
+        default = self.smoothing == _default_smoothing(self.output)
+        if "output" in changes and "smoothing" not in changes and default:
+            changes = {**changes, "smoothing": None}
+        return super().replace(**changes)
 
     @property
     def chain_iou(self) -> float:
