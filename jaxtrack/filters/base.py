@@ -14,6 +14,7 @@ from jaxtyping import Array
 
 from jaxtrack.context.intensity import DEFAULT_FRAME_RATE
 from jaxtrack.errors import InputError
+from jaxtrack.filters import draws
 from jaxtrack.types import PAD_BOX, Detections, FrameInputs, SequenceInfo
 
 
@@ -204,9 +205,9 @@ def run(
         raise ValueError("frames need chunk_frames (a host loop over chunks)")
     if chunk_frames is not None and not isinstance(inputs, Detections):
         raise ValueError("a chunked run takes Detections; give its images as frames=")
-    key_init, key_frames = jax.random.split(key)
+    key_init, key_frames = draws.split(key)
     num_frames = int(np.shape(jax.tree.leaves(inputs)[0])[0])
-    frame_keys = jax.random.split(key_frames, num_frames)
+    frame_keys = draws.split(key_frames, num_frames)
     if chunk_frames is not None:
         return _run_chunks(
             filt,
@@ -387,8 +388,8 @@ def run_batch(
     if sizes != {batch}:
         raise InputError(f"{batch} keys but parameters with batch sizes {sorted(sizes)}")
     num_frames = int(np.shape(inputs.mask)[0])
-    key_init, key_frames = jax.vmap(jax.random.split, out_axes=1)(keys)
-    frame_keys = jax.vmap(lambda k: jax.random.split(k, num_frames))(key_frames)
+    key_init, key_frames = jax.vmap(draws.split, out_axes=1)(keys)
+    frame_keys = jax.vmap(lambda k: draws.split(k, num_frames))(key_frames)
     group_size = min(group_size, batch)
     groups = [
         np.minimum(np.arange(start, start + group_size), batch - 1)

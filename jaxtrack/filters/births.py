@@ -150,7 +150,7 @@ def birth_requests(
     "detections"`` also, from ``fold_in(key, 1)`` split in two, the proposal's Gaussian
     draws ``normal(k3, (draw_slots J, 2))`` and its choices ``uniform(k4, (draw_slots J,
     2))`` (:func:`propose_velocities`); the first two are the same numbers either way."""
-    key_gauss, key_velocity = jax.random.split(key)
+    key_gauss, key_velocity = draws.split(key)
     num_births = draw_slots * births_per_detection
     requests = [
         draws.normal(key_gauss, (draw_slots, births_per_detection, 4), dtype),

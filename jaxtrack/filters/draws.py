@@ -58,13 +58,17 @@ def uniform(
     return Request(key, tuple(shape), minval, maxval, jnp.dtype(dtype))
 
 
-def draw(requests: list[Request]) -> list[Array]:
+def draw(requests: list[Request], written: bool = True) -> list[Array]:
     """The requested arrays, from one evaluation of the Threefry hash when the keys allow.
 
     Args:
         requests: from :func:`normal` and :func:`uniform`; keys typed (``jax.random.key``)
             or raw (``jax.random.PRNGKey``), unbatched inside the traced function (``vmap``
             over keys is fine).
+        written: write the arrays to memory once (:func:`~jaxtrack.control.materialise`, a
+            one-trip loop); False leaves them to XLA, which fuses the hash into their
+            consumers: for a handful of numbers (a resampling's single uniform), where the
+            loop's own kernels would cost more than recomputing them.
 
     Returns:
         One array per request, equal to the separate ``jax.random`` call's. Requests of
@@ -101,9 +105,40 @@ def draw(requests: list[Request]) -> list[Array]:
             start += size
         return out
 
+    if not written:
+        return convert(bits)
     # Written once: fused into their consumers, the normals' inverse error function would
     # run once per state component a draw enters (6 per particle for 4 draws).
     return materialise(convert, bits)
+
+
+def split(key: Array, num: int = 2) -> Array:
+    """``jax.random.split(key, num)``, bit for bit, with the hash written out.
+
+    ``jax.random.split`` evaluates Threefry through JAX's CPU lowering, a rolled loop of five
+    iterations of a dozen small kernels, whatever the size: splitting a step's key cost a
+    PETS09-S2L1 frame more kernels than its resampling. Here the same words come from
+    :func:`threefry2x32`, one small fusion. Under ``jax_threefry_partitionable`` new key
+    ``i`` is the hash of the 64-bit counter ``i`` under ``key``; for other key
+    implementations or settings this is ``jax.random.split``.
+
+    Args:
+        key: a typed (``jax.random.key``) or raw (``jax.random.PRNGKey``) key, unbatched
+            inside the traced function (``vmap`` over keys is fine).
+        num: keys to make (static).
+
+    Returns:
+        ``[num]`` keys of ``key``'s kind.
+    """
+    if not _merges(key):
+        return jax.random.split(key, num)
+    words = _key_words(key)
+    count_lo = jax.lax.iota(jnp.uint32, num)
+    hi, lo = threefry2x32(words[0], words[1], jnp.zeros_like(count_lo), count_lo)
+    data = jnp.stack([hi, lo], axis=1)
+    if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
+        return jax.random.wrap_key_data(data, impl=jax.random.key_impl(key))
+    return data
 
 
 _ROTATIONS = ((13, 15, 26, 6), (17, 29, 16, 24))

@@ -918,7 +918,7 @@ def _frame_step(
 ) -> tuple[PHDState, PHDInfo]:
     """:func:`phd_step` on every slot of ``detections`` (its arguments)."""
     predict, births, update, resample, extract, label, expected_birth_mass = stages
-    key_motion, key_birth, key_resample, key_extract = jax.random.split(key, 4)
+    key_motion, key_birth, key_resample, key_extract = draws.split(key, 4)
     measurements = xywh_to_cxcywh(detections.boxes, jnp)
     motion_kw, birth_kw = _joint_draws(predict, births, key_motion, key_birth, state, detections)
     particles, log_weights = predict(

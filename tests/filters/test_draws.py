@@ -122,3 +122,42 @@ def test_recursion_draws_are_the_stages_own_draws():
     alone, none = phd_module.recursion_draws(key_motion, key_birth, 96, jnp.float32)
     np.testing.assert_array_equal(alone, normal)
     assert none is None
+
+
+def _words(keys):
+    if jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
+        return np.asarray(jax.random.key_data(keys))
+    return np.asarray(keys)
+
+
+@pytest.mark.parametrize("make_key", [jax.random.key, jax.random.PRNGKey], ids=["typed", "raw"])
+@pytest.mark.parametrize("num", [1, 2, 4, 795])
+def test_split_equals_jax_random_split_bit_for_bit(make_key, num):
+    for seed in (0, 17, 2**31 + 5):
+        key = make_key(seed)
+        expected = jax.random.split(key, num)
+        got = jax.jit(draws.split, static_argnums=1)(key, num)
+        assert got.dtype == expected.dtype and got.shape == expected.shape
+        np.testing.assert_array_equal(_words(got), _words(expected))
+    # Batched keys (run_batch splits every configuration's key).
+    keys = jax.random.split(make_key(9), 3)
+    batched = jax.vmap(lambda k: draws.split(k, num))(keys)
+    for b in range(3):
+        np.testing.assert_array_equal(_words(batched[b]), _words(jax.random.split(keys[b], num)))
+
+
+def test_split_of_another_key_implementation_is_jax_random_split():
+    key = jax.random.key(4, impl="rbg")
+    np.testing.assert_array_equal(_words(draws.split(key, 3)), _words(jax.random.split(key, 3)))
+
+
+def test_unwritten_draws_equal_the_written_ones():
+    keys = jax.random.split(jax.random.key(6), 3)
+    written = jax.jit(lambda *a: draws.draw(_requests(*a)))(*keys, LOWER, UPPER)
+    fused = jax.jit(lambda *a: draws.draw(_requests(*a), written=False))(*keys, LOWER, UPPER)
+    for got, expected in zip(fused, written, strict=True):
+        np.testing.assert_array_equal(got, expected)
+    # The resampling's single uniform is jax.random.uniform's number.
+    key = jax.random.key(11)
+    (offset,) = jax.jit(lambda k: draws.draw([draws.uniform(k, ())], written=False))(key)
+    np.testing.assert_array_equal(offset, jax.random.uniform(key, ()))

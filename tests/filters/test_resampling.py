@@ -11,6 +11,7 @@ from jaxtrack.filters.resampling import (
     _inverse_cdf,
     cumulative_probs,
     multinomial,
+    prefix_sum,
     resample,
     residual,
     stratified,
@@ -121,3 +122,29 @@ def test_systematic_counting_equals_binary_search_of_the_points(n, num_samples):
             np.asarray(systematic(key, probs, num_samples)),
             np.asarray(_inverse_cdf(probs, points)),
         )
+
+
+@pytest.mark.parametrize("n", [1, 31, 32, 33, 1000, 1025, 100_003])
+def test_prefix_sum_of_integers_is_exact(n):
+    counts = np.random.default_rng(n).integers(0, 5, n).astype(np.int32)
+    got = jax.jit(prefix_sum)(jnp.asarray(counts))
+    assert got.dtype == jnp.int32
+    np.testing.assert_array_equal(got, np.cumsum(counts))
+    # Every count in one place (a systematic histogram's extreme): still exact.
+    spike = np.zeros(n, np.int32)
+    spike[n // 2] = n
+    np.testing.assert_array_equal(prefix_sum(jnp.asarray(spike)), np.cumsum(spike))
+
+
+@pytest.mark.parametrize("n", [7, 32, 2560, 100_000])
+def test_prefix_sum_of_floats_is_within_a_few_ulps_of_the_total(n):
+    values = np.random.default_rng(n).exponential(size=n).astype(np.float32)
+    exact = np.cumsum(values.astype(np.float64))
+    got = np.asarray(jax.jit(prefix_sum)(jnp.asarray(values)), np.float64)
+    ulp = np.spacing(np.float32(exact[-1]))
+    assert np.max(np.abs(got - exact)) < 4 * ulp
+    # Under vmap (a sweep's configurations), each row as alone.
+    batch = np.stack([values, values[::-1]])
+    batched = jax.vmap(prefix_sum)(jnp.asarray(batch))
+    for row, alone in zip(np.asarray(batched), batch, strict=True):
+        np.testing.assert_allclose(row, np.cumsum(alone.astype(np.float64)), rtol=0, atol=4 * ulp)
