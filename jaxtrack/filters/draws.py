@@ -12,6 +12,9 @@ array equals the separate call's bit for bit (tested). The arrays are written to
 (:func:`~jaxtrack.control.materialise`), which changes how XLA fuses the arithmetic that
 reads them: a tracker's results then differ from the separate calls' at float32 rounding.
 
+:func:`split` likewise gives ``jax.random.split``'s keys from the hash written out: the step's
+key splits were each a rolled loop of their own (session 64).
+
 That equality rests on ``jax.random``'s documented bit layout for Threefry keys under
 ``jax_threefry_partitionable`` (the default since JAX 0.5: the bits of element ``i`` of a
 draw hash the 64-bit counter ``i`` with the key, and a 32-bit draw is the xor of the two
