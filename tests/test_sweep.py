@@ -25,7 +25,6 @@ from jaxtrack.pipelines.sweep import (
     BIRTH_RATE,
     CLUTTER_RATE,
     _config_keys,
-    _shared_leaves,
     batch_params,
     magnitude_grid,
     pad_components,
@@ -69,12 +68,7 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_r
     params = phd_params(PHDConfig(), campus.info)
     updates = magnitude_grid(CLUTTER_RATES, BIRTH_RATES)
     key = jax.random.PRNGKey(3)
-    # chunk_size 4: the six configurations as two chunks of three, each of one clutter rate
-    # (its clutter magnitude and every unswept leaf reach the program unbatched).
-    assert (
-        _shared_leaves(jax.tree.leaves(batch_params(params, updates)), np.arange(6), 3).count(False)
-        == 1
-    )
+    # chunk_size 4: the six configurations as two chunks of three.
     result = sweep(
         small_filter,
         params,
@@ -107,20 +101,6 @@ def test_vmapped_sweep_equals_loop_of_single_runs(campus, small_filter, single_r
     assert set(result.seconds) == {*phases, "total"}
     assert all(result.seconds[name] > 0 for name in phases)
     assert sum(result.seconds[name] for name in phases) <= result.seconds["total"]
-
-
-def test_leaves_with_one_value_per_device_group_go_unbatched():
-    clutter = np.repeat(CLUTTER_RATES, 3)  # one value per group of three
-    birth = np.tile(BIRTH_RATES, 2)
-    leaves = [clutter, birth, np.full((6, 2), 0.9), np.full(6, np.nan)]
-    order = np.arange(6)
-    assert _shared_leaves(leaves, order, 3) == (True, False, True, False)
-    # Groups of two mix the clutter rates in the middle group: batched.
-    assert _shared_leaves(leaves, order, 2) == (False, False, True, False)
-    # A padded last call repeats the last configuration (order 0..4, 4): still one value.
-    assert _shared_leaves([leaf[:5] for leaf in leaves], np.minimum(order, 4), 3) == (
-        True, False, True, False
-    )  # fmt: skip
 
 
 def test_sweep_online_output_and_per_configuration_keys(campus, small_filter, single_run):

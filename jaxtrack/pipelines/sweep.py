@@ -367,25 +367,15 @@ def sweep(
     device_detections = jax.tree.map(lambda x: _put(x, replicated), detections)
     sharded = NamedSharding(mesh, PartitionSpec("batch"))
 
-    leaves, treedef = jax.tree.flatten(batched)
-    shared = _shared_leaves(leaves, order, per_device)
-
     def arguments(c):
         window = order[c * chunk : (c + 1) * chunk]
-        # A leaf with one value per device group goes as that value (one per device).
-        heads = window[::per_device]
-        chunk_params = treedef.unflatten(
-            [
-                _put(leaf[heads] if unbatched else leaf[window], sharded)
-                for leaf, unbatched in zip(leaves, shared, strict=True)
-            ]
-        )
+        chunk_params = jax.tree.map(lambda leaf: _put(leaf[window], sharded), batched)
         return _put(keys[window], sharded), chunk_params, device_detections
 
     first_arguments = arguments(0)
     seconds = dict.fromkeys(("trace", "compile", "wait", "score"), 0.0)
     start = time.perf_counter()
-    lowered = _sweep_function(filt, mesh, key_impl, treedef, shared).lower(*first_arguments)
+    lowered = _sweep_function(filt, mesh, key_impl).lower(*first_arguments)
     seconds["trace"] = time.perf_counter() - start
     compiled = lowered.compile()
     seconds["compile"] = time.perf_counter() - start - seconds["trace"]
@@ -542,30 +532,8 @@ def sweep_frames(
     )
 
 
-def _shared_leaves(leaves: list[np.ndarray], order: np.ndarray, per_device: int) -> tuple:
-    """Per parameter leaf, whether every device group of the sweep holds one value of it.
-
-    The groups are ``order``'s consecutive runs of ``per_device`` configurations (one
-    device's share of a call). In a magnitude sweep only the two magnitudes vary, and within
-    a group often only one: the learned mixtures, noise levels and probabilities are the
-    same for every member. Such a leaf is handed to the group's program once, unbatched
-    (``vmap``'s ``in_axes=None``), so its work (a learned birth mixture evaluated at every
-    birth particle is a product with the components' parameters; a clutter mixture at the
-    shared detections) is done once for the group, as one larger product, instead of once
-    per member. Values are compared exactly (NaN never equals itself: such a leaf stays
-    batched). The groups do not depend on the number of devices, so neither does this.
-    """
-    shared = []
-    for leaf in leaves:
-        groups = leaf[order].reshape(-1, per_device, *leaf.shape[1:])
-        shared.append(bool(np.array_equal(groups, np.broadcast_to(groups[:, :1], groups.shape))))
-    return tuple(shared)
-
-
 @functools.lru_cache(maxsize=8)
-def _sweep_function(
-    filt: Filter, mesh: Mesh, key_impl: str | None, treedef: Any, shared: tuple[bool, ...]
-):
+def _sweep_function(filt: Filter, mesh: Mesh, key_impl: str | None):
     """``jit(shard_map(vmap(run)))`` over the ``batch`` axis of ``mesh`` (cached per filter).
 
     ``shard_map`` gives every device its own slice of configurations to run independently:
@@ -573,9 +541,7 @@ def _sweep_function(
     the partitioner turn the batched predicates of the filter's while loops into
     cross-device all-reduces inside the loops, which is slow and can deadlock XLA's CPU
     client with forced host devices.) Keys arrive as raw key data; ``key_impl`` names the
-    implementation of typed keys (None for raw keys). The parameters' leaves marked in
-    ``shared`` (:func:`_shared_leaves`, in ``treedef``'s order) arrive as one value per
-    device and are not batched.
+    implementation of typed keys (None for raw keys).
     """
 
     def one(key, params, detections):
@@ -586,19 +552,10 @@ def _sweep_function(
         total = jnp.nan if log_likelihood is None else jnp.sum(log_likelihood)
         return info.tracks, info.candidates, total
 
-    param_axes = treedef.unflatten([None if unbatched else 0 for unbatched in shared])
-
-    def group(keys, params, detections):
-        leaves = treedef.flatten_up_to(params)
-        params = treedef.unflatten(
-            [leaf[0] if unbatched else leaf for leaf, unbatched in zip(leaves, shared, strict=True)]
-        )
-        return jax.vmap(one, in_axes=(0, param_axes, None))(keys, params, detections)
-
     batch = PartitionSpec("batch")
     return jax.jit(
         jax.shard_map(
-            group,
+            jax.vmap(one, in_axes=(0, 0, None)),
             mesh=mesh,
             in_specs=(batch, batch, PartitionSpec()),
             out_specs=batch,
